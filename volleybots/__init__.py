@@ -1,0 +1,27 @@
+"""volleybots: multi-drone volleyball testbed (TorchRL envs, batched torch / MuJoCo physics)."""
+
+from __future__ import annotations
+
+__version__ = "0.1.0"
+
+
+def make_env(task: str, num_envs: int = 1, action_space: str = "prt", physics: str = "torch", device="cpu", seed: int = 0, **task_overrides):
+    """Build the TorchRL env of ``task`` with ``num_envs`` worlds batched together.
+
+    ``action_space``: "prt" (per-rotor thrust), "ctbr" (collective thrust + body rates) or
+    "discrete" (16 rotor on/off actions). ``physics``: a backend of ``volleybots.physics.BACKENDS``.
+    Further keywords go to the task (``reward_shaping``, ``substeps``, ``drone``, ``episode_len``, ...).
+    """
+    from volleybots.physics import ACTION_SPACES, BACKENDS
+    from volleybots.tasks import TASKS
+
+    if task not in TASKS:
+        raise ValueError(f"unknown task {task!r}; allowed: {sorted(TASKS)}")
+    if action_space not in ACTION_SPACES:
+        raise ValueError(f"unknown action_space {action_space!r}; allowed: {list(ACTION_SPACES)}")
+    if physics not in BACKENDS:
+        raise ValueError(f"unknown physics {physics!r}; allowed: {list(BACKENDS)}")
+    return TASKS[task](num_envs=num_envs, action_space=action_space, physics=physics, device=device, seed=seed, **task_overrides)
+
+
+__all__ = ["__version__", "make_env"]

@@ -1,0 +1,20 @@
+"""Pure batched dynamics of drones and ball: no volleyball rules here."""
+
+from volleybots.physics.actions import ACTION_SPACES, make_action_space
+from volleybots.physics.controllers import RateController
+from volleybots.physics.params import BallParams, DroneParams, WorldParams
+from volleybots.physics.torch_backend import Contacts, PhysicsState, TorchPhysics
+
+BACKENDS = ("torch",)
+
+
+def make_physics(name: str, params: WorldParams, num_envs: int, n_drones: int, device="cpu", compile: bool = False):
+    if name == "torch":
+        return TorchPhysics(params, num_envs, n_drones, device=device, compile=compile)
+    raise ValueError(f"unknown physics backend {name!r}; allowed: {list(BACKENDS)}")
+
+
+__all__ = [
+    "ACTION_SPACES", "BACKENDS", "BallParams", "Contacts", "DroneParams", "PhysicsState", "RateController",
+    "TorchPhysics", "WorldParams", "make_action_space", "make_physics",
+]

@@ -1,0 +1,260 @@
+"""Single-drone tasks: Hover, Back and Forth, Hit the Ball, Solo Bump (spec: tasks.md "Single-agent").
+
+Relative vectors are "drone minus target" here. Coefficients are the reference implementation's.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+from volleybots.physics.math import euler_to_quat, quat_axes
+from volleybots.rules import COURTS, RefereeConfig
+from volleybots.tasks.base import PARKED_BALL, StepResult, VolleyEnv
+
+ANCHOR = (4.5, 0.0, 2.0)
+MISBEHAVE = -10.0
+
+
+def _col(x: torch.Tensor) -> torch.Tensor:
+    """[N] -> [N, 1] (one agent)."""
+    return x.unsqueeze(-1)
+
+
+class Hover(VolleyEnv):
+    """Fly to a target given in the observation and hold it (the drills' Hover, 3 vs 3 court)."""
+
+    name = "hover"
+    episode_len = 500
+    obs_dim_prt = 26  # root (23) + drone minus target (3)
+    reward_terms = ("pose", "up", "spin", "crash")
+    shaping_terms = ("up", "spin")
+    metric = "distance"  # mean distance to the target over the episode, m (lower is better)
+
+    def __init__(self, *args, target=None, **kw):
+        self.fixed_target = target
+        super().__init__(*args, **kw)
+        self.target = torch.zeros(self.num_envs, 3, device=self.device)
+
+    def referee_config(self):
+        return RefereeConfig(court=COURTS["3v3"], drone_min_z=0.2)
+
+    def reset_task(self, mask):
+        m = int(mask.sum())
+        self.place_drones(mask, self.uniform((-2.5, -2.5, 1.0), (2.5, 2.5, 2.5), (m, 1)))
+        if self.fixed_target is None:
+            self.target[mask] = self.uniform((-2.5, -2.5, 1.5), (2.5, 2.5, 2.5), (m,))
+        else:
+            self.target[mask] = torch.as_tensor(self.fixed_target, device=self.device, dtype=torch.float32)
+        self.place_ball(mask, PARKED_BALL)
+        self.referee.reset(mask, self.physics.state.ball_pos)
+
+    def observe(self):
+        rel = self.physics.state.pos - self.target.unsqueeze(1)
+        return torch.cat((self.root_state(), rel), -1)
+
+    def evaluate(self, contacts):
+        s = self.physics.state
+        d = (s.pos[:, 0] - self.target).norm(dim=-1)
+        _, up = quat_axes(s.quat[:, 0])
+        pose = 1.0 / (1.0 + (1.2 * d) ** 2)
+        upright = ((up[:, 2] + 1) / 2) ** 2
+        spin = 1.0 / (1.0 + s.omega[:, 0, 2] ** 2)
+        crash = (s.pos[:, 0, 2] < 0.2) | (d > 4.0)
+        mean_d = (self._stats["distance"] * self.t.sub(1).clamp_min(0) + d) / self.t.clamp_min(1)
+        return StepResult(
+            terms={"pose": _col(pose), "up": _col(pose * upright), "spin": _col(pose * spin), "crash": _col(crash * MISBEHAVE)},
+            terminated=crash,
+            stats={"distance": mean_d},
+        )
+
+
+class BackAndForth(VolleyEnv):
+    name = "back_and_forth"
+    obs_dim_prt = 26  # root (23) + drone minus current target (3)
+    reward_terms = ("target_stay", "dist_to_target", "misbehave")
+    metric = "targets"  # targets reached (5 consecutive steps within 0.6 m)
+
+    def __init__(self, *args, **kw):
+        super().__init__(*args, **kw)
+        self.anchors = torch.tensor((ANCHOR, (9.0, 4.5, 2.0)), device=self.device)
+        self.target_idx = torch.ones(self.num_envs, dtype=torch.long, device=self.device)
+        self.inside = torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
+        self.reached = torch.zeros(self.num_envs, device=self.device)
+
+    def referee_config(self):
+        return RefereeConfig(court=COURTS["full"], drone_min_z=0.4, drone_max_z=5.0)
+
+    def reset_task(self, mask):
+        m = int(mask.sum())
+        rp = self.uniform((-0.1 * math.pi, -0.1 * math.pi, -math.pi), (0.1 * math.pi, 0.1 * math.pi, math.pi), (m, 1))
+        quat = euler_to_quat(rp[..., 0], rp[..., 1], rp[..., 2])
+        self.place_drones(mask, self.anchors[0].expand(m, 1, 3), quat)
+        self.place_ball(mask, PARKED_BALL)
+        self.target_idx[mask] = 1
+        self.inside[mask] = 0
+        self.reached[mask] = 0
+        self.referee.reset(mask, self.physics.state.ball_pos)
+
+    @property
+    def target(self):
+        return self.anchors[self.target_idx]
+
+    def observe(self):
+        return torch.cat((self.root_state(), self.physics.state.pos - self.target.unsqueeze(1)), -1)
+
+    def evaluate(self, contacts):
+        s = self.physics.state
+        ev = self.referee.update(s.pos, s.ball_pos, contacts.racket, contacts.body)
+        d = (s.pos[:, 0] - self.target).norm(dim=-1)
+        within = d < 0.6
+        self.inside = torch.where(within, self.inside + 1, torch.zeros_like(self.inside))
+        stay = within.float() * 2.5
+        dist = 0.5 / (1 + d * d) * 0.02 * (50 - self.reached).clamp_min(0)
+        done_stay = self.inside >= 5
+        self.reached = self.reached + done_stay.float()
+        self.target_idx = torch.where(done_stay, 1 - self.target_idx, self.target_idx)
+        self.inside = torch.where(done_stay, torch.zeros_like(self.inside), self.inside)
+        bad = ev.drone_low[:, 0] | ev.drone_high[:, 0] | (d > 7.5)
+        return StepResult(
+            terms={"target_stay": _col(stay), "dist_to_target": _col(dist), "misbehave": _col(bad * MISBEHAVE)},
+            terminated=bad,
+            stats={"targets": self.reached},
+        )
+
+
+class _BallDrill(VolleyEnv):
+    """Shared by Hit the Ball and Solo Bump: reset around the anchor, ball at rest above it, and the
+    observation root, drone minus anchor, drone minus ball, ball velocity (32 / 28)."""
+
+    obs_dim_prt = 32
+    ball_start = (4.5, 0.0, 4.0)
+
+    def __init__(self, *args, **kw):
+        super().__init__(*args, **kw)
+        self.anchor = torch.tensor(ANCHOR, device=self.device)
+
+    def reset_task(self, mask):
+        m = int(mask.sum())
+        self.place_drones(mask, self.uniform((4.0, -0.5, 1.8), (5.0, 0.5, 2.2), (m, 1)))
+        self.place_ball(mask, self.ball_start)
+        self.referee.reset(mask, self.physics.state.ball_pos)
+        self.reset_drill(mask)
+
+    def reset_drill(self, mask):
+        pass
+
+    def observe(self):
+        s = self.physics.state
+        return torch.cat(
+            (self.root_state(), s.pos - self.anchor, s.pos - s.ball_pos.unsqueeze(1), s.ball_vel.unsqueeze(1)), -1
+        )
+
+
+class HitTheBall(_BallDrill):
+    name = "hit_the_ball"
+    ball_start = (4.5, 0.0, 5.0)
+    reward_terms = ("hit", "anchor", "distance", "misbehave")
+    shaping_terms = ("anchor",)
+    metric = "distance"  # 4.5 - x where the ball comes down through z = 2 after one hit, m
+
+    def __init__(self, *args, **kw):
+        super().__init__(*args, **kw)
+        self.prev_ball = torch.zeros(self.num_envs, 3, device=self.device)
+        self.distance = torch.zeros(self.num_envs, device=self.device)
+
+    def referee_config(self):
+        # exactly one hit: drone 0 may hit once, after that any touch is on the wrong turn
+        return RefereeConfig(court=COURTS["full"], turns="sequence", order=(0,), drone_min_z=0.4, ball_low_z=0.15)
+
+    def reset_drill(self, mask):
+        self.prev_ball[mask] = self.physics.state.ball_pos[mask]
+        self.distance[mask] = 0.0
+
+    def evaluate(self, contacts):
+        s = self.physics.state
+        ev = self.referee.update(s.pos, s.ball_pos, contacts.racket, contacts.body)
+        z0, z1 = self.prev_ball[:, 2], s.ball_pos[:, 2]
+        one_hit = self.referee.hits.sum(1) == 1
+        down = one_hit & (z0 >= 2.0) & (z1 < 2.0) & (s.ball_vel[:, 2] < 0)
+        frac = ((z0 - 2.0) / (z0 - z1).clamp_min(1e-9)).unsqueeze(-1)
+        cross_x = (self.prev_ball + (s.ball_pos - self.prev_ball) * frac)[:, 0]
+        dist = torch.where(down, self.anchor[0] - cross_x, torch.zeros_like(cross_x))
+        self.distance = torch.where(down, dist, self.distance)
+        self.prev_ball = s.ball_pos.clone()
+        far = (s.pos[:, 0] - self.anchor).norm(dim=-1) > 1.0
+        bad = ev.ball_landed | ev.ball_net | ev.drone_low[:, 0] | ev.drone_net[:, 0] | ev.wrong_hit[:, 0]
+        bad = bad & ~down
+        return StepResult(
+            terms={
+                "hit": _col(ev.racket_hit[:, 0].float()),
+                "anchor": _col(far * -0.05),
+                "distance": _col(2.0 * dist),
+                "misbehave": _col(bad * MISBEHAVE),
+            },
+            terminated=down | bad,
+            stats={"distance": self.distance},
+        )
+
+
+class SoloBump(_BallDrill):
+    name = "solo_bump"
+    ball_start = (4.5, 0.0, 4.0)
+    reward_terms = ("success_hit", "success_height", "dist_to_ball", "ball_height", "misbehave")
+    shaping_terms = ("dist_to_ball", "ball_height")
+    metric = "bumps"  # longest streak of bumps with apex in [3.5, 4.5] m, hit within 1 m of the anchor
+    extra_stats = ("hits",)
+
+    def __init__(self, *args, hit_reward: float = 2.0, height_reward: float = 8.0, **kw):
+        self.hit_reward = hit_reward
+        self.height_reward = height_reward
+        super().__init__(*args, **kw)
+        n = self.num_envs
+        self.pending = torch.zeros(n, dtype=torch.bool, device=self.device)  # a hit whose apex is still to come
+        self.hit_ok = torch.zeros(n, dtype=torch.bool, device=self.device)  # that hit was within 1 m of the anchor
+        self.apex = torch.zeros(n, device=self.device)
+        self.streak = torch.zeros(n, device=self.device)
+        self.best = torch.zeros(n, device=self.device)
+
+    def referee_config(self):
+        return RefereeConfig(court=COURTS["full"], min_hit_gap=25, drone_min_z=0.4, drone_max_z=2.5, ball_low_z=0.15)
+
+    def reset_drill(self, mask):
+        for buf in (self.apex, self.streak, self.best):
+            buf[mask] = 0.0
+        self.pending[mask] = False
+        self.hit_ok[mask] = False
+
+    def evaluate(self, contacts):
+        s = self.physics.state
+        ev = self.referee.update(s.pos, s.ball_pos, contacts.racket, contacts.body)
+        hit = ev.racket_hit[:, 0] & ~ev.wrong_hit[:, 0]
+        bz = s.ball_pos[:, 2]
+        # an unfinished bump interrupted by a new hit never reached its apex: it failed
+        self.streak = torch.where(hit & self.pending, torch.zeros_like(self.streak), self.streak)
+        near = (s.pos[:, 0] - self.anchor).norm(dim=-1) <= 1.0
+        self.hit_ok = torch.where(hit, near, self.hit_ok)
+        self.apex = torch.where(hit, bz, torch.maximum(self.apex, bz))
+        at_apex = self.pending & ~hit & (s.ball_vel[:, 2] <= 0)
+        success = at_apex & (self.apex >= 3.5) & (self.apex <= 4.5) & self.hit_ok
+        self.streak = torch.where(at_apex, torch.where(success, self.streak + 1, torch.zeros_like(self.streak)), self.streak)
+        self.best = torch.maximum(self.best, self.streak)
+        self.pending = (self.pending & ~at_apex) | hit
+        horiz = (s.pos[:, 0, :2] - s.ball_pos[:, :2]).norm(dim=-1)
+        height = (bz - s.pos[:, 0, 2].clamp_min(1.0)).clamp(0.0, 2.0)
+        d = ev
+        bad = (
+            d.drone_low[:, 0] | d.drone_high[:, 0] | d.ball_landed | (bz > 4.5) | d.ball_out | d.wrong_hit[:, 0]
+        )
+        return StepResult(
+            terms={
+                "success_hit": _col(hit * self.hit_reward),
+                "success_height": _col((at_apex & (self.apex >= 3.5)) * self.height_reward),
+                "dist_to_ball": _col(1.0 / (1.0 + horiz)),
+                "ball_height": _col(0.5 * height),
+                "misbehave": _col(bad * MISBEHAVE),
+            },
+            terminated=bad,
+            stats={"bumps": self.best, "hits": self.referee.hits[:, 0].float()},
+        )
