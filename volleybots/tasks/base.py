@@ -96,8 +96,8 @@ class VolleyEnv(EnvBase):
         """[N, A, obs_dim] observations of the current state."""
         raise TypeError(f"{type(self).__name__} must define observe()")
 
-    def evaluate(self, contacts) -> StepResult:
-        """Rewards, termination and statistics after one control step."""
+    def evaluate(self, events) -> StepResult:
+        """Rewards, termination and statistics after one control step, given the referee's events."""
         raise TypeError(f"{type(self).__name__} must define evaluate()")
 
     # ------------------------------------------------------------------ helpers for tasks
@@ -201,7 +201,10 @@ class VolleyEnv(EnvBase):
         action = tensordict.get(("agents", "action"))
         contacts = self.physics.step(self.actions.command_fn(action))
         self.t += 1
-        res = self.evaluate(contacts)
+        s = self.physics.state
+        self.last_contacts = contacts
+        self.last_events = self.referee.update(s.pos, s.ball_pos, contacts.racket, contacts.body)
+        res = self.evaluate(self.last_events)
         reward = torch.zeros(self.num_envs, self.n_drones, device=self.device)
         for name, val in res.terms.items():
             if not self.reward_shaping and name in self.shaping_terms:

@@ -54,7 +54,7 @@ class Hover(VolleyEnv):
         rel = self.physics.state.pos - self.target.unsqueeze(1)
         return torch.cat((self.root_state(), rel), -1)
 
-    def evaluate(self, contacts):
+    def evaluate(self, ev):
         s = self.physics.state
         d = (s.pos[:, 0] - self.target).norm(dim=-1)
         _, up = quat_axes(s.quat[:, 0])
@@ -104,9 +104,8 @@ class BackAndForth(VolleyEnv):
     def observe(self):
         return torch.cat((self.root_state(), self.physics.state.pos - self.target.unsqueeze(1)), -1)
 
-    def evaluate(self, contacts):
+    def evaluate(self, ev):
         s = self.physics.state
-        ev = self.referee.update(s.pos, s.ball_pos, contacts.racket, contacts.body)
         d = (s.pos[:, 0] - self.target).norm(dim=-1)
         within = d < 0.6
         self.inside = torch.where(within, self.inside + 1, torch.zeros_like(self.inside))
@@ -172,9 +171,8 @@ class HitTheBall(_BallDrill):
         self.prev_ball[mask] = self.physics.state.ball_pos[mask]
         self.distance[mask] = 0.0
 
-    def evaluate(self, contacts):
+    def evaluate(self, ev):
         s = self.physics.state
-        ev = self.referee.update(s.pos, s.ball_pos, contacts.racket, contacts.body)
         z0, z1 = self.prev_ball[:, 2], s.ball_pos[:, 2]
         one_hit = self.referee.hits.sum(1) == 1
         down = one_hit & (z0 >= 2.0) & (z1 < 2.0) & (s.ball_vel[:, 2] < 0)
@@ -226,9 +224,8 @@ class SoloBump(_BallDrill):
         self.pending[mask] = False
         self.hit_ok[mask] = False
 
-    def evaluate(self, contacts):
+    def evaluate(self, ev):
         s = self.physics.state
-        ev = self.referee.update(s.pos, s.ball_pos, contacts.racket, contacts.body)
         hit = ev.racket_hit[:, 0] & ~ev.wrong_hit[:, 0]
         bz = s.ball_pos[:, 2]
         # an unfinished bump interrupted by a new hit never reached its apex: it failed
