@@ -1,0 +1,10 @@
+"""Packaging detail pyproject.toml cannot express: the top-level conf/ (design card) ships inside the
+wheel as the package ``volleybots.conf`` so configs are found wherever volleybots is installed."""
+
+from setuptools import find_packages, setup
+
+setup(
+    packages=find_packages(include=["volleybots", "volleybots.*"]) + ["volleybots.conf"],
+    package_dir={"volleybots.conf": "conf"},
+    package_data={"volleybots.conf": ["**/*.yaml"]},
+)
