@@ -200,6 +200,14 @@ def substep(c: Constants, s: PhysicsState, cmd: torch.Tensor) -> tuple[PhysicsSt
 
 CommandFn = Callable[[PhysicsState], torch.Tensor]
 
+_FIELDS = tuple(f.name for f in fields(PhysicsState))
+
+
+def substep_flat(c: Constants, cmd: torch.Tensor, *tensors: torch.Tensor):
+    """``substep`` over a flat tuple of state tensors: the form ``torch.compile`` traces best."""
+    new, racket, body, ground = substep(c, PhysicsState(*tensors), cmd)
+    return (*(getattr(new, k) for k in _FIELDS), racket, body, ground)
+
 
 class TorchPhysics:
     """Stateful wrapper: holds the batched state and advances it one control step at a time."""
@@ -225,22 +233,21 @@ class TorchPhysics:
             ball_pos=z(num_envs, 3),
             ball_vel=z(num_envs, 3),
         )
-        self._step = torch.compile(self._step_impl, dynamic=False) if compile else self._step_impl
-
-    def _step_impl(self, state: PhysicsState, command_fn: CommandFn):
-        racket = body = None
-        ground = None
-        for _ in range(self.params.substeps):
-            cmd = command_fn(state)
-            state, r, b, g = substep(self.consts, state, cmd)
-            racket = r if racket is None else racket | r
-            body = b if body is None else body | b
-            ground = g if ground is None else ground | g
-        return state, racket, body, ground
+        # compile the pure sub-step only (static shapes): the command function changes every step
+        self._substep = torch.compile(substep_flat, dynamic=False) if compile else substep_flat
 
     def step(self, command_fn: CommandFn) -> Contacts:
         """Advance one control step (``substeps`` sub-steps); ``command_fn(state)`` gives rotor commands."""
-        self.state, racket, body, ground = self._step(self.state, command_fn)
+        state = self.state
+        racket = body = ground = None
+        for _ in range(self.params.substeps):
+            cmd = command_fn(state)
+            *tensors, r, b, g = self._substep(self.consts, cmd, *(getattr(state, k) for k in _FIELDS))
+            state = PhysicsState(*tensors)
+            racket = r if racket is None else racket | r
+            body = b if body is None else body | b
+            ground = g if ground is None else ground | g
+        self.state = state
         return Contacts(racket=racket, body=body, ground=ground)
 
     def set_state(self, mask: torch.Tensor, **values: torch.Tensor) -> None:
