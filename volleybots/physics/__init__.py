@@ -5,12 +5,17 @@ from volleybots.physics.controllers import RateController
 from volleybots.physics.params import BallParams, DroneParams, WorldParams
 from volleybots.physics.torch_backend import Contacts, PhysicsState, TorchPhysics
 
-BACKENDS = ("torch",)
+BACKENDS = ("torch", "mujoco")
 
 
 def make_physics(name: str, params: WorldParams, num_envs: int, n_drones: int, device="cpu", compile: bool = False):
     if name == "torch":
         return TorchPhysics(params, num_envs, n_drones, device=device, compile=compile)
+    if name == "mujoco":
+        # imported here so that ``import volleybots`` does not load MuJoCo
+        from volleybots.physics.mujoco_backend import MujocoPhysics
+
+        return MujocoPhysics(params, num_envs, n_drones, device=device, compile=compile)
     raise ValueError(f"unknown physics backend {name!r}; allowed: {list(BACKENDS)}")
 
 
