@@ -1,8 +1,9 @@
 """Matches: 1 vs 1, 3 vs 3, 6 vs 6 (spec: tasks.md "Multi-agent competitive"; paper appendix C).
 
 Team 0 plays on +x, team 1 on -x; team 1's anchors are team 0's rotated by 180 degrees about z, and its
-drones start with yaw pi, so the two sides are exact images of each other. A random team serves: the
-ball starts at rest above its server, who alone may make the first touch.
+drones start with yaw pi, so the two sides are exact images of each other. A random team serves (the
+task override ``serve=0|1`` fixes it): the ball starts at rest above its server, who alone may make
+the first touch.
 
 A rally ends when the referee's ``outcome`` finds a fault (the five violations: drone crosses or
 touches the net, hit on the wrong turn, body hit, ball out of court, ball into the net; or the ball
@@ -52,7 +53,10 @@ class _Match(MultiDroneTask):
     metric = "win"
     extra_stats = ("loss", "draw", "winner", "reason", "hits_team0", "hits_team1", "serve_team")
 
-    def __init__(self, *args, **kw):
+    def __init__(self, *args, serve: int | None = None, **kw):
+        if serve not in (None, 0, 1):
+            raise ValueError(f"serve must be None (random), 0 or 1; got {serve!r}")
+        self.fixed_serve = serve
         super().__init__(*args, **kw)
         n, a = self.num_envs, self.n_drones
         dev = self.device
@@ -85,6 +89,8 @@ class _Match(MultiDroneTask):
         noise = (self.init_noise,) * 3
         pos = self.place_around_anchors(mask, tuple(-x for x in noise), noise, yaw=self.yaw)
         team = torch.randint(0, 2, (m,), generator=self.rng, device=self.device)
+        if self.fixed_serve is not None:
+            team = torch.full_like(team, self.fixed_serve)
         server = torch.stack((self.team_index(0)[self.server_rank], self.team_index(1)[self.server_rank]))[team]
         ball = pos[torch.arange(m, device=self.device), server] + torch.tensor((0.0, 0.0, self.ball_above), device=self.device)
         self.place_ball(mask, ball)
