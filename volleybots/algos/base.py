@@ -1,0 +1,85 @@
+"""What the run loop (``volleybots.train``) needs from an algorithm.
+
+An algorithm is one class with a small dataclass config beside it (BenchMARL style), registered by
+name in ``volleybots.algos.ALGOS``. The loop collects ``steps_per_batch`` steps of every env with
+``policy()``, hands the batch to ``update()``, logs what it returns, and checkpoints ``state_dict()``.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Callable, ClassVar
+
+from tensordict import TensorDictBase
+from torch import nn
+
+from volleybots.config import ConfigError
+from volleybots.physics import ACTION_SPACES
+
+ACTIVATIONS = {"elu": nn.ELU, "relu": nn.ReLU, "tanh": nn.Tanh, "leaky_relu": nn.LeakyReLU}
+
+
+class Algorithm(ABC):
+    name: ClassVar[str]
+    config_cls: ClassVar[type]
+    action_spaces: ClassVar[tuple[str, ...]] = ACTION_SPACES  # action spaces it can act in
+    multi_agent: ClassVar[bool] = False  # whether it trains tasks with several drones
+
+    def __init__(self, cfg, env):
+        self.cfg = cfg
+        self.device = env.device
+        self.n_agents = env.n_drones
+        self.obs_dim = env.obs_dim
+        self.continuous = env.actions.continuous
+        self.action_dim = env.actions.dim if self.continuous else env.actions.n
+
+    @classmethod
+    def check(cls, cfg, task_cls, env_cfg) -> None:
+        """Raise ``ConfigError`` when the algorithm's config ``cfg`` is bad or it cannot train
+        ``task_cls`` in the env of ``env_cfg`` (action space, batch size)."""
+        action_space = env_cfg.action_space
+        if action_space not in cls.action_spaces:
+            raise ConfigError(
+                f"algo {cls.name!r} does not support env.action_space={action_space!r}; allowed: {', '.join(cls.action_spaces)}"
+            )
+        if task_cls.n_drones > 1 and not cls.multi_agent:
+            from volleybots.algos import ALGOS
+
+            multi = [n for n, a in ALGOS.items() if a.multi_agent]
+            raise ConfigError(
+                f"algo {cls.name!r} trains one drone but task {task_cls.name!r} has {task_cls.n_drones}; use one of: {', '.join(multi)}"
+            )
+
+    @property
+    def steps_per_batch(self) -> int:
+        return int(self.cfg.steps_per_batch)
+
+    @abstractmethod
+    def policy(self, deterministic: bool = False) -> Callable[[TensorDictBase], TensorDictBase]:
+        """A function writing ``("agents", "action")`` into an env tensordict (no gradients)."""
+
+    @abstractmethod
+    def update(self, batch: TensorDictBase) -> dict[str, float]:
+        """Learn from a batch [num_envs, steps] of transitions; return scalars to log (losses, ...)."""
+
+    @abstractmethod
+    def state_dict(self) -> dict:
+        """Everything needed to continue training: networks, optimisers, normalisers (tensors only)."""
+
+    @abstractmethod
+    def load_state_dict(self, state: dict) -> None:
+        ...
+
+
+def mlp(in_dim: int, out_dim: int, hidden, activation: str, out_gain: float) -> nn.Sequential:
+    """An MLP with orthogonal init (gain sqrt(2) on hidden layers, ``out_gain`` on the output layer)."""
+    layers: list[nn.Module] = []
+    dims = [in_dim, *hidden]
+    for a, b in zip(dims[:-1], dims[1:]):
+        layers += [nn.Linear(a, b), ACTIVATIONS[activation]()]
+    layers.append(nn.Linear(dims[-1], out_dim))
+    for m in layers:
+        if isinstance(m, nn.Linear):
+            nn.init.orthogonal_(m.weight, gain=out_gain if m is layers[-1] else 2**0.5)
+            nn.init.zeros_(m.bias)
+    return nn.Sequential(*layers)

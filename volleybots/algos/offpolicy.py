@@ -1,0 +1,291 @@
+"""What the off-policy single-agent algorithms (``dqn``, ``ddpg``, ``td3``, ``sac``) share.
+
+Each collection of ``steps_per_batch`` steps per env is flattened into per-drone transitions and
+written to a TorchRL replay buffer (``LazyTensorStorage`` on ``buffer_device``); once the buffer holds
+``warmup_batches`` sampling batches (a few, not the reference's full 1e6) every collection is followed
+by ``replay_ratio x frames / batch_size`` gradient steps on uniformly sampled batches. The losses are
+TorchRL's; targets follow the online networks by Polyak averaging (``SoftUpdate``) every
+``target_update_interval`` gradient steps.
+
+The buffer uses TorchRL's default flat keys (``observation``, ``action``, ``("next", "reward")``,
+``("next", "terminated")``, ...), so the losses run unchanged. ``("next", "terminated")`` alone cuts
+the bootstrap (TorchRL's TD(0) target), so an episode cut by the time limit still bootstraps from its
+last observation.
+
+A subclass builds its networks and loss (``build``), says which losses feed which optimiser on a
+gradient step (``losses``), and how it acts (``greedy`` for evaluation, ``explore`` for collection).
+"""
+
+from __future__ import annotations
+
+from abc import abstractmethod
+from dataclasses import dataclass, field
+from typing import Optional
+
+import math
+
+import torch
+from tensordict import TensorDict, TensorDictBase
+from torch import nn
+from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+from torchrl.modules import MLP
+from torchrl.objectives import LossModule, SoftUpdate
+
+from volleybots.algos.base import ACTIVATIONS, Algorithm
+from volleybots.config import ConfigError
+
+OBS = ("agents", "observation")
+ACTION = ("agents", "action")
+REWARD = ("agents", "reward")
+
+
+@dataclass
+class OffPolicyConfig:
+    name: str = ""
+    steps_per_batch: int = 64
+    lr: float = 5e-4
+    max_grad_norm: float = 10.0
+    buffer_size: int = 1_000_000
+    buffer_device: Optional[str] = None
+    batch_size: int = 4096
+    warmup_batches: int = 4
+    random_warmup: bool = True
+    replay_ratio: float = 8.0
+    gamma: float = 0.95
+    tau: float = 0.005
+    target_update_interval: int = 4
+    hidden: list[int] = field(default_factory=lambda: [256, 128, 128])
+    activation: str = "elu"
+    layer_norm: bool = True
+    checkpoint_buffer: bool = False
+
+
+def net(in_dim: int, out_dim: int, cfg) -> MLP:
+    """The MLP of every actor and critic here: ``cfg.hidden`` cells, optional LayerNorm after each
+    hidden layer (the reference's choice for these methods)."""
+    return MLP(
+        in_features=in_dim,
+        out_features=out_dim,
+        num_cells=list(cfg.hidden),
+        activation_class=ACTIVATIONS[cfg.activation],
+        norm_class=nn.LayerNorm if cfg.layer_norm else None,
+        norm_kwargs=[{"normalized_shape": h} for h in cfg.hidden] if cfg.layer_norm else None,
+    )
+
+
+class QNet(nn.Module):
+    """Q(s, a) of a continuous action: one MLP over the observation and the action concatenated."""
+
+    def __init__(self, obs_dim: int, action_dim: int, cfg):
+        super().__init__()
+        self.net = net(obs_dim + action_dim, 1, cfg)
+
+    def forward(self, obs: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
+        return self.net(torch.cat((obs, action), -1))
+
+
+def transitions(batch: TensorDictBase) -> TensorDict:
+    """A collected batch [N, T] with agents nested under ``"agents"`` as flat per-drone transitions
+    [N * T * A] in TorchRL's default keys; the root ``done``/``terminated`` [N, T, 1] are shared by
+    the drones of an env."""
+    obs = batch.get(OBS)
+    shape = obs.shape[:-1]  # N, T, A
+
+    def per_agent(key):
+        return batch.get(("next", key)).unsqueeze(-2).expand(*shape, 1)
+
+    return TensorDict(
+        {
+            "observation": obs,
+            "action": batch.get(ACTION),
+            "next": {
+                "observation": batch.get(("next", *OBS)),
+                "reward": batch.get(("next", *REWARD)),
+                "done": per_agent("done"),
+                "terminated": per_agent("terminated"),
+            },
+        },
+        batch_size=shape,
+    ).reshape(-1)
+
+
+class OffPolicy(Algorithm):
+    """Replay buffer, warm-up, gradient steps, target updates and checkpoints of the four methods."""
+
+    action_spaces = ("prt", "ctbr")
+    # the TorchRL loss module, and one (optimiser, parameters) per group a loss of ``losses`` names
+    loss: LossModule
+    optims: dict[str, tuple[torch.optim.Optimizer, list[nn.Parameter]]]
+    info_keys: tuple[str, ...] = ()  # the diagnostics ``losses`` returns besides the losses
+
+    @classmethod
+    def check(cls, cfg, task_cls, action_space):
+        super().check(cfg, task_cls, action_space)
+        if cfg.activation not in ACTIVATIONS:
+            raise ConfigError(f"unknown algo.activation {cfg.activation!r}; allowed: {', '.join(ACTIVATIONS)}")
+        for key in ("steps_per_batch", "buffer_size", "batch_size", "target_update_interval"):
+            if getattr(cfg, key) < 1:
+                raise ConfigError(f"bad value for 'algo.{key}': {getattr(cfg, key)} (must be >= 1)")
+        if cfg.warmup_batches < 1 or cfg.warmup_batches * cfg.batch_size > cfg.buffer_size:
+            raise ConfigError(
+                f"bad value for 'algo.warmup_batches': {cfg.warmup_batches} (must be >= 1 and warmup_batches x batch_size "
+                f"= {cfg.warmup_batches * cfg.batch_size} must fit in algo.buffer_size = {cfg.buffer_size})"
+            )
+        if not cfg.replay_ratio > 0:
+            raise ConfigError(f"bad value for 'algo.replay_ratio': {cfg.replay_ratio} (must be > 0)")
+        if not 0 < cfg.tau <= 1:
+            raise ConfigError(f"bad value for 'algo.tau': {cfg.tau} (must be in (0, 1])")
+        if cfg.buffer_device is not None:
+            try:
+                torch.device(cfg.buffer_device)
+            except (RuntimeError, ValueError):
+                raise ConfigError(f"bad value for 'algo.buffer_device': {cfg.buffer_device!r} is not a torch device") from None
+
+    def __init__(self, cfg, env, seed: int = 0):
+        super().__init__(cfg, env)
+        self.gen = torch.Generator(device=self.device)  # exploration noise and epsilon draws
+        self.gen.manual_seed(seed)
+        self.build()
+        self.loss.make_value_estimator(gamma=cfg.gamma)
+        self.target_updater = SoftUpdate(self.loss, tau=cfg.tau)
+        buffer_device = torch.device(cfg.buffer_device) if cfg.buffer_device is not None else self.device
+        self.rb_gen = torch.Generator()  # replay sampling (indices are drawn on the CPU)
+        self.rb_gen.manual_seed(seed + 1)
+        self.buffer = TensorDictReplayBuffer(
+            storage=LazyTensorStorage(cfg.buffer_size, device=buffer_device), batch_size=cfg.batch_size, generator=self.rb_gen
+        )
+        self.frames = 0  # transitions written to the buffer so far
+        self.grad_steps = 0
+
+    # ------------------------------------------------------------------ to be written by a method
+    @abstractmethod
+    def build(self) -> None:
+        """Create the networks, ``self.loss`` and ``self.optims``."""
+
+    @abstractmethod
+    def losses(self, td: TensorDictBase) -> tuple[dict[str, torch.Tensor], dict[str, torch.Tensor]]:
+        """One gradient step's losses by optimiser group (only the groups to step now) and what to log."""
+
+    @abstractmethod
+    def greedy(self, obs: torch.Tensor) -> torch.Tensor:
+        """The evaluation action for observations [..., obs]."""
+
+    @abstractmethod
+    def explore(self, obs: torch.Tensor) -> torch.Tensor:
+        """The collection action (with exploration) for observations [..., obs]."""
+
+    # ------------------------------------------------------------------ shared
+    def adam(self, params, lr: float | None = None) -> tuple[torch.optim.Optimizer, list]:
+        params = list(params)
+        return torch.optim.Adam(params, lr=self.cfg.lr if lr is None else lr), params
+
+    @property
+    def warmup_frames(self) -> int:
+        return int(self.cfg.warmup_batches * self.cfg.batch_size)
+
+    @property
+    def warming_up(self) -> bool:
+        return len(self.buffer) < self.warmup_frames
+
+    def random_action(self, shape: torch.Size) -> torch.Tensor:
+        if self.continuous:
+            return torch.rand(*shape, self.action_dim, generator=self.gen, device=self.device) * 2.0 - 1.0
+        return torch.randint(self.action_dim, tuple(shape), generator=self.gen, device=self.device)
+
+    def policy(self, deterministic: bool = False):
+        def act(td: TensorDictBase) -> TensorDictBase:
+            obs = td.get(OBS)
+            with torch.no_grad():
+                if deterministic:
+                    action = self.greedy(obs)
+                elif self.cfg.random_warmup and self.warming_up:
+                    action = self.random_action(obs.shape[:-1])
+                else:
+                    action = self.explore(obs)
+            td.set(ACTION, action)
+            return td
+
+        return act
+
+    def gradient_steps(self, frames: int) -> int:
+        return max(1, round(self.cfg.replay_ratio * frames / self.cfg.batch_size))
+
+    def log_keys(self) -> list[str]:
+        """Every column ``update`` reports, from the first batch on (the metrics file's header is
+        the first row's keys): NaN while the buffer warms up."""
+        groups = [f"{k}_{g}" for g in self.optims for k in ("loss", "grad_norm")]
+        return ["buffer_size", "grad_steps", *groups, *self.info_keys]
+
+    def update(self, batch: TensorDictBase) -> dict[str, float]:
+        data = transitions(batch)
+        self.buffer.extend(data.to(self.buffer.storage.device))
+        self.frames += data.numel()
+        logs = dict.fromkeys(self.log_keys(), math.nan)
+        if not self.warming_up:
+            sums: dict[str, float] = {}
+            counts: dict[str, int] = {}
+            for _ in range(self.gradient_steps(data.numel())):
+                for k, v in self.train_step(self.buffer.sample().to(self.device)).items():
+                    sums[k] = sums.get(k, 0.0) + v
+                    counts[k] = counts.get(k, 0) + 1
+            logs.update({k: v / counts[k] for k, v in sums.items()})  # a delayed actor: over its own steps
+        logs.update(self.extra_logs())
+        logs.update(buffer_size=float(len(self.buffer)), grad_steps=float(self.grad_steps))
+        return logs
+
+    def extra_logs(self) -> dict[str, float]:
+        """Scalars a method reports once per batch (exploration schedules, ...)."""
+        return {}
+
+    def train_step(self, td: TensorDictBase) -> dict[str, float]:
+        """One gradient step on a sampled batch: every returned loss's group is stepped (each
+        clipped to ``max_grad_norm``), then the targets move every ``target_update_interval`` steps.
+        TorchRL's losses detach the parameters one loss must not move (the critic in the actor loss,
+        log-alpha in the actor loss), so one backward of the sum gives each group its own gradient."""
+        losses, info = self.losses(td)
+        groups = [self.optims[g] for g in losses]
+        for opt, _ in groups:
+            opt.zero_grad(set_to_none=True)
+        sum(losses.values()).backward()
+        logs = {f"loss_{g}": float(v.detach()) for g, v in losses.items()}
+        for g, (opt, params) in zip(losses, groups):
+            logs[f"grad_norm_{g}"] = float(nn.utils.clip_grad_norm_(params, self.cfg.max_grad_norm))
+            opt.step()
+        self.grad_steps += 1
+        if self.grad_steps % self.cfg.target_update_interval == 0:
+            self.target_updater.step()
+        logs.update({k: float(v.detach().float().mean()) for k, v in info.items()})
+        return logs
+
+    def state_dict(self) -> dict:
+        state = {
+            "loss": self.loss.state_dict(),
+            "optims": {g: opt.state_dict() for g, (opt, _) in self.optims.items()},
+            "gen": self.gen.get_state(),
+            "rb_gen": self.rb_gen.get_state(),
+            "counters": torch.tensor([self.frames, self.grad_steps]),
+        }
+        if self.cfg.checkpoint_buffer:
+            n = len(self.buffer)
+            state["buffer"] = {
+                "data": self.buffer.storage[:n].to("cpu").to_dict() if n else {},
+                "cursor": torch.tensor(self.buffer._writer._cursor),
+            }
+        return state
+
+    def load_state_dict(self, state: dict) -> None:
+        self.loss.load_state_dict(state["loss"])
+        for g, (opt, _) in self.optims.items():
+            opt.load_state_dict(state["optims"][g])
+        self.gen.set_state(state["gen"])
+        self.rb_gen.set_state(state["rb_gen"])
+        self.frames, self.grad_steps = (int(x) for x in state["counters"])
+        self.buffer.empty()
+        saved = state.get("buffer")
+        if saved and saved["data"]:
+            data = TensorDict(saved["data"]).auto_batch_size_(batch_dims=1)
+            self.buffer.extend(data.to(self.buffer.storage.device))
+            self.buffer._writer._cursor = int(saved["cursor"])
+
+
+__all__ = ["OffPolicy", "OffPolicyConfig", "QNet", "net", "transitions"]

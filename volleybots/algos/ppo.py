@@ -1,0 +1,241 @@
+"""(MA)PPO on TorchRL: ``ppo`` for one drone, ``mappo`` for several; one code path.
+
+The actor is shared by all drones (it sees one drone's observation); the critic values each drone's
+own observation (``ppo``) or, centralised, all drones' observations concatenated (``mappo``), with one
+output per drone. Losses are TorchRL's ``MAPPOLoss`` (clipped surrogate, entropy bonus, value loss on
+PopArt-normalised targets) and the advantage is TorchRL's multi-agent GAE, which bootstraps the value
+of the last observation on time-limit truncation (``truncated``) and not on ``terminated``.
+
+Continuous actions are a Gaussian with a state-independent standard deviation whose samples the env
+clips to [-1, 1] (the log-probability is that of the unclipped sample); ``discrete`` is Categorical.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import torch
+from tensordict import TensorDictBase
+from tensordict.nn import AddStateIndependentNormalScale, TensorDictModule, TensorDictSequential
+from torch import nn
+from torchrl.envs.utils import ExplorationType, set_exploration_type
+from torchrl.modules import IndependentNormal, PopArtValueNorm, ProbabilisticActor, RunningValueNorm
+from torchrl.objectives.multiagent import MAPPOLoss
+from torchrl.objectives.utils import ValueEstimators
+
+from volleybots.algos.base import ACTIVATIONS, Algorithm, mlp
+from volleybots.config import ConfigError
+
+OBS = ("agents", "observation")
+OBS_NORM = ("agents", "observation_norm")
+ACTION = ("agents", "action")
+LOG_PROB = ("agents", "action_log_prob")
+VALUE = ("agents", "state_value")
+
+
+@dataclass
+class PPOConfig:
+    name: str = "ppo"
+    steps_per_batch: int = 64
+    epochs: int = 4
+    minibatches: int = 16
+    actor_lr: float = 5e-4
+    critic_lr: float = 5e-4
+    max_grad_norm: float = 10.0
+    clip_epsilon: float = 0.1
+    entropy_coeff: float = 0.001
+    critic_coeff: float = 1.0
+    huber_delta: float = 10.0
+    gamma: float = 0.995
+    gae_lambda: float = 0.95
+    normalize_advantage: bool = True
+    value_norm: bool = True
+    obs_norm: bool = False
+    hidden: list[int] = field(default_factory=lambda: [256, 128, 128])
+    activation: str = "elu"
+    init_log_std: float = 0.0
+    centralised_critic: bool = False
+
+
+@dataclass
+class MAPPOConfig(PPOConfig):
+    name: str = "mappo"
+    centralised_critic: bool = True
+
+
+class HuberMAPPOLoss(MAPPOLoss):
+    """MAPPOLoss with the paper's Huber value loss of any delta.
+
+    TorchRL's ``smooth_l1`` is Huber with delta 1, and Huber_d(e) = d^2 * Huber_1(e / d): so the
+    (normalised) target and prediction are divided by d and the critic weight multiplied by d^2."""
+
+    def __init__(self, *args, huber_delta: float, critic_coeff: float, **kw):
+        super().__init__(*args, loss_critic_type="smooth_l1", critic_coeff=critic_coeff * huber_delta**2, **kw)
+        self.huber_delta = huber_delta
+
+    def _critic_loss_inputs(self, target_return, state_value, old_state_value):
+        t, v, o = super()._critic_loss_inputs(target_return, state_value, old_state_value)
+        d = self.huber_delta
+        return t / d, v / d, None if o is None else o / d
+
+
+class ObsNorm(nn.Module):
+    """Running mean / std of the observations (TorchRL's Welford normaliser), clipped to +-10.
+    Identity until it has seen a batch."""
+
+    def __init__(self, obs_dim: int):
+        super().__init__()
+        self.stats = RunningValueNorm(shape=obs_dim)
+
+    def forward(self, obs):
+        return torch.where(self.stats.count > 0, self.stats.normalize(obs).clamp(-10.0, 10.0), obs)
+
+
+class Critic(nn.Module):
+    """[*, A, obs] -> [*, A, 1] values in the returns' scale (the head learns normalised values)."""
+
+    def __init__(self, obs_dim: int, n_agents: int, cfg, value_norm: PopArtValueNorm | None):
+        super().__init__()
+        self.centralised = bool(cfg.centralised_critic)
+        in_dim, out_dim = (obs_dim * n_agents, n_agents) if self.centralised else (obs_dim, 1)
+        self.net = mlp(in_dim, out_dim, cfg.hidden, cfg.activation, out_gain=1.0)
+        self.value_norm = value_norm
+
+    def forward(self, obs):
+        v = self.net(obs.flatten(-2)).unsqueeze(-1) if self.centralised else self.net(obs)
+        return v if self.value_norm is None else self.value_norm.denormalize(v)
+
+
+class PPO(Algorithm):
+    name = "ppo"
+    config_cls = PPOConfig
+
+    @classmethod
+    def check(cls, cfg, task_cls, env_cfg):
+        super().check(cfg, task_cls, env_cfg)
+        if cfg.activation not in ACTIVATIONS:
+            raise ConfigError(f"unknown algo.activation {cfg.activation!r}; allowed: {', '.join(ACTIVATIONS)}")
+        for key in ("steps_per_batch", "epochs", "minibatches"):
+            if getattr(cfg, key) < 1:
+                raise ConfigError(f"bad value for 'algo.{key}': {getattr(cfg, key)} (must be >= 1)")
+        frames = env_cfg.num_envs * cfg.steps_per_batch
+        if frames < cfg.minibatches:
+            raise ConfigError(
+                f"a batch of {frames} frames (env.num_envs x algo.steps_per_batch) cannot make algo.minibatches={cfg.minibatches} minibatches"
+            )
+
+    def __init__(self, cfg, env, seed: int = 0):
+        super().__init__(cfg, env)
+        dev = self.device
+        self.obs_norm = TensorDictModule(ObsNorm(self.obs_dim), [OBS], [OBS_NORM]).to(dev) if cfg.obs_norm else None
+        obs_in = OBS_NORM if cfg.obs_norm else OBS
+        if self.continuous:
+            net = nn.Sequential(
+                mlp(self.obs_dim, self.action_dim, cfg.hidden, cfg.activation, out_gain=0.01),
+                AddStateIndependentNormalScale(self.action_dim, init_value=cfg.init_log_std),
+            )
+            head = TensorDictModule(net, [obs_in], [("agents", "loc"), ("agents", "scale")])
+            self._std = net[1]
+            dist_keys, dist_cls = [("agents", "loc"), ("agents", "scale")], IndependentNormal
+        else:
+            net = mlp(self.obs_dim, self.action_dim, cfg.hidden, cfg.activation, out_gain=0.01)
+            head = TensorDictModule(net, [obs_in], [("agents", "logits")])
+            self._std = None
+            dist_keys, dist_cls = [("agents", "logits")], torch.distributions.Categorical
+        self.actor = ProbabilisticActor(
+            head, in_keys=dist_keys, out_keys=[ACTION], distribution_class=dist_cls, return_log_prob=True, log_prob_key=LOG_PROB
+        ).to(dev)
+        self.value_norm = PopArtValueNorm(shape=1, device=dev) if cfg.value_norm else None
+        self.critic = TensorDictModule(Critic(self.obs_dim, self.n_agents, cfg, self.value_norm), [obs_in], [VALUE]).to(dev)
+        self.loss = HuberMAPPOLoss(
+            self.actor,
+            self.critic,
+            value_norm=self.value_norm,
+            clip_epsilon=cfg.clip_epsilon,
+            entropy_coeff=cfg.entropy_coeff,
+            huber_delta=cfg.huber_delta,
+            critic_coeff=cfg.critic_coeff,
+            normalize_advantage=cfg.normalize_advantage,
+        )
+        self.loss.set_keys(
+            action=ACTION, sample_log_prob=LOG_PROB, value=VALUE, reward=("agents", "reward"), done="done", terminated="terminated"
+        )
+        self.loss.make_value_estimator(ValueEstimators.MAGAE, gamma=cfg.gamma, lmbda=cfg.gae_lambda)
+        self.optim = torch.optim.Adam(
+            [
+                {"params": list(self.actor.parameters()), "lr": cfg.actor_lr},
+                {"params": list(self.critic.parameters()), "lr": cfg.critic_lr},
+            ]
+        )
+        self.gen = torch.Generator(device=dev)  # minibatch shuffling, checkpointed with the rest
+        self.gen.manual_seed(seed)
+        self._policy = TensorDictSequential(self.obs_norm, self.actor) if self.obs_norm is not None else self.actor
+
+    def policy(self, deterministic: bool = False):
+        mode = ExplorationType.DETERMINISTIC if deterministic else ExplorationType.RANDOM
+
+        def act(td: TensorDictBase) -> TensorDictBase:
+            with torch.no_grad(), set_exploration_type(mode):
+                return self._policy(td)
+
+        return act
+
+    def update(self, batch: TensorDictBase) -> dict[str, float]:
+        cfg = self.cfg
+        batch = batch.exclude("stats", ("next", "stats"))
+        with torch.no_grad():
+            if self.obs_norm is not None:
+                self.obs_norm(batch["next"])  # the same statistics the rollout used
+            self.loss.value_estimator(batch)
+        flat = batch.reshape(-1)
+        n = flat.numel()
+        size = n // cfg.minibatches
+        sums: dict[str, float] = {}
+        actor_params = list(self.actor.parameters())
+        critic_params = list(self.critic.parameters())
+        for _ in range(cfg.epochs):
+            perm = torch.randperm(n, generator=self.gen, device=self.gen.device).to(flat.device)
+            for i in range(cfg.minibatches):
+                out = self.loss(flat[perm[i * size : (i + 1) * size]])
+                loss = out["loss_objective"] + out["loss_critic"] + out.get("loss_entropy", 0.0)
+                self.optim.zero_grad(set_to_none=True)
+                loss.backward()
+                gn_a = nn.utils.clip_grad_norm_(actor_params, cfg.max_grad_norm)
+                gn_c = nn.utils.clip_grad_norm_(critic_params, cfg.max_grad_norm)
+                self.optim.step()
+                logs = {k: out[k] for k in ("loss_objective", "loss_critic", "loss_entropy", "entropy", "kl_approx", "clip_fraction", "explained_variance") if k in out.keys()}
+                logs.update(grad_norm_actor=gn_a, grad_norm_critic=gn_c)
+                for k, v in logs.items():
+                    sums[k] = sums.get(k, 0.0) + float(v.detach().mean())
+        if self.obs_norm is not None:
+            self.obs_norm.module.stats.update(batch["next", *OBS])
+        steps = cfg.epochs * cfg.minibatches
+        logs = {k: v / steps for k, v in sums.items()}
+        if self._std is not None:
+            logs["action_std"] = float(self._std.state_independent_scale.detach().exp().mean())
+        return logs
+
+    def state_dict(self) -> dict:
+        return {
+            "actor": self.actor.state_dict(),
+            "critic": self.critic.state_dict(),
+            "obs_norm": self.obs_norm.state_dict() if self.obs_norm is not None else {},
+            "optim": self.optim.state_dict(),
+            "gen": self.gen.get_state(),
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        self.actor.load_state_dict(state["actor"])
+        self.critic.load_state_dict(state["critic"])
+        if self.obs_norm is not None:
+            self.obs_norm.load_state_dict(state["obs_norm"])
+        self.optim.load_state_dict(state["optim"])
+        self.gen.set_state(state["gen"])
+
+
+class MAPPO(PPO):
+    """PPO with a centralised critic, for any number of drones (one drone: the same as ``ppo``)."""
+
+    name = "mappo"
+    config_cls = MAPPOConfig
+    multi_agent = True

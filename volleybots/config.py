@@ -1,0 +1,327 @@
+"""Config schemas, composition and validation for the ``volleybots`` CLI.
+
+The YAML tree lives in ``conf/`` (found by ``volleybots.paths.conf_dir()`` wherever the package is
+installed). Hydra composes it; this module then checks the result against dataclass schemas so that a
+misspelt key or a value of the wrong type is rejected with one line naming the key:
+
+* the fixed part (env, logging, checkpoints, ...) is ``Config`` below;
+* a task's keys are derived from its class's constructor signature (``task_schema``), so a new task
+  needs only its YAML file;
+* an algorithm's keys are its own dataclass config (``volleybots.algos.ALGOS[name].config_cls``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import types
+import typing
+from dataclasses import dataclass, field
+from typing import Any, Optional
+
+from omegaconf import MISSING, DictConfig, ListConfig, OmegaConf
+from omegaconf.errors import ConfigKeyError, OmegaConfBaseException, ValidationError
+
+from volleybots.paths import conf_dir
+
+GROUPS = ("task", "algo", "env")  # config groups selected by `group=option`
+LOGGERS = ("csv", "wandb")
+WANDB_MODES = ("offline", "online", "disabled")
+# constructor arguments of a task that come from the env config (or the run), not the task's YAML
+ENV_ARGS = ("num_envs", "action_space", "physics", "device", "seed", "substeps", "drone", "ball_drag", "downwash", "compile")
+
+
+class ConfigError(ValueError):
+    """A bad user input (unknown name or key, wrong type, incompatible choice): one line, exit code 2."""
+
+
+@dataclass
+class EnvConfig:
+    physics: str = "torch"
+    action_space: str = "prt"
+    num_envs: int = 256
+    device: str = "cpu"
+    substeps: int = 4
+    drone: str = "iris"
+    compile: bool = False
+    ball_drag: float = 0.0
+    downwash: bool = True
+
+
+@dataclass
+class WandbConfig:
+    project: str = "volleybots"
+    mode: str = "offline"
+
+
+@dataclass
+class CheckpointConfig:
+    every: int = 2_000_000
+    keep: int = 3
+
+
+@dataclass
+class EvaluationConfig:
+    every: int = 2_000_000
+    episodes: int = 16
+    record: bool = True
+
+
+@dataclass
+class Config:
+    task: Any = MISSING  # checked against task_schema(task.name)
+    algo: Any = MISSING  # checked against the algorithm's config dataclass
+    env: EnvConfig = field(default_factory=EnvConfig)
+    seed: int = 0
+    threads: int = 0
+    total_frames: int = 1_000_000
+    resume: Optional[str] = None
+    progress: bool = True
+    logger: str = "csv"
+    wandb: WandbConfig = field(default_factory=WandbConfig)
+    checkpoint: CheckpointConfig = field(default_factory=CheckpointConfig)
+    evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
+    episodes: int = 100
+    deterministic: bool = True
+
+
+# ---------------------------------------------------------------------------------------- schemas
+def group_options(group: str) -> list[str]:
+    """The options of a config group: the YAML files of ``conf/<group>/``."""
+    return sorted(p.stem for p in (conf_dir() / group).glob("*.yaml"))
+
+
+def _omegaconf_type(tp) -> Any:
+    """A constructor annotation as a type OmegaConf can check (PEP 604 unions become Optional)."""
+    if tp in (int, float, bool, str):
+        return tp
+    args = typing.get_args(tp)
+    if typing.get_origin(tp) in (typing.Union, types.UnionType) and type(None) in args:
+        rest = [a for a in args if a is not type(None)]
+        if len(rest) == 1 and rest[0] in (int, float, bool, str):
+            return Optional[rest[0]]
+    return Any
+
+
+def task_schema(name: str) -> type:
+    """A dataclass of the keys a task's YAML may hold: ``name`` plus the keyword arguments of the task
+    class's constructor chain that are not env settings, with their annotated types and defaults."""
+    from volleybots.tasks import TASKS, VolleyEnv
+
+    cls = TASKS[name]
+    fields_: dict[str, tuple] = {"name": (str, dataclasses.field(default=name))}
+    for klass in (k for k in cls.__mro__ if issubclass(k, VolleyEnv)):
+        init = klass.__dict__.get("__init__")
+        if init is None:
+            continue
+        try:
+            hints = typing.get_type_hints(init)
+        except (NameError, TypeError):
+            hints = {}
+        for p in inspect.signature(init).parameters.values():
+            if p.name == "self" or p.name in ENV_ARGS or p.name in fields_:
+                continue
+            if p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD):
+                continue
+            default = MISSING if p.default is p.empty else p.default
+            tp = _omegaconf_type(hints.get(p.name, Any))
+            if default is None and tp in (int, float, bool, str):
+                tp = Optional[tp]
+            fields_[p.name] = (tp, dataclasses.field(default=default))
+    return dataclasses.make_dataclass(f"{cls.__name__}Config", [(k, t, f) for k, (t, f) in fields_.items()])
+
+
+def _coerce_ints(schema: type, node: dict) -> dict:
+    """Integral floats for int fields (``total_frames=2e6``) become ints; nested dataclasses recurse."""
+    hints = typing.get_type_hints(schema)
+    for f in dataclasses.fields(schema):
+        if f.name not in node:
+            continue
+        tp, val = hints.get(f.name), node[f.name]
+        if dataclasses.is_dataclass(tp) and isinstance(val, dict):
+            _coerce_ints(tp, val)
+        elif tp in (int, Optional[int]) and isinstance(val, float) and val.is_integer():
+            node[f.name] = int(val)
+    return node
+
+
+def _typed(schema: type, node, prefix: str) -> DictConfig:
+    """Merge ``node`` onto ``schema``; an unknown key or a bad value raises one ConfigError line."""
+    data = node if isinstance(node, dict) else OmegaConf.to_container(node, resolve=True)
+    data = _coerce_ints(schema, dict(data))
+    try:
+        return OmegaConf.merge(OmegaConf.structured(schema), data)
+    except ConfigKeyError as e:
+        allowed = ", ".join(f.name for f in dataclasses.fields(schema))
+        key = str(e.key) if getattr(e, "key", None) is not None else str(e.full_key)
+        raise ConfigError(f"unknown config key {prefix + key!r}; allowed: {allowed}") from None
+    except ValidationError as e:
+        msg = str(e.msg).splitlines()[0] if getattr(e, "msg", None) else str(e).splitlines()[0]
+        raise ConfigError(f"bad value for {prefix + str(e.full_key)!r}: {msg}") from None
+    except OmegaConfBaseException as e:
+        raise ConfigError(f"bad config under {prefix.rstrip('.') or 'top level'!r}: {str(e).splitlines()[0]}") from None
+
+
+def validate(cfg) -> DictConfig:
+    """Check a composed config (DictConfig or dict) against the schemas and the registries.
+
+    Returns a typed, resolved DictConfig without the ``hydra`` node. Raises ``ConfigError``."""
+    import torch
+
+    from volleybots.algos import ALGOS
+    from volleybots.physics import ACTION_SPACES, BACKENDS
+    from volleybots.tasks import TASKS
+
+    data = cfg if isinstance(cfg, dict) else OmegaConf.to_container(cfg, resolve=True)
+    data = {k: v for k, v in data.items() if k != "hydra"}
+    task, algo = data.get("task"), data.get("algo")
+    if not isinstance(task, dict) or "name" not in task:
+        raise ConfigError(f"the config has no task; choose one with task=NAME, allowed: {', '.join(sorted(TASKS))}")
+    if task["name"] not in TASKS:
+        raise ConfigError(f"unknown task {task['name']!r}; allowed: {', '.join(sorted(TASKS))}")
+    if not isinstance(algo, dict) or "name" not in algo:
+        raise ConfigError(f"the config has no algo; choose one with algo=NAME, allowed: {', '.join(ALGOS)}")
+    if algo["name"] not in ALGOS:
+        raise ConfigError(f"unknown algo {algo['name']!r}; allowed: {', '.join(ALGOS)}")
+    typed_task = _typed(task_schema(task["name"]), task, "task.")
+    algo_cls = ALGOS[algo["name"]]
+    typed_algo = _typed(algo_cls.config_cls, algo, "algo.")
+    rest = _typed(Config, {k: v for k, v in data.items() if k not in ("task", "algo")}, "")
+    rest.task, rest.algo = typed_task, typed_algo
+
+    env = rest.env
+    for value, allowed, what in (
+        (env.action_space, ACTION_SPACES, "env.action_space"),
+        (env.physics, BACKENDS, "env.physics"),
+        (rest.logger, LOGGERS, "logger"),
+        (rest.wandb.mode, WANDB_MODES, "wandb.mode"),
+        (env.drone, group_options("env/drone"), "env.drone"),
+    ):
+        if value not in allowed:
+            raise ConfigError(f"unknown {what} {value!r}; allowed: {', '.join(allowed)}")
+    for key, val, low in (
+        ("env.num_envs", env.num_envs, 1),
+        ("env.substeps", env.substeps, 1),
+        ("total_frames", rest.total_frames, 1),
+        ("episodes", rest.episodes, 1),
+        ("checkpoint.keep", rest.checkpoint.keep, 1),
+        ("evaluation.episodes", rest.evaluation.episodes, 1),
+        ("checkpoint.every", rest.checkpoint.every, 0),
+        ("threads", rest.threads, 0),
+        ("evaluation.every", rest.evaluation.every, 0),
+    ):
+        if val < low:
+            raise ConfigError(f"bad value for {key!r}: {val} (must be >= {low})")
+    try:
+        dev = torch.device(env.device)
+    except (RuntimeError, ValueError):
+        raise ConfigError(f"bad value for 'env.device': {env.device!r} is not a torch device (cpu, cuda, cuda:1, ...)") from None
+    if dev.type == "cuda" and not torch.cuda.is_available():
+        raise ConfigError(f"env.device={env.device!r} but no CUDA device is available here; use env.device=cpu")
+    algo_cls.check(typed_algo, TASKS[typed_task.name], env)
+    return rest
+
+
+# ------------------------------------------------------------------------------------ composition
+def _check_overrides(overrides: list[str]) -> None:
+    """Name the bad value of a group override before Hydra does (with the allowed options)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import OverrideParseException
+
+    try:
+        parsed = OverridesParser.create().parse_overrides(overrides)
+    except OverrideParseException as e:
+        raise ConfigError(f"bad override: {str(e).splitlines()[0]}") from None
+    for o in parsed:
+        key = o.get_key_element()
+        if key in GROUPS and not o.is_delete():
+            values = list(o.sweep_string_iterator()) if o.is_sweep_override() else [o.value()]
+            for v in values:
+                if str(v) not in group_options(key):
+                    raise ConfigError(f"unknown {key} {v!r}; allowed: {', '.join(group_options(key))}")
+
+
+def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = False) -> DictConfig:
+    """Compose ``conf/config.yaml`` with Hydra overrides (no sweeps). Raises ``ConfigError``.
+
+    Keys are checked first so that a misspelt one is reported with the keys allowed beside it."""
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_dir
+    from hydra.errors import HydraException
+
+    overrides = list(overrides)
+    _check_overrides(overrides)
+    group_ovr = [o for o in overrides if o.split("=", 1)[0].lstrip("~+") in GROUPS]
+    try:
+        with initialize_config_dir(config_dir=str(conf_dir()), version_base="1.3"):
+            base = hydra_compose("config", overrides=group_ovr)
+            for o in overrides:
+                key = o.split("=", 1)[0]
+                if "=" not in o or key.startswith(("+", "~", "hydra.")) or key in GROUPS:
+                    continue
+                if OmegaConf.select(base, key, default=_ABSENT) is _ABSENT:
+                    parent, _, leaf = key.rpartition(".")
+                    node = OmegaConf.select(base, parent) if parent else base
+                    allowed = ", ".join(str(k) for k in node.keys()) if isinstance(node, DictConfig) else "(none: not a section)"
+                    raise ConfigError(f"unknown config key {key!r}; allowed{' under ' + repr(parent) if parent else ''}: {allowed}")
+            return hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node)
+    except HydraException as e:
+        raise ConfigError(f"bad override: {_one_line(e)}") from None
+
+
+_ABSENT = object()
+
+
+def _one_line(e: BaseException) -> str:
+    """The innermost message of an exception chain, on one line."""
+    while e.__cause__ is not None:
+        e = e.__cause__
+    return " ".join(str(e).split())
+
+
+def load(overrides=()) -> DictConfig:
+    """Compose and validate: the typed config for ``overrides``."""
+    return validate(compose(overrides))
+
+
+def to_dict(cfg) -> dict:
+    return cfg if isinstance(cfg, dict) else OmegaConf.to_container(cfg, resolve=True)
+
+
+def task_kwargs(cfg) -> dict:
+    """The task's constructor keywords of a validated config (everything of ``task`` but its name)."""
+    return {k: v for k, v in to_dict(cfg.task).items() if k != "name"}
+
+
+def make_env(cfg, num_envs: int | None = None, seed: int | None = None):
+    """Build the env a validated config describes (``num_envs`` / ``seed`` override the config's).
+
+    Also applies ``threads`` (torch's CPU threads), which must be set before any work."""
+    import torch
+
+    import volleybots
+
+    if cfg.threads and torch.get_num_threads() != cfg.threads:
+        torch.set_num_threads(cfg.threads)
+
+    e = cfg.env
+    return volleybots.make_env(
+        cfg.task.name,
+        num_envs=e.num_envs if num_envs is None else num_envs,
+        action_space=e.action_space,
+        physics=e.physics,
+        device=e.device,
+        seed=cfg.seed if seed is None else seed,
+        substeps=e.substeps,
+        drone=e.drone,
+        ball_drag=e.ball_drag,
+        downwash=e.downwash,
+        compile=e.compile,
+        **task_kwargs(cfg),
+    )
+
+
+__all__ = [
+    "Config", "ConfigError", "EnvConfig", "compose", "group_options", "load", "make_env", "task_kwargs",
+    "task_schema", "to_dict", "validate",
+]

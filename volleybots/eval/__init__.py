@@ -1,0 +1,200 @@
+"""Evaluation of single-agent and cooperative policies (spec: evaluation.md, last section).
+
+A *target* is what plays: a run directory (its final or latest checkpoint), a checkpoint file,
+``scripted`` (``volleybots.scripted.make_scripted_policy``) or ``random`` (uniform actions).
+``evaluate`` plays E episodes, one per env of a batch of E worlds, and reports the task metric's mean
+and standard deviation with every per-term return.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import torch
+from omegaconf import OmegaConf
+from tensordict import TensorDictBase
+from torchrl.envs.utils import step_mdp
+
+from volleybots.config import GROUPS, ConfigError, load, make_env, to_dict, validate
+from volleybots.runs import RunDir, read_checkpoint
+
+POLICY_NAMES = ("scripted", "random")
+# keys of a checkpoint's config that evaluation may change; the rest fix what the policy was trained on
+EVAL_KEYS = ("episodes", "deterministic", "seed", "progress", "env.device", "env.physics", "env.compile", "env.num_envs")
+
+
+@dataclass
+class Target:
+    label: str  # what plays, for tables and file names
+    cfg: object  # the validated config of the env it plays in
+    checkpoint: Path | None  # the checkpoint file, for trained policies
+    make_policy: Callable  # env -> (td -> td)
+
+
+def stat_keys(env) -> list[str]:
+    return list(env.observation_spec["stats"].keys())
+
+
+def run_episodes(env, policy, on_step=None) -> dict[str, torch.Tensor]:
+    """Play until every env of the batch has finished one episode; return the statistics of those
+    first episodes ([num_envs] per statistic). ``on_step(env, td, next_td)`` sees every step before
+    the finished envs are reset (the recorder uses it)."""
+    keys = stat_keys(env)
+    n = env.num_envs
+    finished = torch.zeros(n, dtype=torch.bool, device=env.device)
+    out = {k: torch.zeros(n, device=env.device) for k in keys}
+    td = env.reset()
+    # a task may end episodes by itself, but never later than its time limit
+    for _ in range(env.episode_len + 1):
+        td = policy(td)
+        td = env.step(td)
+        nxt = td["next"]
+        if on_step is not None:
+            on_step(env, td, nxt)
+        new = nxt["done"].reshape(n) & ~finished
+        for k in keys:
+            out[k] = torch.where(new, nxt["stats", k].reshape(n), out[k])
+        finished |= new
+        if bool(finished.all()):
+            break
+        td = env.maybe_reset(step_mdp(td, keep_other=True, exclude_action=True))
+    return out
+
+
+def summarize(results: dict[str, torch.Tensor], metric: str) -> dict:
+    """Mean and standard deviation of every statistic; the task metric first."""
+    table = {}
+    for k in [metric, *[k for k in results if k != metric]]:
+        v = results[k].double()
+        table[k] = {"mean": float(v.mean()), "std": float(v.std(unbiased=False)) if v.numel() > 1 else 0.0}
+    return {"metric": metric, "episodes": int(next(iter(results.values())).numel()), "stats": table}
+
+
+def apply_overrides(base: dict, overrides, allowed: tuple[str, ...], what: str):
+    """Validate ``base`` (a saved config) with ``key=value`` overrides restricted to ``allowed``."""
+    data = OmegaConf.create(base)
+    for o in overrides:
+        key, eq, value = o.partition("=")
+        if not eq:
+            raise ConfigError(f"bad override {o!r}: expected key=value")
+        if key in GROUPS or key.split(".")[0] in ("task", "algo") or (key not in allowed and not key.startswith(tuple(a + "." for a in allowed))):
+            raise ConfigError(f"cannot change {key!r} of {what}; allowed: {', '.join(allowed)}")
+        OmegaConf.update(data, key, _parse_value(value), merge=True)
+    return validate(to_dict(data))
+
+
+def _parse_value(value: str):
+    """A command-line value as Hydra would read it (numbers, booleans, null, lists)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    return OverridesParser.create().parse_override(f"k={value}").value()
+
+
+def resolve_target(target: str, overrides=()) -> Target:
+    """Turn an eval/replay target and its overrides into a config and a policy factory."""
+    if target in POLICY_NAMES:
+        cfg = load(list(overrides))
+        if target == "random":
+            return Target("random", cfg, None, lambda env: (lambda td: env.rand_action(td)))
+        return Target("scripted", cfg, None, lambda env: _scripted(env, cfg.env.action_space))
+    path = Path(target)
+    if path.is_dir():
+        run = RunDir(path)
+        if not run.is_run():
+            raise ConfigError(f"{target!r} is not a run directory (no config.yaml) nor a checkpoint file")
+        ckpt = run.final_path if run.final_path.is_file() else run.latest_checkpoint()
+        if ckpt is None:
+            raise ConfigError(f"run {target!r} has no checkpoint yet (checkpoints/ is empty)")
+    elif path.is_file():
+        ckpt = path
+    else:
+        raise ConfigError(f"unknown target {target!r}; expected a run directory, a checkpoint file, or one of: {', '.join(POLICY_NAMES)}")
+    state = read_checkpoint(ckpt)
+    cfg = apply_overrides(state["config"], overrides, EVAL_KEYS, f"checkpoint {str(ckpt)!r}")
+
+    def make_policy(env):
+        from volleybots.algos import ALGOS
+
+        algo = ALGOS[cfg.algo.name](cfg.algo, env, seed=cfg.seed)
+        try:
+            algo.load_state_dict(_to_device(state["algo"], env.device))
+        except (RuntimeError, KeyError, ValueError) as e:
+            raise ConfigError(f"checkpoint {str(ckpt)!r} does not match algo {cfg.algo.name!r} on task {cfg.task.name!r}: {str(e).splitlines()[0]}") from None
+        return algo.policy(deterministic=cfg.deterministic)
+
+    return Target(f"{cfg.algo.name}@{int(state['frames'])}", cfg, Path(ckpt), make_policy)
+
+
+def _to_device(state, device):
+    if isinstance(state, torch.Tensor):
+        # generator states stay on the CPU
+        return state if state.dtype == torch.uint8 else state.to(device)
+    if isinstance(state, dict):
+        return {k: _to_device(v, device) for k, v in state.items()}
+    if isinstance(state, list):
+        return [_to_device(v, device) for v in state]
+    return state
+
+
+def _scripted(env, action_space: str):
+    try:
+        from volleybots.scripted import make_scripted_policy
+    except ImportError:
+        raise ConfigError("scripted policies are not available in this install (volleybots.scripted.make_scripted_policy is missing)") from None
+    try:
+        pol = make_scripted_policy(env, action_space)
+    except (ValueError, KeyError) as e:
+        raise ConfigError(f"no scripted policy for task {env.name!r} with env.action_space={action_space!r}: {e}") from None
+
+    def act(td: TensorDictBase) -> TensorDictBase:
+        out = pol(td)
+        if isinstance(out, torch.Tensor):
+            td.set(("agents", "action"), out)
+            return td
+        return out
+
+    return act
+
+
+def evaluate(target: str, overrides=(), episodes: int | None = None) -> dict:
+    """Play ``episodes`` (default: the config's ``episodes``) and summarise them."""
+    t = resolve_target(target, overrides)
+    n = int(episodes or t.cfg.episodes)
+    env = make_env(t.cfg, num_envs=n, seed=t.cfg.seed)
+    policy = t.make_policy(env)
+    res = run_episodes(env, policy)
+    out = summarize(res, env.metric)
+    out.update(
+        target=t.label,
+        task=t.cfg.task.name,
+        action_space=t.cfg.env.action_space,
+        checkpoint=str(t.checkpoint) if t.checkpoint else None,
+        deterministic=bool(t.cfg.deterministic),
+        seed=int(t.cfg.seed),
+    )
+    return out
+
+
+def format_table(result: dict):
+    """A rich table of an ``evaluate`` result: the metric first, then the other statistics."""
+    from rich.table import Table
+
+    title = f"{result['target']} on {result['task']} ({result['action_space']}), {result['episodes']} episodes"
+    table = Table(title=title)
+    table.add_column("statistic")
+    table.add_column("mean", justify="right")
+    table.add_column("std", justify="right")
+    for k, v in result["stats"].items():
+        name = f"{k} (metric)" if k == result["metric"] else k
+        table.add_row(name, _num(v["mean"]), _num(v["std"]))
+    return table
+
+
+def _num(x: float) -> str:
+    return "nan" if math.isnan(x) else f"{x:.4g}"
+
+
+__all__ = ["Target", "apply_overrides", "evaluate", "format_table", "resolve_target", "run_episodes", "summarize"]
