@@ -1,0 +1,170 @@
+"""Throughput benchmark of the envs: env-steps per second with random actions (docs/performance.md).
+
+``run_bench`` measures full TorchRL env steps (physics, referee, rewards, observations and automatic
+partial resets through ``step_and_maybe_reset``, as a collector does), excluding warm-up and
+compilation, and reports the median over repeats. ``format_table`` renders the rows as Markdown with
+the torch/MuJoCo speed ratio of each task measured in the same run. ``benchmarks/bench.py`` and the
+``volleybots bench`` verb are thin front ends to these two functions.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from typing import Callable, Iterable, Sequence
+
+import torch
+
+DEFAULT_TASKS = ("solo_bump",)
+DEFAULT_NUM_ENVS = (1, 256, 4096)
+
+
+def default_devices() -> tuple[str, ...]:
+    return ("cpu", "cuda") if torch.cuda.is_available() else ("cpu",)
+
+
+def default_steps(num_envs: int, backend: str) -> int:
+    """Env steps per repeat: enough work to time (about 1e5 env-steps for torch, 2e4 for MuJoCo)."""
+    budget = 100_000 if backend == "torch" else 20_000
+    return int(min(500, max(10, budget // num_envs)))
+
+
+def _sync(device: str) -> None:
+    if str(device).startswith("cuda"):
+        torch.cuda.synchronize()
+
+
+def measure(
+    task: str,
+    backend: str,
+    num_envs: int,
+    device: str = "cpu",
+    compile: bool = False,
+    repeats: int = 3,
+    steps: int | None = None,
+    warmup: int = 5,
+    action_space: str = "prt",
+    seed: int = 0,
+) -> dict:
+    """One row of ``run_bench``: the env-steps/s of one (task, backend, num_envs, device, compile)."""
+    import volleybots
+
+    steps = steps or default_steps(num_envs, backend)
+    t0 = time.perf_counter()
+    env = volleybots.make_env(task, num_envs=num_envs, action_space=action_space, physics=backend, device=device, seed=seed, compile=compile)
+    torch.manual_seed(seed)
+    # a few pre-drawn random actions, cycled, so that sampling does not count as env time
+    actions = [env.full_action_spec.rand() for _ in range(8)]
+    td = env.reset()
+    for i in range(warmup):  # includes compilation when compile=True
+        _, td = env.step_and_maybe_reset(td.update(actions[i % len(actions)]))
+    _sync(device)
+    setup_s = time.perf_counter() - t0
+    rates = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        for i in range(steps):
+            _, td = env.step_and_maybe_reset(td.update(actions[i % len(actions)]))
+        _sync(device)
+        rates.append(num_envs * steps / (time.perf_counter() - start))
+    rate = statistics.median(rates)
+    close = getattr(env.physics, "close", None)
+    if close is not None:
+        close()
+    return {
+        "task": task,
+        "backend": backend,
+        "device": str(device),
+        "compile": bool(compile),
+        "num_envs": int(num_envs),
+        "n_drones": int(env.n_drones),
+        "action_space": action_space,
+        "steps": int(steps),
+        "repeats": int(repeats),
+        "env_steps_per_s": rate,
+        "step_ms": 1e3 * num_envs / rate,
+        "all_env_steps_per_s": rates,
+        "setup_s": setup_s,
+        "threads": torch.get_num_threads(),
+    }
+
+
+def run_bench(
+    tasks: Iterable[str] = DEFAULT_TASKS,
+    backends: Iterable[str] = ("torch", "mujoco"),
+    num_envs: Iterable[int] = DEFAULT_NUM_ENVS,
+    devices: Iterable[str] | None = None,
+    compile: bool = False,
+    repeats: int = 3,
+    steps: int | None = None,
+    action_space: str = "prt",
+    progress: Callable[[dict], None] | None = None,
+) -> list[dict]:
+    """Measure env-steps/s for every combination of task, backend, env count and device.
+
+    Args:
+        tasks: task names of ``volleybots.tasks.TASKS``.
+        backends: physics backends of ``volleybots.physics.BACKENDS``. MuJoCo steps on the CPU
+            whatever the env device, so it is measured on "cpu" only.
+        num_envs: env counts (batch sizes).
+        devices: torch devices; default "cpu", plus "cuda" when available.
+        compile: ``torch.compile`` the torch physics sub-step (static shapes; the first steps of each
+            new shape compile, excluded from the timing, reported as ``setup_s``).
+        repeats: timed repeats; the row reports their median.
+        steps: env steps per repeat; default ``default_steps`` (scaled by env count and backend).
+        action_space: "prt", "ctbr" or "discrete"; random actions from its spec.
+        progress: called with each row as soon as it is measured (for printing).
+
+    Returns:
+        One dict per measurement with keys ``task, backend, device, compile, num_envs, n_drones,
+        action_space, steps, repeats, env_steps_per_s`` (median), ``step_ms`` (one batched step),
+        ``all_env_steps_per_s`` (every repeat), ``setup_s`` (build + warm-up, incl. compilation) and
+        ``threads`` (torch intra-op threads).
+    """
+    devices = tuple(devices) if devices is not None else default_devices()
+    rows = []
+    for task in tasks:
+        for n in num_envs:
+            for backend in backends:
+                for device in devices:
+                    if backend == "mujoco" and device != "cpu":
+                        continue
+                    row = measure(task, backend, n, device, compile=compile and backend == "torch", repeats=repeats, steps=steps, action_space=action_space)
+                    rows.append(row)
+                    if progress is not None:
+                        progress(row)
+    return rows
+
+
+def speed_ratios(rows: Sequence[dict]) -> dict[tuple[str, int, str], float]:
+    """(task, num_envs, torch device) -> torch env-steps/s over MuJoCo's for the same task and env count."""
+    mj = {(r["task"], r["num_envs"]): r["env_steps_per_s"] for r in rows if r["backend"] == "mujoco"}
+    return {
+        (r["task"], r["num_envs"], r["device"]): r["env_steps_per_s"] / mj[(r["task"], r["num_envs"])]
+        for r in rows
+        if r["backend"] == "torch" and (r["task"], r["num_envs"]) in mj
+    }
+
+
+def _rate(x: float) -> str:
+    if x >= 1e6:
+        return f"{x / 1e6:.2f}M"
+    if x >= 1e3:
+        return f"{x / 1e3:.1f}k"
+    return f"{x:.0f}"
+
+
+def format_table(rows: Sequence[dict]) -> str:
+    """Markdown table of ``run_bench`` rows; torch rows show their speed-up over MuJoCo (same run)."""
+    ratios = speed_ratios(rows)
+    lines = [
+        "| task | drones | backend | device | compile | envs | env-steps/s | ms / step | torch / MuJoCo |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        ratio = ratios.get((r["task"], r["num_envs"], r["device"])) if r["backend"] == "torch" else None
+        lines.append(
+            f"| {r['task']} | {r['n_drones']} | {r['backend']} | {r['device']} | {'yes' if r['compile'] else 'no'} | {r['num_envs']} "
+            f"| {_rate(r['env_steps_per_s'])} | {r['step_ms']:.2f} | {'' if ratio is None else f'{ratio:.1f}x'} |"
+        )
+    return "\n".join(lines)
