@@ -47,9 +47,9 @@ def test_team_policies_drive_each_team_with_its_own_policy():
     seen = {}
 
     def const(value, team):
-        def policy(sub):
-            seen[team] = sub["observation"].shape
-            return sub.set("action", torch.full((*sub.batch_size, 4), value))
+        def policy(td):
+            seen[team] = td["agents", "observation"].shape
+            return td.set(("agents", "action"), torch.full((*td["agents"].batch_size, 4), value))
         return policy
 
     td = env.rollout(3, policy=TeamPolicies(env, (const(0.5, 0), const(-0.5, 1))), break_when_any_done=False)

@@ -18,7 +18,7 @@ from __future__ import annotations
 from typing import Callable
 
 import torch
-from tensordict import TensorDictBase
+from tensordict import TensorDict, TensorDictBase
 
 from volleybots.tasks.base import VolleyEnv
 
@@ -130,8 +130,10 @@ class MultiDroneTask(VolleyEnv):
 
 
 class TeamPolicies:
-    """Drive a match with one policy per team: ``policies[t](sub_td)`` receives team ``t``'s agents
-    (batch [N, A_t], with ``"observation"``) and writes ``"action"``; the actions are scattered back.
+    """Drive a match with one policy per team. Each policy receives a tensordict laid out like the
+    env's, batch [N], whose ``("agents", ...)`` holds only its team's agents ([N, A_t], with
+    ``"observation"``), and writes ``("agents", "action")`` there, so any policy written for the env
+    (scripted, or a TorchRL actor with those keys) plays one team; the actions are scattered back.
     Usable as the policy of ``env.rollout`` and of TorchRL collectors."""
 
     def __init__(self, env: MultiDroneTask, policies: tuple[Callable, Callable]):
@@ -140,7 +142,8 @@ class TeamPolicies:
 
     def __call__(self, td: TensorDictBase) -> TensorDictBase:
         for team, policy in enumerate(self.policies):
-            sub = self.env.select_team(td, team).clone()
+            sub = TensorDict({"agents": self.env.select_team(td, team)}, batch_size=td.batch_size, device=td.device)
             out = policy(sub)
-            self.env.write_team(td, team, (out if out is not None else sub).select("action"))
+            out = sub if out is None else out
+            self.env.write_team(td, team, out.get("agents").select("action"))
         return td
