@@ -1,0 +1,272 @@
+"""Batched model-based flight control: position loop -> thrust vector -> attitude -> PRT or CTBR action.
+
+The cascade is the usual one for quadrotors (Mellinger & Kumar 2011, Brescianini et al. 2013):
+
+1. ``position_accel``: a PD law on a reference (position, velocity, feed-forward acceleration) gives
+   the acceleration the drone should have; the model's gravity and linear damping are cancelled.
+2. ``thrust_vector``: that acceleration plus gravity is the specific thrust the rotors must give,
+   clipped to what the airframe can produce (vertical first, then as much horizontal as is left).
+3. ``DroneController.act``: a reduced-attitude law turns the thrust direction into body-rate targets;
+   for CTBR those rates and the collective thrust *are* the action (the env's rate controller does the
+   rest), for PRT an inner rate loop, an exact allocation inverse of the airframe (the Iris's front and
+   rear arms differ, so hover thrusts differ per rotor) and an inversion of the rotor lag give the four
+   rotor commands.
+
+Everything works on tensors of any batch shape ``[..., 3]`` on any device, so one controller drives
+every drone of every env at once; nothing here keeps state between calls.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+
+from volleybots.physics.controllers import RateController
+from volleybots.physics.math import quat_axes, quat_rotate_inverse
+from volleybots.physics.params import WorldParams
+
+
+@dataclass(frozen=True)
+class Gains:
+    """Gains of the cascade. Units: 1/s^2 (kp), 1/s (kd, k_att, k_rate)."""
+
+    k_pos_xy: float = 2.5  # 1/s: position error -> velocity correction
+    k_pos_z: float = 3.0
+    pos_accel_xy: float = 4.0  # m/s^2 the position law plans to brake with, beyond its linear range
+    pos_accel_z: float = 3.0
+    k_vel_xy: float = 5.0  # 1/s: velocity error -> acceleration
+    k_vel_z: float = 7.0
+    k_att: float = 16.0  # tilt error (rad) -> body rate (rad/s), PRT
+    k_att_ctbr: float = 7.0  # the CTBR rate loop is slower, so the attitude loop must be too
+    att_accel: float = 20.0  # rad/s^2 the attitude law plans to brake with (the Iris can do about 35 at hover)
+    att_accel_ctbr: float = 15.0
+    k_yaw: float = 1.0  # heading error -> yaw rate
+    k_rate: float = 30.0  # PRT inner loop: rate error -> angular acceleration
+    max_tilt: float = math.radians(30.0)
+    thrust_margin: float = 0.95  # fraction of the maximum total thrust the position loop may ask for
+    min_thrust_z: float = 5.0  # m/s^2: with little thrust its direction swings wildly and attitude is slow to follow
+    max_climb: float = 4.5  # m/s^2 of upward acceleration at most, so some thrust is left to steer
+    lag_comp: float = 1.0  # 1: invert the rotor lag fully (needs observed throttles), 0: ignore it
+
+
+@dataclass
+class DroneObs:
+    """One drone's root state as the observation gives it (tasks/single.py, base.root_state)."""
+
+    pos: torch.Tensor  # [..., 3]
+    quat: torch.Tensor  # [..., 4] w x y z
+    vel: torch.Tensor  # [..., 3] world
+    omega_world: torch.Tensor  # [..., 3]
+    throttle: torch.Tensor | None  # [..., 4] in [0, 1], None without throttles in the observation (CTBR)
+
+    @classmethod
+    def from_obs(cls, obs: torch.Tensor, with_throttle: bool) -> "DroneObs":
+        thr = (obs[..., 19:23] + 1.0) * 0.5 if with_throttle else None
+        return cls(obs[..., 0:3], obs[..., 3:7], obs[..., 7:10], obs[..., 10:13], thr)
+
+    @property
+    def omega_body(self) -> torch.Tensor:
+        return quat_rotate_inverse(self.quat, self.omega_world)
+
+    @property
+    def root_dim(self) -> int:
+        return 23 if self.throttle is not None else 19
+
+
+def _unit(v: torch.Tensor, eps: float = 1e-9) -> torch.Tensor:
+    return v / v.norm(dim=-1, keepdim=True).clamp_min(eps)
+
+
+class DroneController:
+    """Reference state -> action in the env's action space (``"prt"`` or ``"ctbr"``), batched.
+
+    ``act(drone, p_ref, v_ref, a_ref)`` tracks a reference; ``act_accel(drone, accel)`` flies a
+    commanded acceleration (for guidance laws that are not a reference trajectory). The discrete
+    action space is not supported: a model-based controller needs a continuous actuator.
+    """
+
+    def __init__(self, params: WorldParams | None = None, action_space: str = "prt", gains: Gains | None = None):
+        if action_space not in ("prt", "ctbr"):
+            raise ValueError(f"scripted control supports action spaces ['prt', 'ctbr'], got {action_space!r}")
+        self.params = params or WorldParams()
+        self.action_space = action_space
+        self.gains = gains or Gains()
+        d = self.params.drone
+        self.g = self.params.gravity
+        self.mass = d.mass
+        self.kf = d.max_rotor_thrust
+        self.max_accel = 4 * d.max_rotor_thrust / d.mass  # specific thrust at full throttle, m/s^2
+        self.inertia = torch.tensor(d.inertia, dtype=torch.float64)
+        rp = torch.tensor(d.rotor_positions, dtype=torch.float64)
+        dirs = torch.tensor(d.directions, dtype=torch.float64)
+        # allocation: rotor thrusts -> (total thrust, body torque x, y, z); same model as the physics
+        alloc = torch.stack((torch.ones(4, dtype=torch.float64), rp[:, 1], -rp[:, 0], -dirs * d.max_rotor_moment / d.max_rotor_thrust))
+        self.mix = torch.linalg.inv(alloc)  # [4 rotors, 4 wrench]
+        # the rotor lag over one control step: the thrust the physics applies in sub-step k uses a
+        # throttle that has closed 1 - (1 - lag)^k of the gap, so the step's mean throttle is
+        # target + beta * (start - target)
+        keep = 1.0 - self.params.lag_per_substep
+        self.beta = sum(keep**k for k in range(1, self.params.substeps + 1)) / self.params.substeps
+        self._cache: dict = {}
+
+    # ------------------------------------------------------------------ constants per device
+    def _c(self, ref: torch.Tensor) -> dict[str, torch.Tensor]:
+        key = (ref.device, ref.dtype)
+        if key not in self._cache:
+            self._cache[key] = {
+                "mix": self.mix.to(ref.device, ref.dtype),
+                "inertia": self.inertia.to(ref.device, ref.dtype),
+                "ez": torch.tensor((0.0, 0.0, 1.0), device=ref.device, dtype=ref.dtype),
+            }
+        return self._cache[key]
+
+    def accel_estimate(self, drone: DroneObs) -> torch.Tensor:
+        """The drone's acceleration now, from its tilt and, where observed, its rotor throttles
+        (thrust = throttle^2 KF per rotor); without throttles the thrust is taken to hold height."""
+        _, up = quat_axes(drone.quat)
+        if drone.throttle is None:
+            thrust = self.g / up[..., 2:].clamp_min(0.5)
+        else:
+            thrust = (drone.throttle * drone.throttle).sum(-1, keepdim=True) * (self.kf / self.mass)
+        acc = thrust * up - self.params.drone.lin_damping * drone.vel
+        return torch.cat((acc[..., :2], acc[..., 2:] - self.g), -1)
+
+    # ------------------------------------------------------------------ outer loops
+    def position_accel(self, drone: DroneObs, p_ref, v_ref, a_ref=None) -> torch.Tensor:
+        """Tracking law: the acceleration [..., 3] the drone should have now.
+
+        Position error -> velocity correction by a square-root law (a large error asks for a speed
+        the drone can brake from, not for a huge tilt), velocity error -> acceleration, plus the
+        reference's feed-forward acceleration. Horizontal and vertical are shaped separately."""
+        g = self.gains
+        e = p_ref - drone.pos
+        eh = e[..., :2]
+        dist = eh.norm(dim=-1, keepdim=True)
+        v_h = eh / dist.clamp_min(1e-9) * sqrt_law(dist, g.k_pos_xy, g.pos_accel_xy)
+        ez = e[..., 2:]
+        v_z = torch.sign(ez) * sqrt_law(ez.abs(), g.k_pos_z, g.pos_accel_z)
+        dv = v_ref + torch.cat((v_h, v_z), -1) - drone.vel
+        acc = torch.cat((g.k_vel_xy * dv[..., :2], g.k_vel_z * dv[..., 2:]), -1)
+        return acc if a_ref is None else acc + a_ref
+
+    def thrust_vector(self, drone: DroneObs, accel: torch.Tensor) -> torch.Tensor:
+        """Specific thrust (m/s^2, world) that yields ``accel``, clipped to the airframe's envelope.
+
+        Gravity and the model's linear damping are cancelled here. Vertical has priority: the
+        horizontal part gets what is left of the thrust budget and the tilt limit.
+        """
+        g = self.gains
+        f = accel + self.params.drone.lin_damping * drone.vel
+        fmax = g.thrust_margin * self.max_accel
+        fz = (f[..., 2] + self.g).clamp(g.min_thrust_z, min(fmax, self.g + g.max_climb))
+        h = f[..., :2]
+        h_max = torch.minimum(torch.sqrt((fmax**2 - fz**2).clamp_min(0.0)), fz * math.tan(g.max_tilt))
+        h_norm = h.norm(dim=-1)
+        h = h * (h_max / h_norm.clamp_min(1e-9)).clamp(max=1.0).unsqueeze(-1)
+        return torch.cat((h, fz.unsqueeze(-1)), -1)
+
+    # ------------------------------------------------------------------ attitude and actuation
+    def body_rates(self, drone: DroneObs, b3_des: torch.Tensor, k_att: float, brake: float, yaw_rate: torch.Tensor | None = None) -> torch.Tensor:
+        """Reduced-attitude law: rotate the body z axis onto ``b3_des`` at a rate proportional to the
+        angle between them (well defined up to 180 degrees, unlike the SO(3) error's sine), and for
+        large angles no faster than a braking of ``brake`` rad/s^2 can stop on the target: the
+        torque is limited, so a linear law would overshoot large turns."""
+        _, up = quat_axes(drone.quat)
+        axis = torch.cross(up, b3_des, dim=-1)
+        angle = torch.atan2(axis.norm(dim=-1), (up * b3_des).sum(-1))
+        axis_b = _unit(quat_rotate_inverse(drone.quat, axis))
+        speed = sqrt_law(angle, k_att, brake)
+        rates = axis_b * speed.unsqueeze(-1)
+        yaw = torch.zeros_like(angle) if yaw_rate is None else yaw_rate
+        return torch.cat((rates[..., :2], yaw.unsqueeze(-1)), -1)
+
+    def act(self, drone: DroneObs, p_ref, v_ref, a_ref=None, yaw_rate=None) -> torch.Tensor:
+        return self.act_accel(drone, self.position_accel(drone, p_ref, v_ref, a_ref), yaw_rate)
+
+    def act_accel(self, drone: DroneObs, accel: torch.Tensor, yaw_rate=None) -> torch.Tensor:
+        return self.act_thrust(drone, self.thrust_vector(drone, accel), yaw_rate)
+
+    def act_thrust(self, drone: DroneObs, f: torch.Tensor, yaw_rate=None) -> torch.Tensor:
+        """Fly the specific thrust vector ``f`` [..., 3] (world): the action [..., 4] in [-1, 1]."""
+        b3 = _unit(f)
+        _, up = quat_axes(drone.quat)
+        # thrust along the body axis we have now, so a tilt error does not turn into a height error
+        collective = (f * up).sum(-1).clamp_min(0.0)
+        if self.action_space == "ctbr":
+            rates = self.body_rates(drone, b3, self.gains.k_att_ctbr, self.gains.att_accel_ctbr, yaw_rate)
+            rate_act = rates / math.radians(RateController.max_rate_deg)
+            thrust_act = 2.0 * collective * self.mass / (4 * self.kf) - 1.0
+            return torch.cat((rate_act, thrust_act.unsqueeze(-1)), -1).clamp(-1.0, 1.0)
+        rates = self.body_rates(drone, b3, self.gains.k_att, self.gains.att_accel, yaw_rate)
+        return self.rotor_commands(drone, collective * self.mass, rates)
+
+    def rotor_commands(self, drone: DroneObs, thrust: torch.Tensor, rates_des: torch.Tensor) -> torch.Tensor:
+        """PRT inner loop: body-rate targets and total thrust (N) -> rotor commands in [-1, 1]."""
+        c = self._c(thrust)
+        J = c["inertia"]
+        w = drone.omega_body
+        d = self.params.drone
+        alpha = self.gains.k_rate * (rates_des - w) + d.ang_damping * w
+        torque = J * alpha + torch.cross(w, J * w, dim=-1)
+        t = self.allocate(thrust, torque)
+        if drone.throttle is not None and self.gains.lag_comp > 0:
+            # choose the throttle target whose mean over the coming step is the wanted throttle
+            want = torch.sqrt(t / self.kf)
+            b = self.beta * self.gains.lag_comp
+            target = ((want - b * drone.throttle) / (1.0 - b)).clamp(0.0, 1.0)
+            t = target * target * self.kf
+        return (2.0 * t / self.kf - 1.0).clamp(-1.0, 1.0)
+
+    def allocate(self, thrust: torch.Tensor, torque: torch.Tensor) -> torch.Tensor:
+        """Total thrust [...] and body torque [..., 3] -> rotor thrusts [..., 4] in [0, KF].
+
+        The torque is kept exact when some total thrust allows it (the thrust gives way first);
+        otherwise the torque is scaled down just enough to fit, since attitude keeps the drone alive.
+        """
+        mix = self._c(thrust)["mix"]
+        u = mix[:, 0]  # rotor share of one newton of total thrust
+        w = torque @ mix[:, 1:].T  # [..., 4] torque part, sums to zero
+
+        def bounds(wk):
+            # thrust range keeping every rotor in [0, KF]: 0 <= T u_i + w_i <= KF
+            lo = (-wk / u).amax(-1)
+            hi = ((self.kf - wk) / u).amin(-1)
+            return lo, hi
+
+        lo, hi = bounds(w)
+        ok = lo <= hi
+        # bisection on the torque scale where no thrust fits (rare: saturated manoeuvres)
+        s_lo, s_hi = torch.zeros_like(thrust), torch.ones_like(thrust)
+        for _ in range(10):
+            mid = 0.5 * (s_lo + s_hi)
+            l2, h2 = bounds(w * mid.unsqueeze(-1))
+            fits = l2 <= h2
+            s_lo = torch.where(fits, mid, s_lo)
+            s_hi = torch.where(fits, s_hi, mid)
+        w = w * torch.where(ok, torch.ones_like(s_lo), s_lo).unsqueeze(-1)
+        lo, hi = bounds(w)
+        total = torch.minimum(torch.maximum(thrust, lo), hi)
+        t = total.unsqueeze(-1) * u + w
+        return t.clamp(0.0, self.kf)
+
+
+def sqrt_law(error: torch.Tensor, k: float, accel: float) -> torch.Tensor:
+    """Rate to close ``error`` (>= 0): linear ``k * error`` close in, beyond ``accel / k^2`` the speed
+    from which a deceleration of ``accel`` stops on target (continuous, with a continuous slope; the
+    "square-root controller" of ArduPilot). A linear law alone would demand decelerations of
+    ``k^2 * error`` that a torque- or thrust-limited airframe cannot give."""
+    linear = accel / (k * k)
+    return torch.where(error <= linear, k * error, torch.sqrt((2.0 * accel * (error - 0.5 * linear)).clamp_min(0.0)))
+
+
+def heading_yaw_rate(drone: DroneObs, yaw_des: torch.Tensor | float, k: float) -> torch.Tensor:
+    """Yaw-rate command turning the heading toward ``yaw_des`` (rad), wrapped to the short way."""
+    heading, _ = quat_axes(drone.quat)
+    yaw = torch.atan2(heading[..., 1], heading[..., 0])
+    err = torch.remainder(torch.as_tensor(yaw_des, dtype=yaw.dtype, device=yaw.device) - yaw + math.pi, 2 * math.pi) - math.pi
+    return k * err
+
+
+__all__ = ["DroneController", "DroneObs", "Gains", "heading_yaw_rate", "sqrt_law"]

@@ -1,0 +1,146 @@
+"""Trajectory primitives: quintic segments, a minimum-time "go to" law and the ball strike planner.
+
+The strike planner is what every ball-playing scripted player uses: from the ball's state it
+predicts when and where the ball comes down through a contact height, asks the caller which
+velocity the ball should leave with, solves the racket normal and speed for that (ballistics.py),
+and gives the drone a reference (position, velocity, acceleration) that arrives at the contact
+point on time, with the racket tilted along the normal and moving at the right speed. The
+reference is a pure function of the ball state, so a policy using it keeps no memory.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import torch
+
+from volleybots.physics.params import WorldParams
+from volleybots.scripted.ballistics import ball_at, racket_for, time_to_height
+
+
+def quintic(p0, v0, a0, p1, v1, a1, duration: torch.Tensor, t: torch.Tensor):
+    """Evaluate at time ``t`` the quintic from (p0, v0, a0) to (p1, v1, a1) over ``duration``.
+
+    States are [..., 3], ``duration`` and ``t`` are [...]. Returns (position, velocity, acceleration).
+    The quintic is the minimum-jerk path between two full states (Mueller et al. 2015).
+    """
+    T = duration.clamp_min(1e-3).unsqueeze(-1)
+    t = t.unsqueeze(-1).clamp(min=0.0).minimum(T)
+    dp = p1 - p0 - v0 * T - 0.5 * a0 * T * T
+    dv = v1 - v0 - a0 * T
+    da = a1 - a0
+    c3 = (10.0 * dp - 4.0 * dv * T + 0.5 * da * T * T) / T**3
+    c4 = (-15.0 * dp + 7.0 * dv * T - da * T * T) / T**4
+    c5 = (6.0 * dp - 3.0 * dv * T + 0.5 * da * T * T) / T**5
+    pos = p0 + v0 * t + 0.5 * a0 * t * t + c3 * t**3 + c4 * t**4 + c5 * t**5
+    vel = v0 + a0 * t + 3 * c3 * t**2 + 4 * c4 * t**3 + 5 * c5 * t**4
+    acc = a0 + 6 * c3 * t + 12 * c4 * t**2 + 20 * c5 * t**3
+    return pos, vel, acc
+
+
+def goto_accel(pos, vel, target, accel: float, speed: float, k_v: float = 6.0, k_p: float = 2.5, brake: float | None = None, stop_at: float = 0.0) -> torch.Tensor:
+    """Near minimum-time guidance to ``target`` [..., 3]: fly at the speed from which a braking of
+    ``brake`` (default ``accel``) stops ``stop_at`` metres short of the target, capped at ``speed``
+    and, close in, at ``k_p`` times the distance (a plain P law there, no chatter); the speed is
+    tracked with gain ``k_v``. Returns the commanded acceleration, at most ``accel`` in norm."""
+    d = target - pos
+    dist = d.norm(dim=-1, keepdim=True)
+    to_go = (dist - stop_at).clamp_min(0.0)
+    brake = accel if brake is None else brake
+    v_mag = torch.minimum(torch.sqrt(2.0 * brake * to_go), k_p * to_go).clamp(max=speed)
+    v_des = d / dist.clamp_min(1e-6) * v_mag
+    a = k_v * (v_des - vel)
+    n = a.norm(dim=-1, keepdim=True)
+    return a * (accel / n.clamp_min(1e-9)).clamp(max=1.0)
+
+
+@dataclass
+class Strike:
+    """A planned contact. Per batch element: time to go, the ball at contact, the racket solution,
+    and the drone's state at contact (position of its centre, velocity and acceleration)."""
+
+    t: torch.Tensor  # [...] seconds to contact, +inf when the ball never comes down to the height
+    ball_pos: torch.Tensor  # [..., 3] ball centre at contact
+    ball_in: torch.Tensor  # [..., 3] incoming ball velocity
+    ball_out: torch.Tensor  # [..., 3] wanted outgoing velocity
+    normal: torch.Tensor  # [..., 3] racket normal = body z axis at contact
+    speed: torch.Tensor  # [...] racket speed along the normal at contact
+    drone_pos: torch.Tensor  # [..., 3]
+    drone_vel: torch.Tensor  # [..., 3]
+    drone_acc: torch.Tensor  # [..., 3]
+
+    @property
+    def valid(self) -> torch.Tensor:
+        return torch.isfinite(self.t)
+
+
+class StrikePlanner:
+    """Plans racket strikes for one airframe and ball (``WorldParams``).
+
+    ``plan(ball_pos, ball_vel, contact_z, want_out)``: ``contact_z`` [...] is the height of the
+    ball's centre at contact and ``want_out(ball_pos_at_contact, ball_vel_in) -> v_out`` says where
+    the ball should go. The racket moves along its normal at contact (``drone_vel = speed * normal``)
+    and the drone's acceleration at contact makes its thrust point along the normal, with
+    ``contact_thrust`` m/s^2 of specific thrust (None: exactly what keeps the height).
+
+    ``guidance(strike, pos, vel)``: the acceleration that brings the drone from its current state
+    into the contact state on time (``terminal_guidance``), re-planned every step.
+    """
+
+    def __init__(self, params: WorldParams | None = None, contact_thrust: float | None = None):
+        self.params = params or WorldParams()
+        self.g = self.params.gravity
+        self.reach = self.params.ball.radius + self.params.drone.racket_offset  # ball centre above the drone centre
+        self.e = self.params.ball.restitution
+        self.contact_thrust = contact_thrust
+
+    def plan(self, ball_pos, ball_vel, contact_z, want_out: Callable[[torch.Tensor, torch.Tensor], torch.Tensor], max_tilt: float | None = None) -> Strike:
+        t = time_to_height(ball_pos[..., 2], ball_vel[..., 2], contact_z, self.g)
+        t0 = torch.where(torch.isfinite(t), t, torch.zeros_like(t))
+        bp, bv = ball_at(ball_pos, ball_vel, t0, self.g)
+        v_out = want_out(bp, bv)
+        n, s = racket_for(bv, v_out, self.e)
+        if max_tilt is not None:
+            n = limit_tilt(n, max_tilt)
+            s = (bv * n).sum(-1) + (v_out - bv).norm(dim=-1) / (1.0 + self.e)
+        drone_pos = bp - self.reach * n
+        drone_vel = s.unsqueeze(-1) * n
+        nz = n[..., 2].clamp_min(0.2)
+        thrust = self.g / nz if self.contact_thrust is None else torch.full_like(nz, self.contact_thrust)
+        drone_acc = thrust.unsqueeze(-1) * n
+        drone_acc = torch.cat((drone_acc[..., :2], drone_acc[..., 2:] - self.g), -1)
+        return Strike(t, bp, bv, v_out, n, s, drone_pos, drone_vel, drone_acc)
+
+    def guidance(self, strike: Strike, pos, vel, min_time: float = 0.35) -> torch.Tensor:
+        """Acceleration command [..., 3] that steers the drone into the contact state on time."""
+        T = torch.where(strike.valid, strike.t, torch.full_like(strike.t, min_time))
+        return terminal_guidance(pos, vel, strike.drone_pos, strike.drone_vel, strike.drone_acc, T, min_time)
+
+
+def terminal_guidance(pos, vel, p1, v1, a1, time_to_go: torch.Tensor, min_time: float = 0.35) -> torch.Tensor:
+    """Acceleration to apply now to arrive at (p1, v1) with acceleration a1 in ``time_to_go`` s.
+
+    It is the first acceleration of the minimum-jerk path whose initial acceleration is free (the
+    drone can change it quickly; the natural boundary condition makes the initial jerk zero):
+    ``a = (20 dp - 8 dv T + a1 T^2) / (3 T^2)`` with ``dp = p1 - p - v T`` and ``dv = v1 - v``. Re-applied
+    every step it is a feedback law (gains 20/(3T^2) and 4/T), so the horizon is floored at
+    ``min_time``: below it the gains would outrun the attitude loop."""
+    T = time_to_go.clamp_min(min_time).unsqueeze(-1)
+    dp = p1 - pos - vel * T
+    dv = v1 - vel
+    return (20.0 * dp - 8.0 * dv * T + a1 * T * T) / (3.0 * T * T)
+
+
+def limit_tilt(n: torch.Tensor, max_tilt: float) -> torch.Tensor:
+    """Tilt the unit vectors ``n`` back toward vertical so that they are at most ``max_tilt`` off it."""
+    h = n[..., :2]
+    hn = h.norm(dim=-1, keepdim=True)
+    cap = torch.tan(torch.as_tensor(max_tilt, dtype=n.dtype, device=n.device))
+    nz = n[..., 2:].clamp_min(1e-6)
+    h = h * (cap * nz / hn.clamp_min(1e-9)).clamp(max=1.0)
+    out = torch.cat((h, nz), -1)
+    return out / out.norm(dim=-1, keepdim=True)
+
+
+__all__ = ["Strike", "StrikePlanner", "goto_accel", "limit_tilt", "quintic", "terminal_guidance"]
