@@ -25,7 +25,7 @@ from volleybots.eval import apply_overrides, run_episodes, summarize
 from volleybots.runs import CKPT_FORMAT, MetricsLog, RunDir, WandbLogger, read_checkpoint, write_curves
 
 # keys a resumed run may change: how long it goes on and how it reports, not what it learns
-RESUME_KEYS = ("total_frames", "progress", "logger", "wandb", "checkpoint", "evaluation", "env.device")
+RESUME_KEYS = ("total_frames", "progress", "threads", "logger", "wandb", "checkpoint", "evaluation", "env.device")
 EVAL_SEED_OFFSET = 10_000  # periodic evaluations play the same episodes every time, unlike training's
 
 

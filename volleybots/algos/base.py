@@ -7,6 +7,7 @@ name in ``volleybots.algos.ALGOS``. The loop collects ``steps_per_batch`` steps 
 
 from __future__ import annotations
 
+import inspect
 from abc import ABC, abstractmethod
 from typing import Callable, ClassVar
 
@@ -42,13 +43,12 @@ class Algorithm(ABC):
             raise ConfigError(
                 f"algo {cls.name!r} does not support env.action_space={action_space!r}; allowed: {', '.join(cls.action_spaces)}"
             )
-        if task_cls.n_drones > 1 and not cls.multi_agent:
+        n_drones = class_attr(task_cls, "n_drones")
+        if n_drones > 1 and not cls.multi_agent:
             from volleybots.algos import ALGOS
 
             multi = [n for n, a in ALGOS.items() if a.multi_agent]
-            raise ConfigError(
-                f"algo {cls.name!r} trains one drone but task {task_cls.name!r} has {task_cls.n_drones}; use one of: {', '.join(multi)}"
-            )
+            raise ConfigError(f"algo {cls.name!r} trains one drone but task {task_cls.name!r} has {n_drones}; use one of: {', '.join(multi)}")
 
     @property
     def steps_per_batch(self) -> int:
@@ -69,6 +69,13 @@ class Algorithm(ABC):
     @abstractmethod
     def load_state_dict(self, state: dict) -> None:
         ...
+
+
+def class_attr(cls, name: str):
+    """A class attribute that a task may define as a property of other class attributes
+    (the matches derive ``n_drones`` from ``team_size``)."""
+    value = inspect.getattr_static(cls, name)
+    return value.fget(cls) if isinstance(value, property) else value
 
 
 def mlp(in_dim: int, out_dim: int, hidden, activation: str, out_gain: float) -> nn.Sequential:

@@ -23,7 +23,7 @@ from volleybots.runs import RunDir, read_checkpoint
 
 POLICY_NAMES = ("scripted", "random")
 # keys of a checkpoint's config that evaluation may change; the rest fix what the policy was trained on
-EVAL_KEYS = ("episodes", "deterministic", "seed", "progress", "env.device", "env.physics", "env.compile", "env.num_envs")
+EVAL_KEYS = ("episodes", "deterministic", "seed", "progress", "threads", "env.device", "env.physics", "env.compile", "env.num_envs")
 
 
 @dataclass

@@ -1,0 +1,271 @@
+"""The ``volleybots`` command line: train, eval, replay, list, bench.
+
+Bad input (an unknown name or key, a wrong type, an algorithm that cannot act in the chosen action
+space, a missing or mismatched checkpoint, an output file that exists) prints one line naming the bad
+value and the allowed ones, exits with code 2 and writes nothing.
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+import json
+import sys
+import time
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+import volleybots
+from volleybots.config import ConfigError
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    help="Multi-drone volleyball: train, evaluate and replay policies on batched drone-physics tasks.",
+)
+_PASS_THROUGH = {"allow_extra_args": True, "ignore_unknown_options": True}
+
+
+def _fail(msg: str) -> None:
+    typer.echo(f"error: {msg}", err=True)
+    raise typer.Exit(2)
+
+
+def _user_errors(fn):
+    """Turn ``ConfigError`` (bad user input) into one line and exit code 2."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kw):
+        try:
+            return fn(*args, **kw)
+        except ConfigError as e:
+            _fail(str(e))
+
+    return wrapper
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"volleybots {volleybots.__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def main(
+    version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="Print the version and exit."),
+) -> None:
+    """Multi-drone volleyball: train, evaluate and replay policies on batched drone-physics tasks."""
+
+
+# ------------------------------------------------------------------------------------------ train
+def _jobs(overrides: list[str], multirun: bool) -> list[list[str]]:
+    """The override lists of the jobs a command line asks for (one without -m; the sweep's product with)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import HydraException
+
+    try:
+        parsed = OverridesParser.create().parse_overrides(overrides)
+    except HydraException as e:
+        raise ConfigError(f"bad override: {' '.join(str(e).split())}") from None
+    sweeps = [o for o in parsed if o.is_sweep_override()]
+    if sweeps and not multirun:
+        raise ConfigError(f"override {sweeps[0].input_line!r} sweeps several values; add -m to run one job per value")
+    choices = [
+        [f"{o.get_key_element()}={v}" for v in o.sweep_string_iterator()] if o.is_sweep_override() else [o.input_line]
+        for o in parsed
+    ]
+    return [list(c) for c in itertools.product(*choices)] or [[]]
+
+
+def _check_run_dir(overrides: list[str]) -> None:
+    """Refuse an explicit ``hydra.run.dir`` that already holds a run (Hydra would write into it)."""
+    from volleybots.runs import RunDir
+
+    for o in overrides:
+        key, _, value = o.partition("=")
+        if key == "hydra.run.dir" and RunDir(value).has_results():
+            raise ConfigError(f"{value} already holds a run; choose another hydra.run.dir or continue it with resume={value}")
+
+
+def _run_hydra(overrides: list[str], multirun: bool, extra: list[str]) -> None:
+    import hydra
+
+    from volleybots.paths import conf_dir
+
+    @hydra.main(config_path=str(conf_dir()), config_name="config", version_base="1.3")
+    def _job(cfg) -> None:
+        from hydra.core.hydra_config import HydraConfig
+
+        from volleybots.config import validate
+        from volleybots.train import train as train_run
+
+        try:
+            summary = train_run(validate(cfg), HydraConfig.get().runtime.output_dir)
+        except ConfigError as e:
+            _fail(str(e))
+        _echo_summary(summary, HydraConfig.get().runtime.output_dir)
+
+    argv = sys.argv
+    sys.argv = ["volleybots-train", *overrides, *(["--multirun"] if multirun else []), *extra]
+    try:
+        _job()
+    finally:
+        sys.argv = argv
+
+
+def _echo_summary(summary: dict, run_dir) -> None:
+    ev = summary["final_eval"]["stats"][summary["metric"]]
+    typer.echo(
+        f"run {run_dir}: {summary['frames']} frames in {summary['wall_time_s']:.0f} s "
+        f"({summary['frames_per_s']:,.0f} frames/s); eval {summary['metric']} {ev['mean']:.4g} +- {ev['std']:.3g}"
+    )
+
+
+@app.command(context_settings=_PASS_THROUGH)
+@_user_errors
+def train(
+    ctx: typer.Context,
+    overrides: Optional[List[str]] = typer.Argument(None, help="Hydra overrides: task=solo_bump algo=ppo env.num_envs=256 env.action_space=ctbr seed=3 total_frames=2e6 hydra.run.dir=DIR, or resume=RUN_DIR [total_frames=N]."),
+    multirun: bool = typer.Option(False, "-m", "--multirun", help="Sweep: one job per combination of comma-separated values (seed=0,1,2)."),
+) -> None:
+    """Train a policy; writes a run directory (config, metrics.csv, checkpoints, summary.json, recordings)."""
+    overrides = list(overrides or [])
+    flags = [a for a in ctx.args if a.startswith("-")]
+    overrides += [a for a in ctx.args if not a.startswith("-")]
+    resume_dir = next((o.partition("=")[2] for o in overrides if o.startswith("resume=")), None)
+    if resume_dir is not None and resume_dir not in ("", "null"):
+        from volleybots.train import resume
+
+        if multirun:
+            raise ConfigError("resume= continues one run; it cannot be combined with -m")
+        summary = resume(resume_dir, [o for o in overrides if not o.startswith("resume=")])
+        _echo_summary(summary, resume_dir)
+        return
+    from volleybots.config import compose, validate
+
+    for job in _jobs(overrides, multirun):
+        validate(compose([o for o in job if not o.startswith("hydra.")] + [o for o in job if o.startswith("hydra.")]))
+    _check_run_dir(overrides)
+    _run_hydra(overrides, multirun, flags)
+
+
+# ------------------------------------------------------------------------------------ eval, replay
+@app.command("eval", context_settings=_PASS_THROUGH)
+@_user_errors
+def eval_cmd(
+    target: str = typer.Argument(..., help="A run directory, a checkpoint file, 'scripted' or 'random'."),
+    overrides: Optional[List[str]] = typer.Argument(None, help="episodes=100 deterministic=true seed=0; for scripted/random also task=NAME env.action_space=ctbr."),
+    as_json: bool = typer.Option(False, "--json", help="Print the result as JSON instead of a table."),
+) -> None:
+    """Play N episodes (episodes=100) and report the task metric's mean / std and every per-term return."""
+    from volleybots.eval import evaluate, format_table
+
+    result = evaluate(target, list(overrides or []))
+    if as_json:
+        typer.echo(json.dumps(result, indent=2))
+    else:
+        from rich.console import Console
+
+        Console().print(format_table(result))
+
+
+def _free_path(path: Path) -> Path:
+    stem, n = path.stem, 2
+    while path.exists():
+        path = path.with_name(f"{stem}_{n}{path.suffix}")
+        n += 1
+    return path
+
+
+@app.command(context_settings=_PASS_THROUGH)
+@_user_errors
+def replay(
+    target: str = typer.Argument(..., help="A run directory, a checkpoint file, 'scripted' or 'random'."),
+    overrides: Optional[List[str]] = typer.Argument(None, help="seed=0 deterministic=true; for scripted/random also task=NAME env.action_space=ctbr."),
+    out: Optional[Path] = typer.Option(None, "--out", help="The .rrd file to write (never overwritten)."),
+    no_viewer: bool = typer.Option(False, "--no-viewer", help="Do not open the rerun viewer even when a display exists."),
+) -> None:
+    """Record one episode to a rerun file: court, net, drones, ball trail, hits / violations, rewards."""
+    from volleybots.config import make_env
+    from volleybots.eval import resolve_target
+    from volleybots.replay import has_display, record_episode
+
+    if out is not None and out.suffix != ".rrd":
+        raise ConfigError(f"--out {str(out)!r} must end in .rrd")
+    if out is not None and out.exists():
+        raise ConfigError(f"--out {str(out)!r} exists; choose another file (replays never overwrite)")
+    t = resolve_target(target, list(overrides or []))
+    viewer = not no_viewer and has_display()
+    if out is None and not viewer:
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        base = Path(target) if Path(target).is_dir() else Path("outputs") / "replays"
+        out = _free_path(base / f"replay_{t.cfg.task.name}_{t.label.replace('@', '_')}_{stamp}.rrd")
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    env = make_env(t.cfg, num_envs=1, seed=t.cfg.seed)
+    stats = record_episode(env, t.make_policy(env), out, viewer=viewer)
+    where = str(out) if out is not None else "the viewer"
+    typer.echo(f"recorded one episode of {t.label} on {t.cfg.task.name} to {where}: {env.metric} {stats[env.metric]:.4g}, return {stats['return']:.4g}")
+
+
+# -------------------------------------------------------------------------------------- list, bench
+@app.command("list")
+def list_cmd() -> None:
+    """List tasks, algorithms, physics backends and action spaces, one line each."""
+    from volleybots.algos import ALGOS
+    from volleybots.algos.base import class_attr
+    from volleybots.config import group_options
+    from volleybots.physics import ACTION_SPACES, BACKENDS
+    from volleybots.tasks import TASKS
+
+    typer.echo("tasks (task=NAME):")
+    for name, cls in TASKS.items():
+        n = class_attr(cls, "n_drones")
+        cfg = "" if name in group_options("task") else "  [no conf/task file]"
+        typer.echo(f"  {name:<20} {n:>2} drone{'s' if n > 1 else ' '}  metric: {cls.metric}{cfg}")
+    typer.echo("algorithms (algo=NAME):")
+    for name, cls in ALGOS.items():
+        kind = "one or more drones" if cls.multi_agent else "one drone"
+        typer.echo(f"  {name:<20} {kind}; action spaces: {', '.join(cls.action_spaces)}")
+    typer.echo("physics backends (env.physics=NAME):")
+    for name in BACKENDS:
+        typer.echo(f"  {name}")
+    typer.echo("action spaces (env.action_space=NAME):")
+    described = {"prt": "per-rotor thrust, 4 values in [-1, 1]", "ctbr": "collective thrust + body rates through a rate controller", "discrete": "16 actions: each rotor off or full"}
+    for name in ACTION_SPACES:
+        typer.echo(f"  {name:<20} {described.get(name, '')}")
+
+
+@app.command(context_settings=_PASS_THROUGH)
+@_user_errors
+def bench(
+    options: Optional[List[str]] = typer.Argument(None, help="key=value arguments of volleybots.bench.run_bench, e.g. tasks=[solo_bump] num_envs=[256,4096] backends=[torch]."),
+) -> None:
+    """Measure env-steps/s (volleybots.bench) and print the table."""
+    import inspect
+
+    try:
+        from volleybots.bench import format_table, run_bench
+    except ImportError:
+        raise ConfigError("the benchmark module volleybots.bench is not available in this install") from None
+    from volleybots.eval import _parse_value
+
+    allowed = [p for p in inspect.signature(run_bench).parameters if p != "progress"]
+    kwargs = {}
+    for o in options or []:
+        key, eq, value = o.partition("=")
+        if not eq or key not in allowed:
+            raise ConfigError(f"unknown bench option {key!r}; allowed: {', '.join(allowed)}")
+        kwargs[key] = _parse_value(value)
+    try:
+        rows = run_bench(**kwargs, progress=lambda row: typer.echo(f"  measured {row.get('task')} {row.get('backend')} x{row.get('num_envs')}: {row.get('env_steps_per_s', 0):,.0f} env-steps/s", err=True))
+    except ValueError as e:
+        raise ConfigError(str(e).splitlines()[0]) from None
+    typer.echo(format_table(rows))
+
+
+if __name__ == "__main__":
+    app()
