@@ -4,8 +4,12 @@
 from __future__ import annotations
 
 from volleybots.algos.base import Algorithm
+from volleybots.algos.ddpg import DDPG
+from volleybots.algos.dqn import DQN
 from volleybots.algos.ppo import MAPPO, PPO
+from volleybots.algos.sac import SAC
+from volleybots.algos.td3 import TD3
 
-ALGOS: dict[str, type[Algorithm]] = {cls.name: cls for cls in (PPO, MAPPO)}
+ALGOS: dict[str, type[Algorithm]] = {cls.name: cls for cls in (PPO, MAPPO, DQN, DDPG, TD3, SAC)}
 
-__all__ = ["ALGOS", "Algorithm", "MAPPO", "PPO"]
+__all__ = ["ALGOS", "Algorithm", "DDPG", "DQN", "MAPPO", "PPO", "SAC", "TD3"]
