@@ -29,6 +29,7 @@ def main(argv=None) -> int:
     ap.add_argument("--num-envs", type=lambda s: [int(x) for x in _csv(s)], default=list(DEFAULT_NUM_ENVS), help="comma-separated env counts")
     ap.add_argument("--devices", type=_csv, default=None, help="comma-separated torch devices (default: cpu, and cuda if available)")
     ap.add_argument("--compile", action="store_true", help="torch.compile the torch physics sub-step")
+    ap.add_argument("--both", action="store_true", help="measure the torch backend eager and compiled")
     ap.add_argument("--action-space", default="prt", choices=["prt", "ctbr", "discrete"])
     ap.add_argument("--repeats", type=int, default=3, help="timed repeats per row (median reported)")
     ap.add_argument("--steps", type=int, default=None, help="env steps per repeat (default scales with env count)")
@@ -37,11 +38,11 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     if args.threads:
-        torch.set_num_threads(args.threads)
+        torch.set_num_threads(args.threads)  # before anything runs, so the banner below shows it
     print(f"# torch {torch.__version__}, {torch.get_num_threads()} threads, {os.cpu_count()} CPUs", file=sys.stderr)
     rows = run_bench(
-        args.tasks, args.backends, args.num_envs, args.devices, compile=args.compile, repeats=args.repeats,
-        steps=args.steps, action_space=args.action_space,
+        args.tasks, args.backends, args.num_envs, args.devices, compile=(False, True) if args.both else args.compile, repeats=args.repeats,
+        steps=args.steps, action_space=args.action_space, threads=args.threads,
         progress=lambda r: print(f"  {r['task']} {r['backend']} {r['device']} x{r['num_envs']}: {r['env_steps_per_s']:,.0f} env-steps/s", file=sys.stderr, flush=True),
     )
     print(format_table(rows))

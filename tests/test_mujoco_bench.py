@@ -4,14 +4,14 @@ from volleybots.bench import format_table, run_bench, speed_ratios
 
 
 def test_run_bench_rows_and_table():
-    rows = run_bench(["hover"], ["torch", "mujoco"], num_envs=[2], devices=["cpu"], repeats=2, steps=3)
+    rows = run_bench(["hover"], ["torch", "mujoco"], num_envs=[2], devices=["cpu"], repeats=2, steps=3, threads=1)
     assert [(r["backend"], r["num_envs"], r["device"]) for r in rows] == [("torch", 2, "cpu"), ("mujoco", 2, "cpu")]
     for r in rows:
         assert r["env_steps_per_s"] > 0 and len(r["all_env_steps_per_s"]) == 2
         assert r["step_ms"] == 1e3 * 2 / r["env_steps_per_s"]
-        assert r["n_drones"] == 1 and r["steps"] == 3
-    ratio = speed_ratios(rows)[("hover", 2, "cpu")]
+        assert r["n_drones"] == 1 and r["steps"] == 3 and r["threads"] == 1 and r["env_steps_per_cpu_s"] > 0
+    ratio = speed_ratios(rows)[("hover", 2, "cpu", False)]
     assert ratio == rows[0]["env_steps_per_s"] / rows[1]["env_steps_per_s"]
     table = format_table(rows).splitlines()
-    assert len(table) == 4 and table[2].startswith("| hover | 1 | torch | cpu | no | 2 |")
+    assert len(table) == 4 and table[2].startswith("| hover | 1 | torch | cpu | no | 1 | 2 |")
     assert table[2].endswith(f"| {ratio:.1f}x |") and table[3].endswith("|  |")

@@ -48,10 +48,16 @@ def measure(
 ) -> dict:
     """One row of ``run_bench``: the env-steps/s of one (task, backend, num_envs, device, compile)."""
     import volleybots
+    from volleybots.physics import make_physics
 
     steps = steps or default_steps(num_envs, backend)
     t0 = time.perf_counter()
-    env = volleybots.make_env(task, num_envs=num_envs, action_space=action_space, physics=backend, device=device, seed=seed, compile=compile)
+    env = volleybots.make_env(task, num_envs=num_envs, action_space=action_space, physics=backend, device=device, seed=seed)
+    if compile and backend == "torch":
+        # Not make_env(compile=True): TorchRL's EnvBase metaclass takes a ``compile`` keyword for itself
+        # and compiles the whole step_and_maybe_reset, which recompiles for every partial reset's mask
+        # size. Only the physics sub-step is compiled here, with static shapes.
+        env.physics = make_physics("torch", env.params, num_envs, env.n_drones, device=env.device, compile=True)
     torch.manual_seed(seed)
     # a few pre-drawn random actions, cycled, so that sampling does not count as env time
     actions = [env.full_action_spec.rand() for _ in range(8)]
@@ -60,13 +66,14 @@ def measure(
         _, td = env.step_and_maybe_reset(td.update(actions[i % len(actions)]))
     _sync(device)
     setup_s = time.perf_counter() - t0
-    rates = []
+    rates, cpu_rates = [], []
     for _ in range(repeats):
-        start = time.perf_counter()
+        start, cpu_start = time.perf_counter(), time.process_time()
         for i in range(steps):
             _, td = env.step_and_maybe_reset(td.update(actions[i % len(actions)]))
         _sync(device)
         rates.append(num_envs * steps / (time.perf_counter() - start))
+        cpu_rates.append(num_envs * steps / max(time.process_time() - cpu_start, 1e-9))
     rate = statistics.median(rates)
     close = getattr(env.physics, "close", None)
     if close is not None:
@@ -84,6 +91,9 @@ def measure(
         "env_steps_per_s": rate,
         "step_ms": 1e3 * num_envs / rate,
         "all_env_steps_per_s": rates,
+        # per second of this process's CPU time (all its threads): on a shared machine with one thread,
+        # the rate it would reach with a core of its own
+        "env_steps_per_cpu_s": statistics.median(cpu_rates),
         "setup_s": setup_s,
         "threads": torch.get_num_threads(),
     }
@@ -94,11 +104,12 @@ def run_bench(
     backends: Iterable[str] = ("torch", "mujoco"),
     num_envs: Iterable[int] = DEFAULT_NUM_ENVS,
     devices: Iterable[str] | None = None,
-    compile: bool = False,
+    compile: bool | Sequence[bool] = False,
     repeats: int = 3,
     steps: int | None = None,
     action_space: str = "prt",
     progress: Callable[[dict], None] | None = None,
+    threads: int | None = None,
 ) -> list[dict]:
     """Measure env-steps/s for every combination of task, backend, env count and device.
 
@@ -109,19 +120,33 @@ def run_bench(
         num_envs: env counts (batch sizes).
         devices: torch devices; default "cpu", plus "cuda" when available.
         compile: ``torch.compile`` the torch physics sub-step (static shapes; the first steps of each
-            new shape compile, excluded from the timing, reported as ``setup_s``).
+            new shape compile, excluded from the timing, reported as ``setup_s``); a sequence such as
+            ``(False, True)`` measures the torch backend both ways.
         repeats: timed repeats; the row reports their median.
         steps: env steps per repeat; default ``default_steps`` (scaled by env count and backend).
         action_space: "prt", "ctbr" or "discrete"; random actions from its spec.
         progress: called with each row as soon as it is measured (for printing).
+        threads: torch intra-op threads for the run (``torch.set_num_threads``); default unchanged.
+            On a machine shared with other work, 1 thread is often much faster than 2.
 
     Returns:
         One dict per measurement with keys ``task, backend, device, compile, num_envs, n_drones,
         action_space, steps, repeats, env_steps_per_s`` (median), ``step_ms`` (one batched step),
-        ``all_env_steps_per_s`` (every repeat), ``setup_s`` (build + warm-up, incl. compilation) and
-        ``threads`` (torch intra-op threads).
+        ``all_env_steps_per_s`` (every repeat), ``env_steps_per_cpu_s`` (per second of the process's
+        CPU time), ``setup_s`` (build + warm-up, incl. compilation) and ``threads`` (torch threads).
     """
+    before = torch.get_num_threads()
+    if threads:
+        torch.set_num_threads(threads)
+    try:
+        return _run(tuple(tasks), tuple(backends), tuple(num_envs), devices, compile, repeats, steps, action_space, progress)
+    finally:
+        torch.set_num_threads(before)
+
+
+def _run(tasks, backends, num_envs, devices, compile, repeats, steps, action_space, progress) -> list[dict]:
     devices = tuple(devices) if devices is not None else default_devices()
+    modes = (bool(compile),) if isinstance(compile, bool) else tuple(bool(c) for c in compile)
     rows = []
     for task in tasks:
         for n in num_envs:
@@ -129,18 +154,20 @@ def run_bench(
                 for device in devices:
                     if backend == "mujoco" and device != "cpu":
                         continue
-                    row = measure(task, backend, n, device, compile=compile and backend == "torch", repeats=repeats, steps=steps, action_space=action_space)
-                    rows.append(row)
-                    if progress is not None:
-                        progress(row)
+                    # MuJoCo has nothing to compile: one row whatever the modes
+                    for comp in modes if backend == "torch" else (False,):
+                        row = measure(task, backend, n, device, compile=comp, repeats=repeats, steps=steps, action_space=action_space)
+                        rows.append(row)
+                        if progress is not None:
+                            progress(row)
     return rows
 
 
-def speed_ratios(rows: Sequence[dict]) -> dict[tuple[str, int, str], float]:
-    """(task, num_envs, torch device) -> torch env-steps/s over MuJoCo's for the same task and env count."""
+def speed_ratios(rows: Sequence[dict]) -> dict[tuple[str, int, str, bool], float]:
+    """(task, num_envs, torch device, compiled) -> torch env-steps/s over MuJoCo's, same task and env count."""
     mj = {(r["task"], r["num_envs"]): r["env_steps_per_s"] for r in rows if r["backend"] == "mujoco"}
     return {
-        (r["task"], r["num_envs"], r["device"]): r["env_steps_per_s"] / mj[(r["task"], r["num_envs"])]
+        (r["task"], r["num_envs"], r["device"], r["compile"]): r["env_steps_per_s"] / mj[(r["task"], r["num_envs"])]
         for r in rows
         if r["backend"] == "torch" and (r["task"], r["num_envs"]) in mj
     }
@@ -158,13 +185,14 @@ def format_table(rows: Sequence[dict]) -> str:
     """Markdown table of ``run_bench`` rows; torch rows show their speed-up over MuJoCo (same run)."""
     ratios = speed_ratios(rows)
     lines = [
-        "| task | drones | backend | device | compile | envs | env-steps/s | ms / step | torch / MuJoCo |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| task | drones | backend | device | compile | threads | envs | env-steps/s | per CPU-s | ms / step | torch / MuJoCo |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        ratio = ratios.get((r["task"], r["num_envs"], r["device"])) if r["backend"] == "torch" else None
+        ratio = ratios.get((r["task"], r["num_envs"], r["device"], r["compile"])) if r["backend"] == "torch" else None
         lines.append(
-            f"| {r['task']} | {r['n_drones']} | {r['backend']} | {r['device']} | {'yes' if r['compile'] else 'no'} | {r['num_envs']} "
-            f"| {_rate(r['env_steps_per_s'])} | {r['step_ms']:.2f} | {'' if ratio is None else f'{ratio:.1f}x'} |"
+            f"| {r['task']} | {r['n_drones']} | {r['backend']} | {r['device']} | {'yes' if r['compile'] else 'no'} | {r['threads']} "
+            f"| {r['num_envs']} | {_rate(r['env_steps_per_s'])} | {_rate(r['env_steps_per_cpu_s'])} | {r['step_ms']:.2f} "
+            f"| {'' if ratio is None else f'{ratio:.1f}x'} |"
         )
     return "\n".join(lines)
