@@ -38,17 +38,19 @@ class Gains:
     pos_accel_z: float = 3.0
     k_vel_xy: float = 5.0  # 1/s: velocity error -> acceleration
     k_vel_z: float = 7.0
-    k_att: float = 16.0  # tilt error (rad) -> body rate (rad/s), PRT
+    k_att: float = 20.0  # tilt error (rad) -> body rate (rad/s), PRT
     k_att_ctbr: float = 7.0  # the CTBR rate loop is slower, so the attitude loop must be too
-    att_accel: float = 20.0  # rad/s^2 the attitude law plans to brake with (the Iris can do about 35 at hover)
+    att_accel: float = 12.0  # rad/s^2 the attitude law plans to brake with (the Iris can do about 35 at hover)
     att_accel_ctbr: float = 15.0
+    att_delay: float = 0.05  # s: rotor lag plus the hold of a control step, anticipated by the attitude law
     k_yaw: float = 1.0  # heading error -> yaw rate
     k_rate: float = 30.0  # PRT inner loop: rate error -> angular acceleration
     max_tilt: float = math.radians(30.0)
     thrust_margin: float = 0.95  # fraction of the maximum total thrust the position loop may ask for
     min_thrust_z: float = 5.0  # m/s^2: with little thrust its direction swings wildly and attitude is slow to follow
     max_climb: float = 4.5  # m/s^2 of upward acceleration at most, so some thrust is left to steer
-    lag_comp: float = 1.0  # 1: invert the rotor lag fully (needs observed throttles), 0: ignore it
+    thrust_keep: float = 0.9  # the allocation trades at most 10 % of the thrust for torque
+    lag_comp: float = 0.5  # 1: invert the rotor lag fully (needs observed throttles), 0: ignore it
 
 
 @dataclass
@@ -177,7 +179,10 @@ class DroneController:
         axis = torch.cross(up, b3_des, dim=-1)
         angle = torch.atan2(axis.norm(dim=-1), (up * b3_des).sum(-1))
         axis_b = _unit(quat_rotate_inverse(drone.quat, axis))
-        speed = sqrt_law(angle, k_att, brake)
+        # the rotors answer with a delay: brake for the angle that will be left after it
+        closing = (drone.omega_body * axis_b).sum(-1)
+        left = angle - self.gains.att_delay * closing
+        speed = torch.sign(left) * sqrt_law(left.abs(), k_att, brake)
         rates = axis_b * speed.unsqueeze(-1)
         yaw = torch.zeros_like(angle) if yaw_rate is None else yaw_rate
         return torch.cat((rates[..., :2], yaw.unsqueeze(-1)), -1)
@@ -222,22 +227,24 @@ class DroneController:
     def allocate(self, thrust: torch.Tensor, torque: torch.Tensor) -> torch.Tensor:
         """Total thrust [...] and body torque [..., 3] -> rotor thrusts [..., 4] in [0, KF].
 
-        The torque is kept exact when some total thrust allows it (the thrust gives way first);
-        otherwise the torque is scaled down just enough to fit, since attitude keeps the drone alive.
+        Where both cannot be had, the thrust gives way first, but never below ``thrust_keep`` of
+        the request (a drone that keeps its attitude but drops out of the sky is no better); past
+        that the torque is scaled down just enough to fit.
         """
         mix = self._c(thrust)["mix"]
         u = mix[:, 0]  # rotor share of one newton of total thrust
         w = torque @ mix[:, 1:].T  # [..., 4] torque part, sums to zero
+        floor = self.gains.thrust_keep * thrust.clamp(max=4 * self.kf)
 
         def bounds(wk):
             # thrust range keeping every rotor in [0, KF]: 0 <= T u_i + w_i <= KF
             lo = (-wk / u).amax(-1)
             hi = ((self.kf - wk) / u).amin(-1)
-            return lo, hi
+            return torch.maximum(lo, floor), hi
 
         lo, hi = bounds(w)
         ok = lo <= hi
-        # bisection on the torque scale where no thrust fits (rare: saturated manoeuvres)
+        # bisection on the torque scale where no thrust fits (saturated manoeuvres)
         s_lo, s_hi = torch.zeros_like(thrust), torch.ones_like(thrust)
         for _ in range(10):
             mid = 0.5 * (s_lo + s_hi)

@@ -84,6 +84,7 @@ class StrikePlanner:
     and the drone's acceleration at contact makes its thrust point along the normal, with
     ``contact_thrust`` m/s^2 of specific thrust (None: exactly what keeps the height).
 
+    ``reference(strike, window)``: a fixed path into the contact state (hold, then a quintic).
     ``guidance(strike, pos, vel)``: the acceleration that brings the drone from its current state
     into the contact state on time (``terminal_guidance``), re-planned every step.
     """
@@ -111,6 +112,17 @@ class StrikePlanner:
         drone_acc = thrust.unsqueeze(-1) * n
         drone_acc = torch.cat((drone_acc[..., :2], drone_acc[..., 2:] - self.g), -1)
         return Strike(t, bp, bv, v_out, n, s, drone_pos, drone_vel, drone_acc)
+
+    def reference(self, strike: Strike, window: float | torch.Tensor):
+        """The drone's reference (position, velocity, acceleration) now: before the last ``window``
+        seconds it holds still behind the contact point (by the distance a uniform acceleration
+        from rest covers), then it follows the quintic from that hold into the contact state. The
+        path depends on the plan only, so re-planning every step gives the same path."""
+        window = torch.as_tensor(window, dtype=strike.t.dtype, device=strike.t.device).expand_as(strike.t)
+        hold = strike.drone_pos - strike.drone_vel * (0.5 * window).unsqueeze(-1)
+        zero = torch.zeros_like(hold)
+        elapsed = (window - strike.t).clamp_min(0.0)
+        return quintic(hold, zero, zero, strike.drone_pos, strike.drone_vel, strike.drone_acc, window, elapsed)
 
     def guidance(self, strike: Strike, pos, vel, min_time: float = 0.35) -> torch.Tensor:
         """Acceleration command [..., 3] that steers the drone into the contact state on time."""
