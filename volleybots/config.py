@@ -244,29 +244,39 @@ def _check_overrides(overrides: list[str]) -> None:
 def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = False) -> DictConfig:
     """Compose ``conf/config.yaml`` with Hydra overrides (no sweeps). Raises ``ConfigError``.
 
-    Keys are checked first so that a misspelt one is reported with the keys allowed beside it."""
+    A misspelt key is reported with the keys allowed beside it."""
     from hydra import compose as hydra_compose
     from hydra import initialize_config_dir
     from hydra.errors import HydraException
 
     overrides = list(overrides)
     _check_overrides(overrides)
-    group_ovr = [o for o in overrides if o.split("=", 1)[0].lstrip("~+") in GROUPS]
-    try:
-        with initialize_config_dir(config_dir=str(conf_dir()), version_base="1.3"):
-            base = hydra_compose("config", overrides=group_ovr)
-            for o in overrides:
-                key = o.split("=", 1)[0]
-                if "=" not in o or key.startswith(("+", "~", "hydra.")) or key in GROUPS:
-                    continue
-                if OmegaConf.select(base, key, default=_ABSENT) is _ABSENT:
-                    parent, _, leaf = key.rpartition(".")
-                    node = OmegaConf.select(base, parent) if parent else base
-                    allowed = ", ".join(str(k) for k in node.keys()) if isinstance(node, DictConfig) else "(none: not a section)"
-                    raise ConfigError(f"unknown config key {key!r}; allowed{' under ' + repr(parent) if parent else ''}: {allowed}")
+    with initialize_config_dir(config_dir=str(conf_dir()), version_base="1.3"):
+        try:
             return hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node)
-    except HydraException as e:
-        raise ConfigError(f"bad override: {_one_line(e)}") from None
+        except HydraException as e:
+            _explain_unknown_key(overrides, hydra_compose)
+            raise ConfigError(f"bad override: {_one_line(e)}") from None
+
+
+def _explain_unknown_key(overrides: list[str], hydra_compose) -> None:
+    """After a failed composition: raise a ConfigError naming an override's key that does not exist,
+    with the keys allowed beside it (Hydra's own message lists none)."""
+    from hydra.errors import HydraException
+
+    try:
+        base = hydra_compose("config", overrides=[o for o in overrides if o.split("=", 1)[0].lstrip("~+") in GROUPS])
+    except HydraException:
+        return
+    for o in overrides:
+        key = o.split("=", 1)[0]
+        if "=" not in o or key.startswith(("+", "~", "hydra.")) or key in GROUPS:
+            continue
+        if OmegaConf.select(base, key, default=_ABSENT) is _ABSENT:
+            parent = key.rpartition(".")[0]
+            node = OmegaConf.select(base, parent) if parent else base
+            allowed = ", ".join(str(k) for k in node.keys()) if isinstance(node, DictConfig) else "(none: not a section)"
+            raise ConfigError(f"unknown config key {key!r}; allowed{' under ' + repr(parent) if parent else ''}: {allowed}")
 
 
 _ABSENT = object()
