@@ -99,10 +99,11 @@ def _run_hydra(overrides: list[str], multirun: bool, extra: list[str]) -> None:
     def _job(cfg) -> None:
         from hydra.core.hydra_config import HydraConfig
 
-        from volleybots.config import validate
+        from volleybots.config import algo_action_space, validate
         from volleybots.train import train as train_run
 
         try:
+            cfg = algo_action_space(cfg, HydraConfig.get().overrides.task)
             summary = train_run(validate(cfg), HydraConfig.get().runtime.output_dir)
         except ConfigError as e:
             _fail(str(e))

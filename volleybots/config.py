@@ -253,7 +253,7 @@ def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = Fals
     _check_overrides(overrides)
     with initialize_config_dir(config_dir=str(conf_dir()), version_base="1.3"):
         try:
-            return hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node)
+            return algo_action_space(hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node), overrides)
         except HydraException as e:
             _explain_unknown_key(overrides, hydra_compose)
             raise ConfigError(f"bad override: {_one_line(e)}") from None
@@ -280,6 +280,19 @@ def _explain_unknown_key(overrides: list[str], hydra_compose) -> None:
 
 
 _ABSENT = object()
+
+
+def algo_action_space(cfg: DictConfig, overrides) -> DictConfig:
+    """An algorithm that cannot act in the default action space (``dqn``: discrete only) gets its own
+    first one, unless the command line names ``env.action_space`` (then ``validate`` rejects a bad one)."""
+    from volleybots.algos import ALGOS
+
+    if any(o.split("=", 1)[0].lstrip("+~") == "env.action_space" for o in overrides):
+        return cfg
+    algo_cls = ALGOS.get(OmegaConf.select(cfg, "algo.name", default=None))
+    if algo_cls is not None and cfg.env.action_space not in algo_cls.action_spaces:
+        cfg.env.action_space = algo_cls.action_spaces[0]
+    return cfg
 
 
 def _one_line(e: BaseException) -> str:
@@ -332,6 +345,6 @@ def make_env(cfg, num_envs: int | None = None, seed: int | None = None):
 
 
 __all__ = [
-    "Config", "ConfigError", "EnvConfig", "compose", "group_options", "load", "make_env", "task_kwargs",
+    "Config", "ConfigError", "EnvConfig", "algo_action_space", "compose", "group_options", "load", "make_env", "task_kwargs",
     "task_schema", "to_dict", "validate",
 ]
