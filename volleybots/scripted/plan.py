@@ -113,13 +113,21 @@ class StrikePlanner:
         drone_acc = torch.cat((drone_acc[..., :2], drone_acc[..., 2:] - self.g), -1)
         return Strike(t, bp, bv, v_out, n, s, drone_pos, drone_vel, drone_acc)
 
-    def reference(self, strike: Strike, window: float | torch.Tensor):
-        """The drone's reference (position, velocity, acceleration) now: before the last ``window``
-        seconds it holds still behind the contact point (by the distance a uniform acceleration
-        from rest covers), then it follows the quintic from that hold into the contact state. The
-        path depends on the plan only, so re-planning every step gives the same path."""
+    def hold_point(self, strike: Strike, window: float | torch.Tensor) -> torch.Tensor:
+        """Behind the contact point by the distance a uniform acceleration from rest over ``window``
+        seconds covers to reach the contact velocity."""
         window = torch.as_tensor(window, dtype=strike.t.dtype, device=strike.t.device).expand_as(strike.t)
-        hold = strike.drone_pos - strike.drone_vel * (0.5 * window).unsqueeze(-1)
+        return strike.drone_pos - strike.drone_vel * (0.5 * window).unsqueeze(-1)
+
+    def reference(self, strike: Strike, window: float | torch.Tensor, hold: torch.Tensor | None = None):
+        """The drone's reference (position, velocity, acceleration) now: before the last ``window``
+        seconds it holds still at ``hold`` (by default behind the contact point by the distance a
+        uniform acceleration from rest covers), then it follows the quintic from there into the
+        contact state. The path depends on the plan only, so re-planning every step gives the
+        same path."""
+        window = torch.as_tensor(window, dtype=strike.t.dtype, device=strike.t.device).expand_as(strike.t)
+        if hold is None:
+            hold = self.hold_point(strike, window)
         zero = torch.zeros_like(hold)
         elapsed = (window - strike.t).clamp_min(0.0)
         return quintic(hold, zero, zero, strike.drone_pos, strike.drone_vel, strike.drone_acc, window, elapsed)
@@ -144,6 +152,18 @@ def terminal_guidance(pos, vel, p1, v1, a1, time_to_go: torch.Tensor, min_time: 
     return (20.0 * dp - 8.0 * dv * T + a1 * T * T) / (3.0 * T * T)
 
 
+def off_centre(strike: Strike, pos: torch.Tensor, slack: float) -> Strike:
+    """Let the racket meet the ball up to ``slack`` metres off its centre, on the side where the
+    drone (centre ``pos``) already is: a flat racket sends the ball the same way wherever it lands
+    on it, and the drone has less to fly."""
+    n = strike.normal
+    d = pos - strike.drone_pos
+    d = d - (d * n).sum(-1, keepdim=True) * n  # in the racket plane
+    shift = d * (slack / d.norm(dim=-1, keepdim=True).clamp_min(1e-9)).clamp(max=1.0)
+    strike.drone_pos = strike.drone_pos + shift
+    return strike
+
+
 def limit_tilt(n: torch.Tensor, max_tilt: float) -> torch.Tensor:
     """Tilt the unit vectors ``n`` back toward vertical so that they are at most ``max_tilt`` off it."""
     h = n[..., :2]
@@ -155,4 +175,4 @@ def limit_tilt(n: torch.Tensor, max_tilt: float) -> torch.Tensor:
     return out / out.norm(dim=-1, keepdim=True)
 
 
-__all__ = ["Strike", "StrikePlanner", "goto_accel", "limit_tilt", "quintic", "terminal_guidance"]
+__all__ = ["Strike", "StrikePlanner", "goto_accel", "limit_tilt", "off_centre", "quintic", "terminal_guidance"]

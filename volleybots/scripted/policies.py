@@ -18,7 +18,7 @@ from tensordict.nn import TensorDictModuleBase
 from volleybots.physics.params import WorldParams
 from volleybots.scripted.ballistics import launch_for_apex, launch_for_range
 from volleybots.scripted.control import DroneController, DroneObs, Gains
-from volleybots.scripted.plan import StrikePlanner, goto_accel
+from volleybots.scripted.plan import StrikePlanner, goto_accel, off_centre
 
 ANCHOR = (4.5, 0.0, 2.0)
 
@@ -104,8 +104,9 @@ class BumpConfig:
     apex: float = 3.9  # wanted apex: the window is [3.5, 4.5] and above 4.5 m ends the episode
     return_gain: float = 1.0  # fraction of the ball's offset from the anchor removed per bump
     max_drift: float = 1.5  # m/s cap on the horizontal ball speed a bump gives
-    window: float = 0.35  # s: length of the vertical approach into the contact
-    lock_time: float = 0.08  # s before contact when the racket is held along the planned normal
+    window: float = 0.45  # s: length of the vertical approach into the contact
+    lock_time: float = 0.2  # s before contact when the racket is held along the planned normal
+    slack: float = 0.0  # m off the racket's centre the ball may be met (0: aim at the centre)
     max_tilt: float = math.radians(25.0)
 
 
@@ -124,6 +125,7 @@ class SoloBumpPolicy(_BallPolicy):
         return self.strike_action(drone, strike, self._vec(drone.pos, ANCHOR), self.cfg.window, self.cfg.lock_time)
 
     def plan(self, drone, task_obs):
+        """The next contact."""
         c = self.cfg
         ball_p, ball_v = self.ball(drone, task_obs)
         anchor = self._vec(ball_p, ANCHOR)
@@ -136,16 +138,16 @@ class SoloBumpPolicy(_BallPolicy):
             h = h * (c.max_drift / h.norm(dim=-1, keepdim=True).clamp_min(1e-9)).clamp(max=1.0)
             return torch.cat((h, v[..., 2:]), -1)
 
-        return self.planner.plan(ball_p, ball_v, contact_ball_z, want_out, c.max_tilt)
+        return off_centre(self.planner.plan(ball_p, ball_v, contact_ball_z, want_out, c.max_tilt), drone.pos, c.slack)
 
-    def strike_action(self, drone: DroneObs, strike, home: torch.Tensor, window: float, lock_time: float) -> torch.Tensor:
+    def strike_action(self, drone: DroneObs, strike, home: torch.Tensor, window, lock_time: float, hold=None) -> torch.Tensor:
         """Fly the strike. Horizontally the drone goes to the contact point as soon as it can
         (arriving early leaves time to settle the tilt); vertically it follows the planned approach
         (hold below the contact point, then the quintic into it, ``window`` s long), which times the
         racket's speed. In the last ``lock_time`` s the thrust, so the racket, points along the
         planned normal whatever the position error: the tilt at contact, not where on the racket
         the ball lands, decides where the ball goes."""
-        p, v, a = self.planner.reference(strike, window)
+        p, v, a = self.planner.reference(strike, window, hold)
         p_ref = torch.cat((strike.drone_pos[..., :2], p[..., 2:]), -1)
         v_ref = torch.cat((strike.drone_vel[..., :2], v[..., 2:]), -1)
         a_ref = torch.cat((strike.drone_acc[..., :2], a[..., 2:]), -1)
