@@ -30,8 +30,8 @@ disk (its normal along the drone's up axis), otherwise it is a body hit, as in t
 
 from __future__ import annotations
 
+import functools
 import math
-from dataclasses import replace
 
 import mujoco
 import numpy as np
@@ -42,9 +42,9 @@ from volleybots.physics.math import quat_axes, quat_rotate
 from volleybots.physics.params import WorldParams
 from volleybots.physics.torch_backend import (
     CommandFn,
-    Constants,
     Contacts,
     PhysicsState,
+    TorchPhysics,
     downwash_force,
     rotor_thrusts,
     throttle_target,
@@ -188,8 +188,8 @@ def build_mjcf(params: WorldParams, n_drones: int, net: tuple[float, float] | No
 """
 
 
-class MujocoPhysics:
-    """Same interface as ``TorchPhysics``; the integration and the contacts are MuJoCo's.
+class MujocoPhysics(TorchPhysics):
+    """Same interface and state as ``TorchPhysics``; the integration and the contacts are MuJoCo's.
 
     ``compile`` is accepted for interface parity and has no effect: the stepping is MuJoCo's native
     code. ``nthread`` sizes the rollout thread pool (0 steps on the calling thread); ``net`` =
@@ -211,12 +211,8 @@ class MujocoPhysics:
         nthread: int = 2,
         net: tuple[float, float] | None = None,
     ):
-        self.params = params
-        self.num_envs = num_envs
-        self.n_drones = n_drones
-        self.device = torch.device(device)
-        self.dtype = dtype
-        self.consts = Constants(params, self.device, dtype)
+        # the torch backend's state, constants and state setters; only the stepping differs
+        super().__init__(params, num_envs, n_drones, device=device, dtype=dtype)
         self.model = build_model(params, n_drones, net)
         self.nthread = nthread
         self.datas = [mujoco.MjData(self.model) for _ in range(max(nthread, 1))]
@@ -242,21 +238,10 @@ class MujocoPhysics:
         self._out = np.zeros((num_envs, 1, self.nstate))
         self._sens = np.zeros((num_envs, 1, m.nsensordata))
         self._ctrl = np.zeros((num_envs, 1, self.ncontrol))
-        z = lambda *s: torch.zeros(*s, device=self.device, dtype=dtype)  # noqa: E731
-        quat = z(num_envs, n_drones, 4)
-        quat[..., 0] = 1.0
-        pos = z(num_envs, n_drones, 3)
-        pos[..., 1] = 3.0 * torch.arange(n_drones, device=self.device, dtype=dtype)
-        pos[..., 2] = 2.0
-        self.state = PhysicsState(
-            pos=pos,
-            quat=quat,
-            vel=z(num_envs, n_drones, 3),
-            omega=z(num_envs, n_drones, 3),
-            throttle=torch.tensor(params.drone.hover_throttle, device=self.device, dtype=dtype).expand(num_envs, n_drones, 4).clone(),
-            ball_pos=torch.tensor((0.0, 0.0, 1.0), device=self.device, dtype=dtype).expand(num_envs, 3).clone(),
-            ball_vel=z(num_envs, 3),
-        )
+        # start the bodies apart (drones in a row at 2 m, the ball above the ground) until a task places them
+        self.state.pos[..., 1] = 3.0 * torch.arange(n_drones, device=self.device, dtype=dtype)
+        self.state.pos[..., 2] = 2.0
+        self.state.ball_pos[:, 2] = 1.0
 
     # ------------------------------------------------------------------ state <-> MuJoCo vectors
     def _pack(self, s: PhysicsState) -> None:
@@ -330,7 +315,7 @@ class MujocoPhysics:
         c = self.consts
         s = self.state
         self._pack(s)
-        racket = body = ground = None
+        flags = []
         for _ in range(self.params.substeps):
             cmd = command_fn(s)
             throttle = s.throttle + (throttle_target(cmd) - s.throttle) * c.lag
@@ -341,22 +326,11 @@ class MujocoPhysics:
             )
             self._x[:] = self._out[:, 0]
             # contact sensors describe the contacts MuJoCo resolved during this sub-step (at its start)
-            r, b, g = self._hits(self._sens[:, 0], s)
+            flags.append(self._hits(self._sens[:, 0], s))
             s = self._unpack(self._x, throttle)
-            racket = r if racket is None else racket | r
-            body = b if body is None else body | b
-            ground = g if ground is None else ground | g
         self.state = s
+        racket, body, ground = (functools.reduce(torch.logical_or, f) for f in zip(*flags))
         return Contacts(racket=racket, body=body, ground=ground)
-
-    def set_state(self, mask: torch.Tensor, **values: torch.Tensor) -> None:
-        """Overwrite the named state fields of the envs selected by the bool mask [N]."""
-        for name, v in values.items():
-            cur = getattr(self.state, name)
-            cur[mask] = v.to(cur.dtype)
-
-    def replace_state(self, state: PhysicsState) -> None:
-        self.state = replace(state)
 
     def close(self) -> None:
         self._pool.close()
