@@ -72,3 +72,20 @@ def test_racket_restitution_on_the_sub_step(speed):
     es = [bounce(model, speed, speed * h * (k + 0.5) / 8) for k in range(8)]
     assert sum(es) / len(es) == pytest.approx(0.8, abs=0.02)
     assert max(es) - min(es) < 0.08
+
+
+def test_optional_net_stops_the_ball():
+    from volleybots.physics.mujoco_backend import MujocoPhysics
+
+    p = WorldParams()
+    hover = torch.tensor(p.drone.hover_command).expand(1, 1, 4)
+    end_x = {}
+    for net in (None, (9.0, 2.43)):
+        ph = MujocoPhysics(p, 1, 1, net=net)
+        m = torch.ones(1, dtype=torch.bool)
+        ph.set_state(m, pos=torch.tensor([[[5.0, 0.0, 2.0]]]), ball_pos=torch.tensor([[-1.0, 0.0, 1.5]]), ball_vel=torch.tensor([[6.0, 0.0, 3.0]]))
+        for _ in range(15):  # 0.3 s: the ball reaches x = 0 after 0.15 s, below the net top
+            ph.step(lambda s: hover)
+        end_x[net is not None] = ph.state.ball_pos[0, 0].item()
+    assert end_x[False] > 0.5  # without a net it flies on to the other side
+    assert end_x[True] < -0.1  # the net sends it back
