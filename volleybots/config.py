@@ -75,6 +75,7 @@ class Config:
     seed: int = 0
     threads: int = 0
     total_frames: int = 1_000_000
+    time_limit: float = 0.0
     resume: Optional[str] = None
     progress: bool = True
     logger: str = "csv"
@@ -208,6 +209,7 @@ def validate(cfg) -> DictConfig:
         ("evaluation.episodes", rest.evaluation.episodes, 1),
         ("checkpoint.every", rest.checkpoint.every, 0),
         ("threads", rest.threads, 0),
+        ("time_limit", rest.time_limit, 0),
         ("evaluation.every", rest.evaluation.every, 0),
     ):
         if val < low:

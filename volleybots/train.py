@@ -25,7 +25,7 @@ from volleybots.eval import apply_overrides, run_episodes, summarize
 from volleybots.runs import CKPT_FORMAT, MetricsLog, RunDir, WandbLogger, read_checkpoint, write_curves
 
 # keys a resumed run may change: how long it goes on and how it reports, not what it learns
-RESUME_KEYS = ("total_frames", "progress", "threads", "logger", "wandb", "checkpoint", "evaluation", "env.device")
+RESUME_KEYS = ("total_frames", "time_limit", "progress", "threads", "logger", "wandb", "checkpoint", "evaluation", "env.device")
 EVAL_SEED_OFFSET = 10_000  # periodic evaluations play the same episodes every time, unlike training's
 
 
@@ -157,7 +157,7 @@ class Trainer:
         next_ev = _next_multiple(self.frames, ev_every)
         last: dict = {}
         with _progress(cfg.progress, cfg.total_frames, self.frames) as bar:
-            while self.frames < cfg.total_frames:
+            while self.frames < cfg.total_frames and not (cfg.time_limit and self._wall() >= cfg.time_limit):
                 t_batch = time.perf_counter()
                 batch, td = collect(self.env, policy, td, self.algo.steps_per_batch)
                 self.frames += self.frames_per_batch

@@ -1,0 +1,125 @@
+"""PPO on Solo Bump with CTBR and PRT actions: the task metric over wall time, and end-to-end speed.
+
+Targets (issue 3): with CTBR, >= 8.58 bumps (paper table 1) within 60 minutes, and >= 50k env-steps/s
+end to end (collection + update). Each action space trains for ``--minutes`` of wall time (the run
+loop's ``time_limit``), evaluating every ``--eval-every`` frames. The script writes a PNG of the
+curves and a JSON of the figures, and prints a Markdown table:
+
+    python benchmarks/learn_ppo.py                                 # the full benchmark, 2 x 60 min
+    python benchmarks/learn_ppo.py --minutes 5 --num-envs 1024     # a short version
+    python benchmarks/learn_ppo.py --device cuda --num-envs 4096   # on a GPU
+
+Needs matplotlib (``pip install 'volleybots[plot]'``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from pathlib import Path
+
+TARGET_BUMPS = 8.58
+TARGET_FPS = 50_000
+
+
+def run(space: str, args, root: Path) -> dict:
+    from volleybots.config import load
+    from volleybots.runs import read_metrics
+    from volleybots.train import train
+
+    overrides = [
+        "task=solo_bump", "algo=ppo", f"env.action_space={space}", f"env.num_envs={args.num_envs}", f"env.device={args.device}",
+        f"env.compile={str(args.compile).lower()}", f"seed={args.seed}", f"threads={args.threads}",
+        f"time_limit={args.minutes * 60}", "total_frames=1e12", f"evaluation.every={args.eval_every}",
+        f"evaluation.episodes={args.eval_episodes}", "evaluation.record=false", f"checkpoint.every={args.eval_every * 10}",
+        f"progress={str(args.progress).lower()}", *args.overrides,
+    ]
+    cfg = load(overrides)
+    run_dir = root / f"{space}_{time.strftime('%Y%m%d-%H%M%S')}"
+    summary = train(cfg, run_dir)
+    rows = read_metrics(run_dir / "metrics.csv")
+    train_rows = [r for r in rows if r["phase"] == "train"]
+    evals = [(r["wall_time"], r["frames"], r["eval_bumps"]) for r in rows if r["phase"] == "eval"]
+    reached = next((t for t, _, b in evals if b >= TARGET_BUMPS), None)
+    return {
+        "action_space": space,
+        "run_dir": str(run_dir),
+        "frames": summary["frames"],
+        "wall_s": summary["wall_time_s"],
+        "env_steps_per_s": summary["frames_per_s"],  # end to end: collection, update, logging, evaluation
+        "train_env_steps_per_s": _median([r["fps"] for r in train_rows]),  # one batch: collection + update
+        "best_eval_bumps": max((b for _, _, b in evals), default=math.nan),
+        "final_eval_bumps": summary["final_eval"]["stats"]["bumps"]["mean"],
+        "minutes_to_target": None if reached is None else reached / 60,
+        "curve": {
+            "eval": [{"minutes": t / 60, "frames": f, "bumps": b} for t, f, b in evals],
+            "train": [{"minutes": r["wall_time"] / 60, "frames": r["frames"], "return": r["return"], "bumps": r["bumps"]} for r in train_rows],
+        },
+    }
+
+
+def _median(xs):
+    xs = sorted(x for x in xs if isinstance(x, float))
+    return xs[len(xs) // 2] if xs else math.nan
+
+
+def plot(results: list[dict], path: Path, title: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4))
+    for res in results:
+        ev, tr = res["curve"]["eval"], res["curve"]["train"]
+        label = f"{res['action_space']} ({res['env_steps_per_s']:,.0f} env-steps/s)"
+        ax1.plot([e["minutes"] for e in ev], [e["bumps"] for e in ev], marker="o", label=label)
+        ax2.plot([t["minutes"] for t in tr], [t["return"] for t in tr], label=res["action_space"])
+    ax1.axhline(TARGET_BUMPS, color="grey", ls="--", label=f"paper CTBR ({TARGET_BUMPS})")
+    ax1.set(xlabel="wall time (min)", ylabel="bumps (evaluation, deterministic)", title="Solo Bump: metric")
+    ax2.set(xlabel="wall time (min)", ylabel="episode return (training)", title="Solo Bump: return")
+    ax1.legend()
+    ax2.legend()
+    fig.suptitle(title)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--minutes", type=float, default=60.0, help="wall-clock budget per action space")
+    p.add_argument("--spaces", nargs="+", default=["ctbr", "prt"], help="action spaces to train")
+    p.add_argument("--num-envs", type=int, default=4096)
+    p.add_argument("--device", default="cpu")
+    p.add_argument("--compile", action="store_true", help="torch.compile the physics")
+    p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: default)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--eval-every", type=int, default=2_000_000, help="frames between evaluations")
+    p.add_argument("--eval-episodes", type=int, default=64)
+    p.add_argument("--progress", action="store_true")
+    p.add_argument("--runs", type=Path, default=Path("outputs/bench_learn_ppo"), help="where the run directories go")
+    p.add_argument("--out", type=Path, default=Path("docs/learn_ppo.png"), help="PNG of the curves (a .json goes beside it)")
+    p.add_argument("overrides", nargs="*", help="further config overrides, e.g. algo.obs_norm=true")
+    args = p.parse_args()
+
+    results = [run(space, args, args.runs) for space in args.spaces]
+    import torch
+
+    title = f"PPO, {args.num_envs} envs on {args.device} ({torch.get_num_threads()} threads), {args.minutes:g} min per action space"
+    plot(results, args.out, title)
+    meta = {"title": title, "targets": {"bumps_ctbr": TARGET_BUMPS, "env_steps_per_s": TARGET_FPS}, "args": {k: str(v) for k, v in vars(args).items()}}
+    args.out.with_suffix(".json").write_text(json.dumps({**meta, "results": results}, indent=1) + "\n")
+    print(f"\n{title}\n")
+    print("| action space | frames | wall (min) | env-steps/s end to end | best eval bumps | minutes to 8.58 |")
+    print("|---|---|---|---|---|---|")
+    for r in results:
+        reach = "-" if r["minutes_to_target"] is None else f"{r['minutes_to_target']:.1f}"
+        print(f"| {r['action_space']} | {r['frames']:,} | {r['wall_s'] / 60:.1f} | {r['env_steps_per_s']:,.0f} | {r['best_eval_bumps']:.2f} | {reach} |")
+    print(f"\nwrote {args.out} and {args.out.with_suffix('.json')}")
+
+
+if __name__ == "__main__":
+    main()
