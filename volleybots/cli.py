@@ -148,7 +148,7 @@ def train(
     from volleybots.config import compose, validate
 
     for job in _jobs(overrides, multirun):
-        validate(compose([o for o in job if not o.startswith("hydra.")] + [o for o in job if o.startswith("hydra.")]))
+        validate(compose(job))
     _check_run_dir(overrides)
     _run_hydra(overrides, multirun, flags)
 
@@ -252,7 +252,7 @@ def bench(
         from volleybots.bench import format_table, run_bench
     except ImportError:
         raise ConfigError("the benchmark module volleybots.bench is not available in this install") from None
-    from volleybots.eval import _parse_value
+    from volleybots.config import parse_value
 
     allowed = [p for p in inspect.signature(run_bench).parameters if p != "progress"]
     kwargs = {}
@@ -260,7 +260,7 @@ def bench(
         key, eq, value = o.partition("=")
         if not eq or key not in allowed:
             raise ConfigError(f"unknown bench option {key!r}; allowed: {', '.join(allowed)}")
-        kwargs[key] = _parse_value(value)
+        kwargs[key] = parse_value(value)
     try:
         rows = run_bench(**kwargs, progress=lambda row: typer.echo(f"  measured {row.get('task')} {row.get('backend')} x{row.get('num_envs')}: {row.get('env_steps_per_s', 0):,.0f} env-steps/s", err=True))
     except ValueError as e:

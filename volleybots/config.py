@@ -19,7 +19,7 @@ import typing
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
-from omegaconf import MISSING, DictConfig, ListConfig, OmegaConf
+from omegaconf import MISSING, DictConfig, OmegaConf
 from omegaconf.errors import ConfigKeyError, OmegaConfBaseException, ValidationError
 
 from volleybots.paths import conf_dir
@@ -313,6 +313,31 @@ def to_dict(cfg) -> dict:
     return cfg if isinstance(cfg, dict) else OmegaConf.to_container(cfg, resolve=True)
 
 
+def parse_value(value: str):
+    """A command-line value as Hydra reads it (numbers, booleans, null, lists, strings)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import HydraException
+
+    try:
+        return OverridesParser.create().parse_override(f"k={value}").value()
+    except HydraException as e:
+        raise ConfigError(f"bad value {value!r}: {_one_line(e)}") from None
+
+
+def apply_overrides(base: dict, overrides, allowed: tuple[str, ...], what: str) -> DictConfig:
+    """Validate a saved config ``base`` with ``key=value`` overrides restricted to the keys (or
+    sections) in ``allowed``: a run or checkpoint keeps the task, algorithm and env it was made with."""
+    data = OmegaConf.create(base)
+    for o in overrides:
+        key, eq, value = o.partition("=")
+        if not eq:
+            raise ConfigError(f"bad override {o!r}: expected key=value")
+        if not any(key == a or key.startswith(a + ".") for a in allowed):
+            raise ConfigError(f"cannot change {key!r} of {what}; allowed: {', '.join(allowed)}")
+        OmegaConf.update(data, key, parse_value(value), merge=True)
+    return validate(to_dict(data))
+
+
 def task_kwargs(cfg) -> dict:
     """The task's constructor keywords of a validated config (everything of ``task`` but its name)."""
     return {k: v for k, v in to_dict(cfg.task).items() if k != "name"}
@@ -347,6 +372,6 @@ def make_env(cfg, num_envs: int | None = None, seed: int | None = None):
 
 
 __all__ = [
-    "Config", "ConfigError", "EnvConfig", "algo_action_space", "compose", "group_options", "load", "make_env", "task_kwargs",
+    "Config", "ConfigError", "EnvConfig", "algo_action_space", "apply_overrides", "compose", "parse_value", "group_options", "load", "make_env", "task_kwargs",
     "task_schema", "to_dict", "validate",
 ]

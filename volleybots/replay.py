@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections import deque
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -133,31 +134,42 @@ def has_display() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
-def record_episode(env, policy, out: Path | None, viewer: bool = False, app_id: str = "volleybots") -> dict:
-    """Play one episode in env 0 of ``env`` while recording it; save to ``out`` and/or show a viewer.
-
-    Returns the episode's statistics (of env 0)."""
+@contextmanager
+def recording(out: Path | None, app_id: str = "volleybots", viewer: bool = False):
+    """A rerun ``RecordingStream`` to the file ``out`` and/or a viewer. The file is written as
+    ``<out>.part`` and moved into place when the recording is complete (removed if it fails)."""
     import rerun as rr
 
-    from volleybots.eval import run_episodes
-
     rec = rr.RecordingStream(app_id)
-    tmp = None
-    if out is not None:
-        tmp = Path(out).with_name(Path(out).name + ".part")
-        rec.save(tmp)
+    tmp = None if out is None else Path(out).with_name(Path(out).name + ".part")
     if viewer:
-        rec.spawn(connect=out is None)
-        if out is not None:
-            # both: stream to the viewer and to the file
-            rec.set_sinks(rr.FileSink(str(tmp)), rr.GrpcSink())
-    recorder = EpisodeRecorder(rec, env, 0)
-    res = run_episodes(env, policy, on_step=recorder)
+        rec.spawn(connect=tmp is None)
+        if tmp is not None:
+            rec.set_sinks(rr.FileSink(str(tmp)), rr.GrpcSink())  # both the viewer and the file
+    elif tmp is not None:
+        rec.save(tmp)
+    try:
+        yield rec
+    except BaseException:
+        rec.disconnect()
+        if tmp is not None:
+            tmp.unlink(missing_ok=True)
+        raise
     rec.flush()
     rec.disconnect()
     if tmp is not None:
         tmp.replace(out)
+
+
+def record_episode(env, policy, out: Path | None, viewer: bool = False) -> dict:
+    """Play one episode in env 0 of ``env`` while recording it to ``out`` and/or a viewer.
+
+    Returns the episode's statistics (of env 0)."""
+    from volleybots.eval import run_episodes
+
+    with recording(out, viewer=viewer) as rec:
+        res = run_episodes(env, policy, on_step=EpisodeRecorder(rec, env, 0))
     return {k: float(v[0]) for k, v in res.items()}
 
 
-__all__ = ["EpisodeRecorder", "has_display", "record_episode"]
+__all__ = ["EpisodeRecorder", "has_display", "record_episode", "recording"]

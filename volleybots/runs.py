@@ -104,6 +104,25 @@ def read_checkpoint(path, device="cpu") -> dict:
     return state
 
 
+def _to_device(state, device):
+    if isinstance(state, torch.Tensor):
+        # random generator states (uint8) stay on the CPU
+        return state if state.dtype == torch.uint8 else state.to(device)
+    if isinstance(state, dict):
+        return {k: _to_device(v, device) for k, v in state.items()}
+    if isinstance(state, list):
+        return [_to_device(v, device) for v in state]
+    return state
+
+
+def load_algo_state(algo, state: dict, what: str, cfg) -> None:
+    """Load a checkpoint's algorithm state into ``algo``; a mismatch is a user error naming ``what``."""
+    try:
+        algo.load_state_dict(_to_device(state["algo"], algo.device))
+    except (RuntimeError, KeyError, ValueError) as e:
+        raise ConfigError(f"{what} does not match algo {cfg.algo.name!r} on task {cfg.task.name!r}: {str(e).splitlines()[0]}") from None
+
+
 class MetricsLog:
     """metrics.csv: the header is the first row's keys; a resumed run drops the rows after its checkpoint."""
 
@@ -160,20 +179,17 @@ def write_curves(metrics_csv, out_path) -> None:
     on a ``frames`` timeline (rebuilt whole, so it is always complete and a resumed run needs no merge)."""
     import rerun as rr
 
+    from volleybots.replay import recording
+
     rows = read_metrics(metrics_csv)
-    rec = rr.RecordingStream("volleybots_curves")
-    tmp = Path(out_path).with_suffix(".tmp")
-    rec.save(tmp)
-    for r in rows:
-        rec.set_time("frames", sequence=int(r["frames"]))
-        phase = r.get("phase", "train") or "train"
-        for k, v in r.items():
-            if k in ("frames", "phase") or not isinstance(v, float) or math.isnan(v):
-                continue
-            rec.log(f"{phase}/{k}", rr.Scalars(v))
-    rec.flush()
-    rec.disconnect()
-    os.replace(tmp, out_path)
+    with recording(Path(out_path), "volleybots_curves") as rec:
+        for r in rows:
+            rec.set_time("frames", sequence=int(r["frames"]))
+            phase = r.get("phase", "train") or "train"
+            for k, v in r.items():
+                if k in ("frames", "phase") or not isinstance(v, float) or math.isnan(v):
+                    continue
+                rec.log(f"{phase}/{k}", rr.Scalars(v))
 
 
 class WandbLogger:

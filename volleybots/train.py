@@ -20,9 +20,9 @@ from pathlib import Path
 import torch
 
 import volleybots
-from volleybots.config import ConfigError, make_env, to_dict
-from volleybots.eval import apply_overrides, run_episodes, summarize
-from volleybots.runs import CKPT_FORMAT, MetricsLog, RunDir, WandbLogger, read_checkpoint, write_curves
+from volleybots.config import ConfigError, apply_overrides, make_env, to_dict
+from volleybots.eval import run_episodes, summarize
+from volleybots.runs import CKPT_FORMAT, MetricsLog, RunDir, WandbLogger, load_algo_state, read_checkpoint, write_curves
 
 # keys a resumed run may change: how long it goes on and how it reports, not what it learns
 RESUME_KEYS = ("total_frames", "time_limit", "progress", "threads", "logger", "wandb", "checkpoint", "evaluation", "env.device")
@@ -95,14 +95,7 @@ class Trainer:
         }
 
     def _restore(self, state: dict) -> None:
-        from volleybots.eval import _to_device
-
-        if state["task"] != self.cfg.task.name or state["obs_dim"] != self.env.obs_dim:
-            raise ConfigError(f"checkpoint is of task {state['task']!r} (obs {state['obs_dim']}), not of this run's {self.cfg.task.name!r}")
-        try:
-            self.algo.load_state_dict(_to_device(state["algo"], self.env.device))
-        except (RuntimeError, KeyError, ValueError) as e:
-            raise ConfigError(f"checkpoint does not match algo {self.cfg.algo.name!r}: {str(e).splitlines()[0]}") from None
+        load_algo_state(self.algo, state, f"the checkpoint of run {str(self.run.path)!r}", self.cfg)
         self.frames, self.iteration = int(state["frames"]), int(state["iteration"])
         self.wall_offset = float(state["wall_time"])
         self.evals = list(state.get("evals", []))
@@ -123,21 +116,14 @@ class Trainer:
             self._eval_env = make_env(cfg, num_envs=cfg.evaluation.episodes, seed=cfg.seed + EVAL_SEED_OFFSET)
         env = self._eval_env
         env.set_seed(cfg.seed + EVAL_SEED_OFFSET)
-        recorder = rec = None
+        policy = self.algo.policy(deterministic=True)
         if cfg.evaluation.record:
-            import rerun as rr
+            from volleybots.replay import EpisodeRecorder, recording
 
-            from volleybots.replay import EpisodeRecorder
-
-            rec = rr.RecordingStream("volleybots_eval")
-            path = self.run.path / f"eval_{self.frames:012d}.rrd"
-            rec.save(path.with_name(path.name + ".part"))
-            recorder = EpisodeRecorder(rec, env, 0)
-        res = run_episodes(env, self.algo.policy(deterministic=True), on_step=recorder)
-        if rec is not None:
-            rec.flush()
-            rec.disconnect()
-            path.with_name(path.name + ".part").replace(path)
+            with recording(self.run.path / f"eval_{self.frames:012d}.rrd", "volleybots_eval") as rec:
+                res = run_episodes(env, policy, on_step=EpisodeRecorder(rec, env, 0))
+        else:
+            res = run_episodes(env, policy)
         summary = summarize(res, self.metric)
         summary["frames"] = int(self.frames)
         self.evals.append(summary)

@@ -208,7 +208,7 @@ class PPO(Algorithm):
                 for k, v in logs.items():
                     sums[k] = sums.get(k, 0.0) + float(v.detach().mean())
         if self.obs_norm is not None:
-            self.obs_norm.module.stats.update(batch["next", *OBS])
+            self.obs_norm.module.stats.update(batch["next"][OBS])
         steps = cfg.epochs * cfg.minibatches
         logs = {k: v / steps for k, v in sums.items()}
         if self._std is not None:

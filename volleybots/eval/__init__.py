@@ -14,12 +14,11 @@ from pathlib import Path
 from typing import Callable
 
 import torch
-from omegaconf import OmegaConf
 from tensordict import TensorDictBase
 from torchrl.envs.utils import step_mdp
 
-from volleybots.config import GROUPS, ConfigError, load, make_env, to_dict, validate
-from volleybots.runs import RunDir, read_checkpoint
+from volleybots.config import ConfigError, apply_overrides, load, make_env
+from volleybots.runs import RunDir, load_algo_state, read_checkpoint
 
 POLICY_NAMES = ("scripted", "random")
 # keys of a checkpoint's config that evaluation may change; the rest fix what the policy was trained on
@@ -73,26 +72,6 @@ def summarize(results: dict[str, torch.Tensor], metric: str) -> dict:
     return {"metric": metric, "episodes": int(next(iter(results.values())).numel()), "stats": table}
 
 
-def apply_overrides(base: dict, overrides, allowed: tuple[str, ...], what: str):
-    """Validate ``base`` (a saved config) with ``key=value`` overrides restricted to ``allowed``."""
-    data = OmegaConf.create(base)
-    for o in overrides:
-        key, eq, value = o.partition("=")
-        if not eq:
-            raise ConfigError(f"bad override {o!r}: expected key=value")
-        if key in GROUPS or key.split(".")[0] in ("task", "algo") or (key not in allowed and not key.startswith(tuple(a + "." for a in allowed))):
-            raise ConfigError(f"cannot change {key!r} of {what}; allowed: {', '.join(allowed)}")
-        OmegaConf.update(data, key, _parse_value(value), merge=True)
-    return validate(to_dict(data))
-
-
-def _parse_value(value: str):
-    """A command-line value as Hydra would read it (numbers, booleans, null, lists)."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-
-    return OverridesParser.create().parse_override(f"k={value}").value()
-
-
 def resolve_target(target: str, overrides=()) -> Target:
     """Turn an eval/replay target and its overrides into a config and a policy factory."""
     if target in POLICY_NAMES:
@@ -119,24 +98,10 @@ def resolve_target(target: str, overrides=()) -> Target:
         from volleybots.algos import ALGOS
 
         algo = ALGOS[cfg.algo.name](cfg.algo, env, seed=cfg.seed)
-        try:
-            algo.load_state_dict(_to_device(state["algo"], env.device))
-        except (RuntimeError, KeyError, ValueError) as e:
-            raise ConfigError(f"checkpoint {str(ckpt)!r} does not match algo {cfg.algo.name!r} on task {cfg.task.name!r}: {str(e).splitlines()[0]}") from None
+        load_algo_state(algo, state, f"checkpoint {str(ckpt)!r}", cfg)
         return algo.policy(deterministic=cfg.deterministic)
 
     return Target(f"{cfg.algo.name}@{int(state['frames'])}", cfg, Path(ckpt), make_policy)
-
-
-def _to_device(state, device):
-    if isinstance(state, torch.Tensor):
-        # generator states stay on the CPU
-        return state if state.dtype == torch.uint8 else state.to(device)
-    if isinstance(state, dict):
-        return {k: _to_device(v, device) for k, v in state.items()}
-    if isinstance(state, list):
-        return [_to_device(v, device) for v in state]
-    return state
 
 
 def _scripted(env, action_space: str):
@@ -197,4 +162,4 @@ def _num(x: float) -> str:
     return "nan" if math.isnan(x) else f"{x:.4g}"
 
 
-__all__ = ["Target", "apply_overrides", "evaluate", "format_table", "resolve_target", "run_episodes", "summarize"]
+__all__ = ["Target", "evaluate", "format_table", "resolve_target", "run_episodes", "summarize"]
