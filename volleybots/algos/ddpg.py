@@ -44,7 +44,7 @@ class DDPG(OffPolicy):
         }
 
     def make_loss(self, actor, critic):
-        return DDPGLoss(actor, critic, loss_function="smooth_l1", delay_actor=True, delay_value=True)
+        return DDPGLoss(actor, critic, loss_function=self.cfg.critic_loss, delay_actor=True, delay_value=True)
 
     def critic_params(self):
         return self.loss.value_network_params.values(True, True)

@@ -37,6 +37,7 @@ from volleybots.config import ConfigError
 OBS = ("agents", "observation")
 ACTION = ("agents", "action")
 REWARD = ("agents", "reward")
+CRITIC_LOSSES = ("smooth_l1", "l2", "l1")  # TorchRL's distance losses; smooth_l1 is Huber with delta 1
 
 
 @dataclass
@@ -52,6 +53,8 @@ class OffPolicyConfig:
     random_warmup: bool = True
     replay_ratio: float = 8.0
     gamma: float = 0.95
+    critic_loss: str = "smooth_l1"
+    reward_scale: float = 1.0
     tau: float = 0.005
     target_update_interval: int = 4
     hidden: list[int] = field(default_factory=lambda: [256, 128, 128])
@@ -131,6 +134,8 @@ class OffPolicy(Algorithm):
                 f"bad value for 'algo.warmup_batches': {cfg.warmup_batches} (must be >= 1 and warmup_batches x batch_size "
                 f"= {cfg.warmup_batches * cfg.batch_size} must fit in algo.buffer_size = {cfg.buffer_size})"
             )
+        if cfg.critic_loss not in CRITIC_LOSSES:
+            raise ConfigError(f"unknown algo.critic_loss {cfg.critic_loss!r}; allowed: {', '.join(CRITIC_LOSSES)}")
         if not cfg.replay_ratio > 0:
             raise ConfigError(f"bad value for 'algo.replay_ratio': {cfg.replay_ratio} (must be > 0)")
         if not 0 < cfg.tau <= 1:
@@ -218,6 +223,8 @@ class OffPolicy(Algorithm):
 
     def update(self, batch: TensorDictBase) -> dict[str, float]:
         data = transitions(batch)
+        if self.cfg.reward_scale != 1.0:
+            data["next", "reward"] = data["next", "reward"] * self.cfg.reward_scale
         self.buffer.extend(data.to(self.buffer.storage.device))
         self.frames += data.numel()
         logs = dict.fromkeys(self.log_keys(), math.nan)

@@ -50,7 +50,7 @@ class SAC(OffPolicy):
             actor,
             critic,
             num_qvalue_nets=2,
-            loss_function="smooth_l1",
+            loss_function=self.cfg.critic_loss,
             alpha_init=cfg.alpha_init,
             target_entropy=cfg.target_entropy_scale * self.action_dim,
         )

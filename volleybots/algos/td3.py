@@ -40,7 +40,7 @@ class TD3(DDPG):
             num_qvalue_nets=2,
             policy_noise=self.cfg.target_noise,
             noise_clip=self.cfg.noise_clip,
-            loss_function="smooth_l1",
+            loss_function=self.cfg.critic_loss,
         )
 
     def critic_params(self):

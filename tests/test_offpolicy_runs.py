@@ -1,0 +1,134 @@
+"""Off-policy algorithms in the shared run loop: a tiny run of each writes metrics and checkpoints that
+load with ``weights_only=True``; a resumed run continues the same learning curve (bit for bit with
+the replay buffer checkpointed); the CLI picks the discrete action space for dqn and rejects a
+continuous one with one line."""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+
+import pytest
+import torch
+
+from volleybots.config import load
+from volleybots.runs import read_metrics
+from volleybots.train import resume, train
+
+TINY = [
+    "task=hover", "task.episode_len=40", "env.num_envs=4", "algo.steps_per_batch=8", "algo.batch_size=32",
+    "algo.buffer_size=4096", "algo.warmup_batches=2", "algo.hidden=[32,32]", "seed=3", "threads=1",
+    "progress=false", "checkpoint.every=64", "checkpoint.keep=5", "evaluation.every=0", "evaluation.episodes=2",
+    "evaluation.record=false",
+]
+FPB = 4 * 8  # frames per batch
+
+
+@pytest.fixture(autouse=True)
+def one_thread():
+    n = torch.get_num_threads()
+    yield
+    torch.set_num_threads(n)
+
+
+def _flat(state, prefix=""):
+    out = {}
+    for k, v in state.items() if isinstance(state, dict) else enumerate(state):
+        if isinstance(v, (dict, list)):
+            out.update(_flat(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+@pytest.mark.parametrize("name", ["dqn", "ddpg", "td3", "sac"])
+def test_a_tiny_run_writes_metrics_and_loadable_checkpoints(name, tmp_path):
+    cfg = load([f"algo={name}", *TINY, "total_frames=128"])
+    assert cfg.env.action_space == ("discrete" if name == "dqn" else "prt")
+    summary = train(cfg, tmp_path / "run")
+    assert summary["frames"] == 128 and summary["iterations"] == 128 // FPB
+    rows = [r for r in read_metrics(tmp_path / "run" / "metrics.csv") if r["phase"] == "train"]
+    assert [r["frames"] for r in rows] == [float(FPB * i) for i in range(1, 5)]
+    loss_cols = [k for k in rows[0] if k.startswith("loss_")]
+    assert loss_cols, rows[0].keys()
+    # warm-up: two batches of 32 transitions; the first batch only fills the buffer
+    assert all(isinstance(rows[0][k], str) or math.isnan(rows[0][k]) for k in loss_cols)
+    for r in rows[1:]:
+        assert all(isinstance(r[k], float) and math.isfinite(r[k]) for k in loss_cols), r
+    assert [r["buffer_size"] for r in rows] == [float(FPB * i) for i in range(1, 5)]
+    ck = tmp_path / "run" / "checkpoints"
+    assert sorted(p.name for p in ck.iterdir()) == ["ckpt_000000000064.pt", "final.pt"]
+    state = torch.load(ck / "final.pt", weights_only=True)
+    assert state["frames"] == 128 and state["config"]["algo"]["name"] == name
+    assert int(state["algo"]["counters"][0]) == 128 and "buffer" not in state["algo"]  # buffer off by default
+    # the final evaluation ran the trained policy
+    assert summary["final_eval"]["episodes"] == 2
+
+
+def test_resume_with_the_buffer_repeats_the_uninterrupted_run(tmp_path):
+    common = ["algo=td3", *TINY, "algo.checkpoint_buffer=true"]
+    # the uninterrupted run checkpoints (and so starts fresh episodes) at 64 and 128 frames, where
+    # the interrupted one stops
+    full = train(load([*common, "total_frames=192"]), tmp_path / "full")
+    half = train(load([*common, "total_frames=128"]), tmp_path / "half")
+    assert half["frames"] == 128
+    state = torch.load(tmp_path / "half" / "checkpoints" / "final.pt", weights_only=True)
+    assert state["algo"]["buffer"]["data"]["observation"].shape[0] == 128
+    resumed = resume(tmp_path / "half", ["total_frames=192"])
+    assert resumed["frames"] == full["frames"] == 192
+    a = _flat(torch.load(tmp_path / "full" / "checkpoints" / "final.pt", weights_only=True)["algo"])
+    b = _flat(torch.load(tmp_path / "half" / "checkpoints" / "final.pt", weights_only=True)["algo"])
+    assert a.keys() == b.keys()
+    for k in a:
+        assert torch.equal(a[k], b[k]) if isinstance(a[k], torch.Tensor) else a[k] == b[k], k
+    ra = [r for r in read_metrics(tmp_path / "full" / "metrics.csv") if r["phase"] == "train"]
+    rb = [r for r in read_metrics(tmp_path / "half" / "metrics.csv") if r["phase"] == "train"]
+    assert [r["frames"] for r in rb] == [float(FPB * i) for i in range(1, 7)]
+    assert [r["loss_critic"] for r in ra] == [r["loss_critic"] for r in rb]
+
+
+def test_resume_without_the_buffer_warms_up_again_and_goes_on(tmp_path):
+    common = ["algo=sac", *TINY]
+    train(load([*common, "total_frames=96"]), tmp_path / "run")
+    before = torch.load(tmp_path / "run" / "checkpoints" / "final.pt", weights_only=True)["algo"]
+    summary = resume(tmp_path / "run", ["total_frames=192"])
+    assert summary["frames"] == 192
+    rows = [r for r in read_metrics(tmp_path / "run" / "metrics.csv") if r["phase"] == "train"]
+    assert [r["frames"] for r in rows] == [float(FPB * i) for i in range(1, 7)]
+    # the buffer restarts empty: it holds only what was collected after the resume
+    assert [r["buffer_size"] for r in rows[3:]] == [32.0, 64.0, 96.0]
+    after = torch.load(tmp_path / "run" / "checkpoints" / "final.pt", weights_only=True)["algo"]
+    assert int(after["counters"][1]) > int(before["counters"][1])  # it trained on after the warm-up
+
+
+def _cli(*args, cwd):
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    return subprocess.run([sys.executable, "-m", "volleybots.cli", *args], capture_output=True, text=True, timeout=300, env=env, cwd=cwd)
+
+
+def test_cli_trains_evaluates_and_replays_sac_and_picks_discrete_for_dqn(tmp_path):
+    run = tmp_path / "sac"
+    res = _cli("train", "algo=sac", *TINY, "total_frames=64", f"hydra.run.dir={run}", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert (run / "metrics.csv").is_file() and (run / "checkpoints" / "final.pt").is_file()
+    res = _cli("eval", str(run), "episodes=3", "--json", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert '"episodes": 3' in res.stdout
+    out = tmp_path / "sac.rrd"
+    res = _cli("replay", str(run), "--out", str(out), "--no-viewer", cwd=tmp_path)
+    assert res.returncode == 0 and out.is_file() and out.stat().st_size > 0, res.stderr[-2000:]
+
+    dqn = tmp_path / "dqn"
+    res = _cli("train", "algo=dqn", *TINY, "total_frames=32", f"hydra.run.dir={dqn}", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr[-2000:]
+    state = torch.load(dqn / "checkpoints" / "final.pt", weights_only=True)
+    assert state["action_space"] == "discrete"
+
+    bad = tmp_path / "bad"
+    res = _cli("train", "algo=dqn", "env.action_space=prt", *TINY, "total_frames=32", f"hydra.run.dir={bad}", cwd=tmp_path)
+    assert res.returncode == 2
+    lines = [l for l in res.stderr.splitlines() if l.strip()]
+    assert len(lines) == 1 and "dqn" in lines[0] and "discrete" in lines[0] and "'prt'" in lines[0], res.stderr
+    assert not bad.exists()
