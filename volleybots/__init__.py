@@ -10,7 +10,8 @@ def make_env(task: str, num_envs: int = 1, action_space: str = "prt", physics: s
 
     ``action_space``: "prt" (per-rotor thrust), "ctbr" (collective thrust + body rates) or
     "discrete" (16 rotor on/off actions). ``physics``: a backend of ``volleybots.physics.BACKENDS``.
-    Further keywords go to the task (``reward_shaping``, ``substeps``, ``drone``, ``episode_len``, ...).
+    Further keywords go to the task (``reward_shaping``, ``substeps``, ``drone``, ``episode_len``, ...);
+    ``compile=True`` compiles the physics sub-step with ``torch.compile`` (static shapes).
     """
     from volleybots.physics import ACTION_SPACES, BACKENDS
     from volleybots.tasks import TASKS
@@ -21,6 +22,10 @@ def make_env(task: str, num_envs: int = 1, action_space: str = "prt", physics: s
         raise ValueError(f"unknown action_space {action_space!r}; allowed: {list(ACTION_SPACES)}")
     if physics not in BACKENDS:
         raise ValueError(f"unknown physics {physics!r}; allowed: {list(BACKENDS)}")
+    # TorchRL's EnvBase metaclass consumes a ``compile`` keyword itself (compiling the whole step,
+    # which recompiles for every partial reset): route ours to the physics instead.
+    if "compile" in task_overrides:
+        task_overrides["compile_physics"] = task_overrides.pop("compile")
     return TASKS[task](num_envs=num_envs, action_space=action_space, physics=physics, device=device, seed=seed, **task_overrides)
 
 

@@ -48,16 +48,14 @@ def measure(
 ) -> dict:
     """One row of ``run_bench``: the env-steps/s of one (task, backend, num_envs, device, compile)."""
     import volleybots
-    from volleybots.physics import make_physics
 
     steps = steps or default_steps(num_envs, backend)
     t0 = time.perf_counter()
-    env = volleybots.make_env(task, num_envs=num_envs, action_space=action_space, physics=backend, device=device, seed=seed)
-    if compile and backend == "torch":
-        # Not make_env(compile=True): TorchRL's EnvBase metaclass takes a ``compile`` keyword for itself
-        # and compiles the whole step_and_maybe_reset, which recompiles for every partial reset's mask
-        # size. Only the physics sub-step is compiled here, with static shapes.
-        env.physics = make_physics("torch", env.params, num_envs, env.n_drones, device=env.device, compile=True)
+    # make_env routes compile= to the physics sub-step only (static shapes); MuJoCo ignores it
+    env = volleybots.make_env(
+        task, num_envs=num_envs, action_space=action_space, physics=backend, device=device, seed=seed,
+        compile=bool(compile and backend == "torch"),
+    )
     torch.manual_seed(seed)
     # a few pre-drawn random actions, cycled, so that sampling does not count as env time
     actions = [env.full_action_spec.rand() for _ in range(8)]

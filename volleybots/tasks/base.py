@@ -60,7 +60,7 @@ class VolleyEnv(EnvBase):
         drone: str | DroneParams = "iris",
         ball_drag: float = 0.0,
         downwash: bool = True,
-        compile: bool = False,
+        compile_physics: bool = False,
         episode_len: int | None = None,
     ):
         super().__init__(device=device, batch_size=torch.Size([num_envs]))
@@ -72,7 +72,7 @@ class VolleyEnv(EnvBase):
         self.params = WorldParams(substeps=substeps, downwash=downwash, drone=drone_params, ball=BallParams(drag=ball_drag))
         self.num_envs = num_envs
         self.reward_shaping = reward_shaping
-        self.physics = make_physics(physics, self.params, num_envs, self.n_drones, device=self.device, compile=compile)
+        self.physics = make_physics(physics, self.params, num_envs, self.n_drones, device=self.device, compile=compile_physics)
         self.actions = make_action_space(action_space, self.params, num_envs, self.n_drones, self.device)
         self.action_space_name = action_space
         self.with_throttle = action_space != "ctbr"
