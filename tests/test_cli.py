@@ -123,6 +123,13 @@ def test_eval_of_random_play(tmp_path):
     assert out["stats"]["episode_len"]["mean"] < 800  # random flight ends early
 
 
+def test_train_cfg_prints_the_config_without_training(tmp_path):
+    res = _volleybots("train", "--cfg", "job", "task=solo_bump", "env.action_space=ctbr", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert "name: solo_bump" in res.stdout and "action_space: ctbr" in res.stdout and "hit_reward: 2.0" in res.stdout
+    assert not any(tmp_path.iterdir())  # nothing was trained or written
+
+
 def test_multirun_sweeps_seeds(tmp_path):
     res = _volleybots("train", "-m", "seed=0,1", *[o for o in TINY if not o.startswith("total_frames")], "total_frames=512",
                       "evaluation.episodes=1", "evaluation.record=false", f"hydra.sweep.dir={tmp_path / 'sweep'}")
@@ -153,6 +160,8 @@ def _bad_cases(run_dir: Path, tmp: Path):
         (["train", "algo=dqn", "env.action_space=prt"], ["dqn", "prt", "discrete"]),
         (["train", "algo=sac", "env.action_space=discrete"], ["sac", "discrete", "prt"]),
         (["train", "seed=0,1"], ["seed=0,1", "-m"]),
+        (["train", "--frames", "3"], ["--frames", "--multirun"]),
+        (["train", "-m", "seed=0,1", "--cfg", "job"], ["--cfg", "-m"]),
         (["train", f"hydra.run.dir={run_dir}"], [str(run_dir), "resume="]),
         (["train", f"resume={tmp / 'nowhere'}"], ["nowhere", "not a run directory"]),
         (["train", f"resume={run_dir}"], ["total_frames"]),

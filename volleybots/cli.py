@@ -128,20 +128,25 @@ def _echo_summary(summary: dict, run_dir) -> None:
 @app.command(context_settings=_PASS_THROUGH)
 @_user_errors
 def train(
-    ctx: typer.Context,
     overrides: Optional[List[str]] = typer.Argument(None, help="Hydra overrides: task=solo_bump algo=ppo env.num_envs=256 env.action_space=ctbr seed=3 total_frames=2e6 hydra.run.dir=DIR, or resume=RUN_DIR [total_frames=N]."),
     multirun: bool = typer.Option(False, "-m", "--multirun", help="Sweep: one job per combination of comma-separated values (seed=0,1,2)."),
+    show: Optional[str] = typer.Option(None, "--cfg", "-c", help="Print the composed config (job, hydra or all) instead of training."),
 ) -> None:
     """Train a policy; writes a run directory (config, metrics.csv, checkpoints, summary.json, recordings)."""
     overrides = list(overrides or [])
-    flags = [a for a in ctx.args if a.startswith("-")]
-    overrides += [a for a in ctx.args if not a.startswith("-")]
+    flags = [o for o in overrides if o.startswith("-")]
+    if flags:
+        raise ConfigError(f"unknown option {flags[0]!r}; allowed: -m/--multirun, --cfg job|hydra|all, --help")
+    if show is not None and show not in ("job", "hydra", "all"):
+        raise ConfigError(f"unknown --cfg {show!r}; allowed: job, hydra, all")
+    if show is not None and multirun:
+        raise ConfigError("--cfg prints the config of one job; it cannot be combined with -m")
     resume_dir = next((o.partition("=")[2] for o in overrides if o.startswith("resume=")), None)
     if resume_dir is not None and resume_dir not in ("", "null"):
         from volleybots.train import resume
 
-        if multirun:
-            raise ConfigError("resume= continues one run; it cannot be combined with -m")
+        if multirun or show:
+            raise ConfigError("resume= continues one run; it takes neither -m nor --cfg")
         summary = resume(resume_dir, [o for o in overrides if not o.startswith("resume=")])
         _echo_summary(summary, resume_dir)
         return
@@ -149,8 +154,9 @@ def train(
 
     for job in _jobs(overrides, multirun):
         validate(compose(job))
-    _check_run_dir(overrides)
-    _run_hydra(overrides, multirun, flags)
+    if show is None:
+        _check_run_dir(overrides)
+    _run_hydra(overrides, multirun, [] if show is None else ["--cfg", show])
 
 
 # ------------------------------------------------------------------------------------ eval, replay
