@@ -1,0 +1,237 @@
+"""Paper table 1 on a small budget: Back and Forth, Hit the Ball, Solo Bump x CTBR / PRT x DQN, DDPG,
+TD3, SAC, PPO, each cell the task metric's mean +- std over seeds.
+
+Every run trains ``--frames`` env steps with ``--num-envs`` envs and the algorithm's own config (the
+paper's hyperparameters; ``--batch-size`` scales the off-policy batch down for a CPU), then plays
+``--eval-episodes`` deterministic episodes with the final policy: a seed's value is their mean metric.
+DQN acts in the discrete space (each rotor -1 or +1) whatever the column, so it runs once per seed
+and its value fills both columns.
+
+    python benchmarks/table1.py                               # the reduced version of docs/benchmarks.md
+    python benchmarks/table1.py --frames 2e6 --seeds 0,1,2,3,4 --num-envs 1024 --device cuda
+    python benchmarks/table1.py --tasks solo_bump --algos td3,ppo --jobs 2
+
+Runs live under ``--out`` as ``<task>_<space>_<algo>_s<seed>/`` (ordinary run directories: metrics.csv,
+checkpoints, summary.json); a run that has its summary.json is not repeated, so an interrupted
+benchmark continues where it stopped. Writes ``table1.json``, ``table1.md`` and ``table1.png``
+(learning curves: the training episodes' metric over frames, mean over seeds) into ``--out``.
+Needs matplotlib for the figure (``pip install 'volleybots[plot]'``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import statistics
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
+from pathlib import Path
+
+TASKS = ("back_and_forth", "hit_the_ball", "solo_bump")
+SPACES = ("ctbr", "prt")
+ALGOS = ("dqn", "ddpg", "td3", "sac", "ppo")
+OFF_POLICY = ("dqn", "ddpg", "td3", "sac")
+# paper table 1 (5 seeds, 5e8 frames, 4096 envs): (ctbr, prt) per task and algorithm
+PAPER = {
+    "back_and_forth": {"dqn": (0.00, 0.00), "ddpg": (1.14, 0.83), "td3": (1.12, 0.99), "sac": (0.90, 0.83), "ppo": (9.25, 10.04)},
+    "hit_the_ball": {"dqn": (0.39, 1.88), "ddpg": (2.87, 3.98), "td3": (3.00, 3.91), "sac": (3.76, 3.87), "ppo": (10.48, 11.40)},
+    "solo_bump": {"dqn": (0.00, 0.00), "ddpg": (0.44, 0.67), "td3": (3.68, 5.29), "sac": (0.54, 1.36), "ppo": (8.58, 10.83)},
+}
+TITLES = {"back_and_forth": "Back and Forth", "hit_the_ball": "Hit the Ball", "solo_bump": "Solo Bump"}
+
+
+def _csv(s: str) -> list[str]:
+    return [x.strip() for x in s.split(",") if x.strip()]
+
+
+def jobs(args) -> list[tuple[str, str, str, int]]:
+    """(task, space, algo, seed) of every run; dqn once per task and seed, in its discrete space."""
+    out = []
+    for task in args.tasks:
+        for algo in args.algos:
+            for space in ("discrete",) if algo == "dqn" else args.spaces:
+                out += [(task, space, algo, seed) for seed in args.seeds]
+    return out
+
+
+def run_one(job, args) -> dict:
+    """Train and evaluate one run (in a worker process); returns its summary."""
+    import torch
+
+    from volleybots.config import load
+    from volleybots.train import train
+
+    task, space, algo, seed = job
+    run_dir = Path(args.out) / f"{task}_{space}_{algo}_s{seed}"
+    if (run_dir / "summary.json").is_file():
+        return json.loads((run_dir / "summary.json").read_text())
+    if run_dir.exists():  # an interrupted run: start it again from scratch
+        import shutil
+
+        shutil.rmtree(run_dir)
+    torch.set_num_threads(args.threads)
+    overrides = [
+        f"task={task}", f"algo={algo}", f"env.action_space={space}", f"env.num_envs={args.num_envs}", f"env.device={args.device}",
+        f"seed={seed}", f"threads={args.threads}", f"total_frames={int(args.frames)}", "progress=false",
+        "checkpoint.every=0", "evaluation.every=0", f"evaluation.episodes={args.eval_episodes}", "evaluation.record=false",
+    ]
+    if algo in OFF_POLICY:
+        overrides += [f"algo.batch_size={args.batch_size}", f"algo.buffer_size={int(args.frames)}"]
+    summary = train(load(overrides), run_dir)
+    print(f"  {task} {space} {algo} seed {seed}: {summary['metric']} {summary['final_eval']['stats'][summary['metric']]['mean']:.3f} "
+          f"({summary['wall_time_s']:.0f} s)", file=sys.stderr, flush=True)
+    return summary
+
+
+def collect_results(args) -> dict:
+    """{task: {algo: {space: [per-seed final metric]}}} from the runs' summaries."""
+    res: dict = {}
+    for task, space, algo, seed in jobs(args):
+        path = Path(args.out) / f"{task}_{space}_{algo}_s{seed}" / "summary.json"
+        if not path.is_file():
+            continue
+        s = json.loads(path.read_text())
+        value = s["final_eval"]["stats"][s["metric"]]["mean"]
+        for col in SPACES if algo == "dqn" else (space,):
+            res.setdefault(task, {}).setdefault(algo, {}).setdefault(col, []).append(value)
+    return res
+
+
+def _cell(values) -> str:
+    if not values:
+        return "-"
+    std = statistics.pstdev(values) if len(values) > 1 else 0.0
+    return f"{statistics.fmean(values):.2f} ± {std:.2f}"
+
+
+def format_table(res: dict, args, paper: bool = False) -> str:
+    """Markdown in the layout of paper table 1 (``paper``: the paper's values instead)."""
+    head = "| | " + " | ".join(f"{TITLES[t]} CTBR | {TITLES[t]} PRT" for t in args.tasks) + " |"
+    sep = "|---" * (1 + 2 * len(args.tasks)) + "|"
+    lines = [head, sep]
+    for algo in args.algos:
+        cells = []
+        for task in args.tasks:
+            for i, space in enumerate(SPACES):
+                if paper:
+                    cells.append(f"{PAPER[task][algo][i]:.2f}")
+                else:
+                    cells.append(_cell(res.get(task, {}).get(algo, {}).get(space, [])))
+        lines.append(f"| {algo.upper()} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def curves(args) -> dict:
+    """{(task, space): {algo: (frames, mean over seeds of the smoothed training-episode metric)}}."""
+    from volleybots.runs import read_metrics
+    from volleybots.tasks import TASKS as ENVS
+
+    out: dict = {}
+    for task, space, algo, seed in jobs(args):
+        path = Path(args.out) / f"{task}_{space}_{algo}_s{seed}" / "metrics.csv"
+        if not path.is_file():
+            continue
+        metric = ENVS[task].metric
+        rows = [r for r in read_metrics(path) if r["phase"] == "train"]
+        frames = [r["frames"] for r in rows]
+        vals = _smooth([r.get(metric, math.nan) for r in rows], 5)
+        for col in SPACES if algo == "dqn" else (space,):
+            out.setdefault((task, col), {}).setdefault(algo, []).append((frames, vals))
+    mean = {}
+    for key, by_algo in out.items():
+        for algo, runs in by_algo.items():
+            n = min(len(f) for f, _ in runs)
+            frames = runs[0][0][:n]
+            vals = [_nanmean([v[i] for _, v in runs]) for i in range(n)]
+            mean.setdefault(key, {})[algo] = (frames, vals)
+    return mean
+
+
+def _nanmean(xs):
+    xs = [x for x in xs if isinstance(x, float) and not math.isnan(x)]
+    return statistics.fmean(xs) if xs else math.nan
+
+
+def _smooth(xs, k):
+    """Trailing mean over the last ``k`` batches that finished episodes (NaN rows have none)."""
+    out, window = [], []
+    for x in xs:
+        if isinstance(x, float) and not math.isnan(x):
+            window = (window + [x])[-k:]
+        out.append(statistics.fmean(window) if window else math.nan)
+    return out
+
+
+def plot(args, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from volleybots.tasks import TASKS as ENVS
+
+    data = curves(args)
+    fig, axes = plt.subplots(len(SPACES), len(args.tasks), figsize=(max(4.2 * len(args.tasks), 8.0), 6.5), squeeze=False)
+    colors = {"dqn": "tab:red", "ddpg": "tab:blue", "td3": "tab:green", "sac": "tab:purple", "ppo": "tab:orange"}
+    for j, task in enumerate(args.tasks):
+        for i, space in enumerate(SPACES):
+            ax = axes[i][j]
+            for algo, (frames, vals) in sorted(data.get((task, space), {}).items()):
+                label = f"{algo.upper()}{' (discrete)' if algo == 'dqn' else ''}"
+                ax.plot(frames, vals, color=colors.get(algo), label=label)
+            ax.set_title(f"{TITLES[task]} ({space.upper()})", fontsize=10)
+            ax.set_xlabel("env steps")
+            ax.set_ylabel(f"train episodes: {ENVS[task].metric}")
+            ax.grid(alpha=0.3)
+    axes[0][0].legend(fontsize=8)
+    fig.suptitle(f"{int(args.frames):,} env steps x {len(args.seeds)} seeds, {args.num_envs} envs (mean over seeds, last 5 batches)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--tasks", type=_csv, default=list(TASKS), help="comma-separated tasks")
+    ap.add_argument("--algos", type=_csv, default=list(ALGOS), help="comma-separated algorithms")
+    ap.add_argument("--spaces", type=_csv, default=list(SPACES), help="comma-separated continuous action spaces")
+    ap.add_argument("--seeds", type=lambda s: [int(x) for x in _csv(s)], default=[0, 1], help="comma-separated seeds")
+    ap.add_argument("--frames", type=float, default=1e5, help="env steps per run")
+    ap.add_argument("--num-envs", type=int, default=64, help="parallel envs per run")
+    ap.add_argument("--batch-size", type=int, default=1024, help="off-policy sampling batch (paper: 4096)")
+    ap.add_argument("--eval-episodes", type=int, default=32, help="final deterministic evaluation episodes per run")
+    ap.add_argument("--device", default="cpu", help="torch device of env and networks")
+    ap.add_argument("--threads", type=int, default=1, help="torch threads per run")
+    ap.add_argument("--jobs", type=int, default=1, help="runs trained at the same time (processes)")
+    ap.add_argument("--out", default="outputs/table1", help="folder of the runs and the results")
+    args = ap.parse_args(argv)
+    for name, given, allowed in (("task", args.tasks, TASKS), ("algo", args.algos, ALGOS), ("space", args.spaces, SPACES)):
+        bad = [g for g in given if g not in allowed]
+        if bad:
+            ap.error(f"unknown {name} {bad[0]!r}; allowed: {', '.join(allowed)}")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    todo = jobs(args)
+    print(f"# {len(todo)} runs of {int(args.frames):,} env steps, {args.num_envs} envs, {args.jobs} at a time", file=sys.stderr)
+    if args.jobs > 1:
+        with ProcessPoolExecutor(args.jobs, mp_context=get_context("spawn")) as pool:
+            list(pool.map(run_one, todo, [args] * len(todo)))
+    else:
+        for job in todo:
+            run_one(job, args)
+    res = collect_results(args)
+    table = format_table(res, args)
+    (out / "table1.json").write_text(json.dumps({"args": vars(args), "results": res}, indent=1) + "\n")
+    (out / "table1.md").write_text(table + "\n")
+    print(table)
+    try:
+        plot(args, out / "table1.png")
+    except ImportError:
+        print("matplotlib is not installed: no figure (pip install 'volleybots[plot]')", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
