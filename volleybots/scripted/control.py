@@ -49,6 +49,7 @@ class Gains:
     thrust_margin: float = 0.95  # fraction of the maximum total thrust the position loop may ask for
     min_thrust_z: float = 5.0  # m/s^2: with little thrust its direction swings wildly and attitude is slow to follow
     max_climb: float = 4.5  # m/s^2 of upward acceleration at most, so some thrust is left to steer
+    vertical_first: bool = True  # over the thrust budget: serve the vertical first, else keep the direction
     thrust_keep: float = 0.9  # the allocation trades at most 10 % of the thrust for torque
     lag_comp: float = 0.5  # 1: invert the rotor lag fully (needs observed throttles), 0: ignore it
 
@@ -156,14 +157,20 @@ class DroneController:
     def thrust_vector(self, drone: DroneObs, accel: torch.Tensor) -> torch.Tensor:
         """Specific thrust (m/s^2, world) that yields ``accel``, clipped to the airframe's envelope.
 
-        Gravity and the model's linear damping are cancelled here. Vertical has priority: the
-        horizontal part gets what is left of the thrust budget and the tilt limit.
+        Gravity and the model's linear damping are cancelled here. With ``vertical_first`` the
+        vertical part is served first and the horizontal gets what is left of the thrust budget
+        (holding height matters most when hovering); otherwise an over-budget vector keeps its
+        direction and is shortened (for manoeuvres whose direction is the point). Both respect
+        the tilt limit.
         """
         g = self.gains
         f = accel + self.params.drone.lin_damping * drone.vel
         fmax = g.thrust_margin * self.max_accel
         fz = (f[..., 2] + self.g).clamp(g.min_thrust_z, min(fmax, self.g + g.max_climb))
         h = f[..., :2]
+        if not g.vertical_first:
+            scale = (fmax / torch.cat((h, fz.unsqueeze(-1)), -1).norm(dim=-1)).clamp(max=1.0)
+            h, fz = h * scale.unsqueeze(-1), fz * scale
         h_max = torch.minimum(torch.sqrt((fmax**2 - fz**2).clamp_min(0.0)), fz * math.tan(g.max_tilt))
         h_norm = h.norm(dim=-1)
         h = h * (h_max / h_norm.clamp_min(1e-9)).clamp(max=1.0).unsqueeze(-1)

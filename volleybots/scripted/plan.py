@@ -39,14 +39,16 @@ def quintic(p0, v0, a0, p1, v1, a1, duration: torch.Tensor, t: torch.Tensor):
     return pos, vel, acc
 
 
-def goto_accel(pos, vel, target, accel: float, speed: float, k_v: float = 6.0, k_p: float = 2.5, brake: float | None = None, stop_at: float = 0.0) -> torch.Tensor:
+def goto_accel(pos, vel, target, accel: float, speed: float, k_v: float = 6.0, k_p: float = 2.5, brake: float | None = None, stop_at: float = 0.0, lead: float = 0.0) -> torch.Tensor:
     """Near minimum-time guidance to ``target`` [..., 3]: fly at the speed from which a braking of
     ``brake`` (default ``accel``) stops ``stop_at`` metres short of the target, capped at ``speed``
     and, close in, at ``k_p`` times the distance (a plain P law there, no chatter); the speed is
-    tracked with gain ``k_v``. Returns the commanded acceleration, at most ``accel`` in norm."""
+    tracked with gain ``k_v``. The braking is planned ``lead`` seconds early: the drone needs that
+    long to turn its thrust around. Returns the commanded acceleration, at most ``accel`` in norm."""
     d = target - pos
     dist = d.norm(dim=-1, keepdim=True)
-    to_go = (dist - stop_at).clamp_min(0.0)
+    closing = (vel * d).sum(-1, keepdim=True) / dist.clamp_min(1e-6)
+    to_go = (dist - stop_at - lead * closing.clamp_min(0.0)).clamp_min(0.0)
     brake = accel if brake is None else brake
     v_mag = torch.minimum(torch.sqrt(2.0 * brake * to_go), k_p * to_go).clamp(max=speed)
     v_des = d / dist.clamp_min(1e-6) * v_mag

@@ -16,7 +16,7 @@ from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 
 from volleybots.physics.params import WorldParams
-from volleybots.scripted.ballistics import launch_for_apex, launch_for_range
+from volleybots.scripted.ballistics import launch_for_apex, launch_for_range, racket_for
 from volleybots.scripted.control import DroneController, DroneObs, Gains
 from volleybots.scripted.plan import StrikePlanner, goto_accel, off_centre
 
@@ -57,6 +57,7 @@ class GotoConfig:
     k_v: float = 8.0  # 1/s speed tracking
     k_p: float = 3.0  # 1/s close-in position gain
     stop_at: float = 0.0  # stop this far short of the target
+    lead: float = 0.0  # s: brake this much early (the time to turn the thrust around)
 
 
 class HoverPolicy(ScriptedPolicy):
@@ -64,16 +65,19 @@ class HoverPolicy(ScriptedPolicy):
 
     task = "hover"
 
-    def __init__(self, action_space="prt", params=None, gains=None, goto: GotoConfig = GotoConfig()):
-        super().__init__(action_space, params, gains)
-        self.goto = goto
+    default_gains: Gains | None = None
+    default_goto = GotoConfig(accel=6.0, brake=4.5, lead=0.15)  # within the default 30 degree tilt
+
+    def __init__(self, action_space="prt", params=None, gains=None, goto: GotoConfig | None = None):
+        super().__init__(action_space, params, gains or self.default_gains)
+        self.goto = goto or self.default_goto
 
     def target(self, drone: DroneObs, task_obs: torch.Tensor) -> torch.Tensor:
         return drone.pos - task_obs[..., 0:3]
 
     def act(self, drone, task_obs):
         c = self.goto
-        acc = goto_accel(drone.pos, drone.vel, self.target(drone, task_obs), c.accel, c.speed, c.k_v, c.k_p, c.brake, c.stop_at)
+        acc = goto_accel(drone.pos, drone.vel, self.target(drone, task_obs), c.accel, c.speed, c.k_v, c.k_p, c.brake, c.stop_at, c.lead)
         return self.ctrl.act_accel(drone, acc)
 
 
@@ -87,8 +91,9 @@ class BackAndForthPolicy(HoverPolicy):
 
     task = "back_and_forth"
 
-    def __init__(self, action_space="prt", params=None, gains=None, goto: GotoConfig = GotoConfig(stop_at=0.45)):
-        super().__init__(action_space, params, gains, goto)
+    # full thrust, steep tilts and the full rotor-lag inversion: the legs are bang-bang
+    default_gains = Gains(max_tilt=math.radians(55.0), thrust_margin=1.0, lag_comp=1.0)
+    default_goto = GotoConfig(accel=13.0, brake=9.0, lead=0.2, stop_at=0.5, k_p=6.0, k_v=4.0)
 
 
 class _BallPolicy(ScriptedPolicy):
@@ -96,6 +101,28 @@ class _BallPolicy(ScriptedPolicy):
 
     def ball(self, drone: DroneObs, task_obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         return drone.pos - task_obs[..., 3:6], task_obs[..., 6:9]
+
+    def strike_action(self, drone: DroneObs, strike, home: torch.Tensor, window, lock_time: float, hold=None, early=(0, 1)) -> torch.Tensor:
+        """Fly the strike along the planned approach (hold, then the quintic into the contact state,
+        ``window`` s long), which times the racket's speed. Along the world axes in ``early`` the
+        drone goes to the contact point as soon as it can instead (arriving early leaves time to
+        settle the tilt; right for axes without racket speed). In the last ``lock_time`` s the
+        thrust, so the racket, points along the planned normal whatever the position error: the
+        tilt at contact, not where on the racket the ball lands, decides where the ball goes."""
+        p, v, a = self.planner.reference(strike, window, hold)
+        mask = torch.zeros(3, dtype=torch.bool, device=p.device)
+        mask[list(early)] = True
+        p = torch.where(mask, strike.drone_pos, p)
+        v = torch.where(mask, strike.drone_vel, v)
+        a = torch.where(mask, strike.drone_acc, a)
+        f = self.ctrl.thrust_vector(drone, self.ctrl.position_accel(drone, p, v, a))
+        n = strike.normal
+        locked = f[..., 2:] / n[..., 2:].clamp_min(0.3) * n
+        f = torch.where((strike.t < lock_time).unsqueeze(-1), locked, f)
+        # a ball that will never come down to the contact height (it is below it): hold at home
+        wait = self.ctrl.thrust_vector(drone, self.ctrl.position_accel(drone, home.expand_as(drone.pos), torch.zeros_like(drone.vel)))
+        f = torch.where(strike.valid.unsqueeze(-1), f, wait)
+        return self.ctrl.act_thrust(drone, f)
 
 
 @dataclass(frozen=True)
@@ -140,22 +167,90 @@ class SoloBumpPolicy(_BallPolicy):
 
         return off_centre(self.planner.plan(ball_p, ball_v, contact_ball_z, want_out, c.max_tilt), drone.pos, c.slack)
 
-    def strike_action(self, drone: DroneObs, strike, home: torch.Tensor, window, lock_time: float, hold=None) -> torch.Tensor:
-        """Fly the strike. Horizontally the drone goes to the contact point as soon as it can
-        (arriving early leaves time to settle the tilt); vertically it follows the planned approach
-        (hold below the contact point, then the quintic into it, ``window`` s long), which times the
-        racket's speed. In the last ``lock_time`` s the thrust, so the racket, points along the
-        planned normal whatever the position error: the tilt at contact, not where on the racket
-        the ball lands, decides where the ball goes."""
-        p, v, a = self.planner.reference(strike, window, hold)
-        p_ref = torch.cat((strike.drone_pos[..., :2], p[..., 2:]), -1)
-        v_ref = torch.cat((strike.drone_vel[..., :2], v[..., 2:]), -1)
-        a_ref = torch.cat((strike.drone_acc[..., :2], a[..., 2:]), -1)
-        f = self.ctrl.thrust_vector(drone, self.ctrl.position_accel(drone, p_ref, v_ref, a_ref))
-        n = strike.normal
-        locked = f[..., 2:] / n[..., 2:].clamp_min(0.3) * n
-        f = torch.where((strike.t < lock_time).unsqueeze(-1), locked, f)
-        # a ball that will never come down to the contact height (it is below it): hold at home
-        wait = self.ctrl.thrust_vector(drone, self.ctrl.position_accel(drone, home.expand_as(drone.pos), torch.zeros_like(drone.vel)))
-        f = torch.where(strike.valid.unsqueeze(-1), f, wait)
-        return self.ctrl.act_thrust(drone, f)
+
+@dataclass(frozen=True)
+class HitConfig:
+    distance: float = 12.0  # m: aimed 4.5 - x where the ball comes down through z = 2
+    contact_z: float = 2.75  # drone centre height at contact: the climb adds racket speed
+    guided: bool = False
+    window: float = 0.7
+    min_time: float = 0.15  # s: floor of the guidance horizon
+    lock_time: float = 0.1  # s before contact when the racket is held along the planned normal
+    max_tilt: float = math.radians(55.0)
+    elevations: tuple[float, float, int] = (20.0, 75.0, 23)  # launch angles tried (deg): first, last, count
+
+
+class HitTheBallPolicy(_BallPolicy):
+    """Hit the falling ball once, as far as possible toward -x, over the net.
+
+    The launch is aimed at ``distance``; of the launch angles that reach it the one needing the
+    slowest racket is flown. Terminal guidance swings the drone into the ball at full thrust along
+    the racket normal (the optimal manoeuvre found offline by direct transcription: a short push
+    away from the ball's line, then full thrust tilted toward -x while climbing). After the hit
+    (the ball flies toward -x) the drone returns to the anchor and waits there.
+    """
+
+    task = "hit_the_ball"
+
+    def __init__(self, action_space="prt", params=None, gains=None, cfg: HitConfig = HitConfig()):
+        super().__init__(action_space, params, gains or Gains(max_tilt=cfg.max_tilt, max_climb=6.0, vertical_first=False))
+        self.cfg = cfg
+        self.planner = StrikePlanner(self.params, contact_thrust=self.ctrl.gains.thrust_margin * self.ctrl.max_accel)
+
+    def plan(self, drone, task_obs):
+        c = self.cfg
+        ball_p, ball_v = self.ball(drone, task_obs)
+        anchor = self._vec(ball_p, ANCHOR)
+        lo, hi, k = c.elevations
+        elev = torch.deg2rad(torch.linspace(lo, hi, k, dtype=ball_p.dtype, device=ball_p.device))
+        e = self.params.ball.restitution
+
+        def want_out(bp, bv):
+            target = torch.stack((torch.full_like(bp[..., 0], anchor[0].item() - c.distance), bp[..., 1]), -1)
+            shape = bp.shape[:-1] + (k,)
+            v = launch_for_range(bp.unsqueeze(-2).expand(*shape, 3), target.unsqueeze(-2).expand(*shape, 2), ANCHOR[2], elev.expand(shape))
+            _, s = racket_for(bv.unsqueeze(-2).expand_as(v), v, e)
+            best = torch.where(torch.isfinite(s), s, torch.full_like(s, float("inf"))).argmin(-1)
+            return torch.gather(v, -2, best[..., None, None].expand(*bp.shape[:-1], 1, 3)).squeeze(-2)
+
+        return self.planner.plan(ball_p, ball_v, c.contact_z + self.planner.reach, want_out, c.max_tilt)
+
+    def act(self, drone, task_obs):
+        c = self.cfg
+        _, ball_v = self.ball(drone, task_obs)
+        anchor = self._vec(drone.pos, ANCHOR).expand_as(drone.pos)
+        strike = self.plan(drone, task_obs)
+        if c.guided:
+            f = self.ctrl.thrust_vector(drone, self.planner.guidance(strike, drone.pos, drone.vel, c.min_time))
+            n = strike.normal
+            f = torch.where((strike.t < c.lock_time).unsqueeze(-1), f.norm(dim=-1, keepdim=True) * n, f)
+            hit = self.ctrl.act_thrust(drone, f)
+        else:
+            hit = self.strike_action(drone, strike, anchor, c.window, c.lock_time, anchor, early=(1,))
+        # after the hit the ball flies toward -x: go home, out of its way
+        home = self.ctrl.act(drone, anchor, torch.zeros_like(drone.vel))
+        return torch.where((ball_v[..., :1] < -1.0), home, hit)
+
+
+SCRIPTED_POLICIES: dict[str, type[ScriptedPolicy]] = {cls.task: cls for cls in (HoverPolicy, BackAndForthPolicy, HitTheBallPolicy, SoloBumpPolicy)}
+
+
+def make_scripted_policy(env_or_task, action_space: str | None = None, **kwargs) -> ScriptedPolicy:
+    """The scripted policy of a task, for an env (``VolleyEnv``: its task, action space and physical
+    parameters are used) or a task name (default physics; ``action_space`` defaults to "prt").
+
+    Supported action spaces are "prt" and "ctbr"; the discrete space has no scripted policy (a
+    model-based controller needs a continuous actuator). Keywords go to the policy class (gains,
+    configs). Unknown tasks or action spaces raise ``ValueError`` naming the allowed values.
+    """
+    if isinstance(env_or_task, str):
+        task, params = env_or_task, None
+    else:
+        task, params = env_or_task.name, env_or_task.params
+        action_space = action_space or env_or_task.action_space_name
+    action_space = action_space or "prt"
+    if task not in SCRIPTED_POLICIES:
+        raise ValueError(f"no scripted policy for task {task!r}; allowed: {sorted(SCRIPTED_POLICIES)}")
+    if action_space not in ("prt", "ctbr"):
+        raise ValueError(f"scripted policies support action spaces ['prt', 'ctbr'], got {action_space!r}")
+    return SCRIPTED_POLICIES[task](action_space, params, **kwargs)
