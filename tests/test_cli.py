@@ -108,6 +108,10 @@ def test_eval_of_a_run_prints_a_table_and_json(run_dir):
     out = json.loads(res.stdout)
     assert out["episodes"] == 3 and out["metric"] == "distance" and out["task"] == "hover"
     assert out["checkpoint"].endswith("final.pt") and out["deterministic"] is True
+    import hashlib
+
+    assert out["checkpoint_sha256"] == hashlib.sha256((run_dir / "checkpoints" / "final.pt").read_bytes()).hexdigest()
+    assert out["config"]["task"]["name"] == "hover" and out["seed"] == 0  # provenance
     assert {"distance", "return", "r_pose", "r_crash"} <= set(out["stats"])
     ckpt = run_dir / "checkpoints" / "ckpt_000000001024.pt"
     res = runner.invoke(app, ["eval", str(ckpt), "episodes=2"])
@@ -150,7 +154,10 @@ def _bad_cases(run_dir: Path, tmp: Path):
     (tmp / "not_a_ckpt.pt").write_text("hello")
     (tmp / "empty_run").mkdir()
     shutil.copy(run_dir / "config.yaml", tmp / "empty_run" / "config.yaml")
-    return [
+    import importlib.util
+
+    no_wandb = [(["train", "logger=wandb"], ["wandb", "logger=csv"])] if importlib.util.find_spec("wandb") is None else []
+    return no_wandb + [
         (["train", "task=hovr"], ["hovr", "hover", "solo_bump"]),
         (["train", "algo=nope"], ["nope", "ppo", "mappo"]),
         (["train", "env=gpu"], ["gpu", "cpu", "cuda"]),

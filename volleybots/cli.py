@@ -106,7 +106,9 @@ def _run_hydra(overrides: list[str], multirun: bool, extra: list[str]) -> None:
             cfg = algo_action_space(cfg, HydraConfig.get().overrides.task)
             summary = train_run(validate(cfg), HydraConfig.get().runtime.output_dir)
         except ConfigError as e:
-            _fail(str(e))
+            # SystemExit passes through Hydra's error report (which would exit 1 with a banner)
+            typer.echo(f"error: {e}", err=True)
+            sys.exit(2)
         _echo_summary(summary, HydraConfig.get().runtime.output_dir)
 
     argv = sys.argv

@@ -220,6 +220,11 @@ def validate(cfg) -> DictConfig:
         raise ConfigError(f"bad value for 'env.device': {env.device!r} is not a torch device (cpu, cuda, cuda:1, ...)") from None
     if dev.type == "cuda" and not torch.cuda.is_available():
         raise ConfigError(f"env.device={env.device!r} but no CUDA device is available here; use env.device=cpu")
+    if rest.logger == "wandb":
+        import importlib.util
+
+        if importlib.util.find_spec("wandb") is None:
+            raise ConfigError("logger=wandb needs the wandb package: pip install 'volleybots[wandb]' (or use logger=csv)")
     algo_cls.check(typed_algo, TASKS[typed_task.name], env)
     return rest
 

@@ -8,6 +8,7 @@ and standard deviation with every per-term return.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,7 +18,7 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.envs.utils import step_mdp
 
-from volleybots.config import ConfigError, apply_overrides, load, make_env
+from volleybots.config import ConfigError, apply_overrides, load, make_env, to_dict
 from volleybots.runs import RunDir, load_algo_state, read_checkpoint
 
 POLICY_NAMES = ("scripted", "random")
@@ -137,8 +138,10 @@ def evaluate(target: str, overrides=(), episodes: int | None = None) -> dict:
         task=t.cfg.task.name,
         action_space=t.cfg.env.action_space,
         checkpoint=str(t.checkpoint) if t.checkpoint else None,
+        checkpoint_sha256=hashlib.sha256(t.checkpoint.read_bytes()).hexdigest() if t.checkpoint else None,
         deterministic=bool(t.cfg.deterministic),
         seed=int(t.cfg.seed),
+        config=to_dict(t.cfg),
     )
     return out
 
