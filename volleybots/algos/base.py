@@ -39,6 +39,8 @@ class Algorithm(ABC):
         """Raise ``ConfigError`` when the algorithm's config ``cfg`` is bad or it cannot train
         ``task_cls`` in the env of ``env_cfg`` (action space, batch size)."""
         action_space = env_cfg.action_space
+        if hasattr(cfg, "activation") and cfg.activation not in ACTIVATIONS:
+            raise ConfigError(f"unknown algo.activation {cfg.activation!r}; allowed: {', '.join(ACTIVATIONS)}")
         if action_space not in cls.action_spaces:
             raise ConfigError(
                 f"algo {cls.name!r} does not support env.action_space={action_space!r}; allowed: {', '.join(cls.action_spaces)}"
@@ -69,6 +71,13 @@ class Algorithm(ABC):
     @abstractmethod
     def load_state_dict(self, state: dict) -> None:
         ...
+
+
+def check_at_least(cfg, keys, low=1) -> None:
+    """Raise ``ConfigError`` naming the first ``algo.<key>`` below ``low``."""
+    for key in keys:
+        if getattr(cfg, key) < low:
+            raise ConfigError(f"bad value for 'algo.{key}': {getattr(cfg, key)} (must be >= {low})")
 
 
 def class_attr(cls, name: str):

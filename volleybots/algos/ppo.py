@@ -23,7 +23,7 @@ from torchrl.modules import IndependentNormal, PopArtValueNorm, ProbabilisticAct
 from torchrl.objectives.multiagent import MAPPOLoss
 from torchrl.objectives.utils import ValueEstimators
 
-from volleybots.algos.base import ACTIVATIONS, Algorithm, mlp
+from volleybots.algos.base import Algorithm, check_at_least, mlp
 from volleybots.config import ConfigError
 
 OBS = ("agents", "observation")
@@ -113,11 +113,7 @@ class PPO(Algorithm):
     @classmethod
     def check(cls, cfg, task_cls, env_cfg):
         super().check(cfg, task_cls, env_cfg)
-        if cfg.activation not in ACTIVATIONS:
-            raise ConfigError(f"unknown algo.activation {cfg.activation!r}; allowed: {', '.join(ACTIVATIONS)}")
-        for key in ("steps_per_batch", "epochs", "minibatches"):
-            if getattr(cfg, key) < 1:
-                raise ConfigError(f"bad value for 'algo.{key}': {getattr(cfg, key)} (must be >= 1)")
+        check_at_least(cfg, ("steps_per_batch", "epochs", "minibatches"))
         frames = env_cfg.num_envs * cfg.steps_per_batch
         if frames < cfg.minibatches:
             raise ConfigError(
