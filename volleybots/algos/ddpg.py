@@ -4,6 +4,7 @@ with smooth-L1 TD(0) loss, target actor and critic, Gaussian exploration noise o
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import torch
 from tensordict.nn import TensorDictModule
@@ -12,7 +13,6 @@ from torchrl.modules import ValueOperator
 from torchrl.objectives import DDPGLoss
 
 from volleybots.algos.offpolicy import OffPolicy, OffPolicyConfig, QNet, net
-from volleybots.config import ConfigError
 
 
 @dataclass
@@ -25,12 +25,7 @@ class DDPG(OffPolicy):
     name = "ddpg"
     config_cls = DDPGConfig
     info_keys = ("q_pred", "q_target")
-
-    @classmethod
-    def check(cls, cfg, task_cls, action_space):
-        super().check(cfg, task_cls, action_space)
-        if cfg.exploration_noise < 0:
-            raise ConfigError(f"bad value for 'algo.exploration_noise': {cfg.exploration_noise} (must be >= 0)")
+    limits: ClassVar[dict] = {**OffPolicy.limits, "exploration_noise": (0, None)}
 
     def build(self) -> None:
         cfg = self.cfg

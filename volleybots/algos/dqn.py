@@ -6,13 +6,13 @@ the online network's argmax valued by the target network."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import torch
 from torchrl.modules import QValueActor
 from torchrl.objectives import DQNLoss
 
 from volleybots.algos.offpolicy import OffPolicy, OffPolicyConfig, net
-from volleybots.config import ConfigError
 
 
 @dataclass
@@ -30,15 +30,7 @@ class DQN(OffPolicy):
     config_cls = DQNConfig
     action_spaces = ("discrete",)
     info_keys = ("q_max",)
-
-    @classmethod
-    def check(cls, cfg, task_cls, action_space):
-        super().check(cfg, task_cls, action_space)
-        for key in ("eps_start", "eps_end"):
-            if not 0.0 <= getattr(cfg, key) <= 1.0:
-                raise ConfigError(f"bad value for 'algo.{key}': {getattr(cfg, key)} (must be in [0, 1])")
-        if cfg.eps_anneal_frames < 0:
-            raise ConfigError(f"bad value for 'algo.eps_anneal_frames': {cfg.eps_anneal_frames} (must be >= 0)")
+    limits: ClassVar[dict] = {**OffPolicy.limits, "eps_start": (0, 1), "eps_end": (0, 1), "eps_anneal_frames": (0, None)}
 
     def build(self) -> None:
         self.qnet = net(self.obs_dim, self.action_dim, self.cfg).to(self.device)

@@ -18,11 +18,10 @@ gradient step (``losses``), and how it acts (``greedy`` for evaluation, ``explor
 
 from __future__ import annotations
 
+import math
 from abc import abstractmethod
 from dataclasses import dataclass, field
-from typing import Optional
-
-import math
+from typing import ClassVar
 
 import torch
 from tensordict import TensorDict, TensorDictBase
@@ -47,7 +46,7 @@ class OffPolicyConfig:
     lr: float = 5e-4
     max_grad_norm: float = 10.0
     buffer_size: int = 1_000_000
-    buffer_device: Optional[str] = None
+    buffer_device: str | None = None
     batch_size: int = 4096
     warmup_batches: int = 4
     random_warmup: bool = True
@@ -121,25 +120,31 @@ class OffPolicy(Algorithm):
     optims: dict[str, tuple[torch.optim.Optimizer, list[nn.Parameter]]]
     info_keys: tuple[str, ...] = ()  # the diagnostics ``losses`` returns besides the losses
 
+    # the numeric config keys' allowed ranges, (low, high) with None for no bound; a method adds its own
+    limits: ClassVar[dict[str, tuple[float | None, float | None]]] = {
+        "steps_per_batch": (1, None), "buffer_size": (1, None), "batch_size": (1, None), "warmup_batches": (1, None),
+        "target_update_interval": (1, None), "tau": (0, 1), "gamma": (0, 1), "lr": (0, None), "max_grad_norm": (0, None),
+        "replay_ratio": (0, None), "reward_scale": (0, None),
+    }
+    positive: ClassVar[tuple[str, ...]] = ("tau", "lr", "max_grad_norm", "replay_ratio", "reward_scale")  # > 0, not >= 0
+
     @classmethod
     def check(cls, cfg, task_cls, action_space):
         super().check(cfg, task_cls, action_space)
-        if cfg.activation not in ACTIVATIONS:
-            raise ConfigError(f"unknown algo.activation {cfg.activation!r}; allowed: {', '.join(ACTIVATIONS)}")
-        for key in ("steps_per_batch", "buffer_size", "batch_size", "target_update_interval"):
-            if getattr(cfg, key) < 1:
-                raise ConfigError(f"bad value for 'algo.{key}': {getattr(cfg, key)} (must be >= 1)")
-        if cfg.warmup_batches < 1 or cfg.warmup_batches * cfg.batch_size > cfg.buffer_size:
+        for key, allowed, what in ((cfg.activation, ACTIVATIONS, "activation"), (cfg.critic_loss, CRITIC_LOSSES, "critic_loss")):
+            if key not in allowed:
+                raise ConfigError(f"unknown algo.{what} {key!r}; allowed: {', '.join(allowed)}")
+        for key, (low, high) in cls.limits.items():
+            value = getattr(cfg, key)
+            strict = key in cls.positive
+            if (low is not None and (value <= low if strict else value < low)) or (high is not None and value > high):
+                rng = f"{'>' if strict else '>='} {low}" if high is None else f"in {'(' if strict else '['}{low}, {high}]"
+                raise ConfigError(f"bad value for 'algo.{key}': {value} (must be {rng})")
+        if cfg.warmup_batches * cfg.batch_size > cfg.buffer_size:
             raise ConfigError(
-                f"bad value for 'algo.warmup_batches': {cfg.warmup_batches} (must be >= 1 and warmup_batches x batch_size "
-                f"= {cfg.warmup_batches * cfg.batch_size} must fit in algo.buffer_size = {cfg.buffer_size})"
+                f"bad value for 'algo.warmup_batches': {cfg.warmup_batches} x algo.batch_size {cfg.batch_size} "
+                f"must fit in algo.buffer_size = {cfg.buffer_size}"
             )
-        if cfg.critic_loss not in CRITIC_LOSSES:
-            raise ConfigError(f"unknown algo.critic_loss {cfg.critic_loss!r}; allowed: {', '.join(CRITIC_LOSSES)}")
-        if not cfg.replay_ratio > 0:
-            raise ConfigError(f"bad value for 'algo.replay_ratio': {cfg.replay_ratio} (must be > 0)")
-        if not 0 < cfg.tau <= 1:
-            raise ConfigError(f"bad value for 'algo.tau': {cfg.tau} (must be in (0, 1])")
         if cfg.buffer_device is not None:
             try:
                 torch.device(cfg.buffer_device)

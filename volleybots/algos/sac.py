@@ -5,6 +5,7 @@ policy's entropy toward ``target_entropy_scale x action_dim``."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import torch
 from tensordict.nn import NormalParamExtractor, TensorDictModule
@@ -13,7 +14,6 @@ from torchrl.modules import ProbabilisticActor, TanhNormal, ValueOperator
 from torchrl.objectives import SACLoss
 
 from volleybots.algos.offpolicy import OffPolicy, OffPolicyConfig, QNet, net
-from volleybots.config import ConfigError
 
 
 @dataclass
@@ -28,12 +28,8 @@ class SAC(OffPolicy):
     name = "sac"
     config_cls = SACConfig
     info_keys = ("alpha", "entropy")
-
-    @classmethod
-    def check(cls, cfg, task_cls, action_space):
-        super().check(cfg, task_cls, action_space)
-        if cfg.alpha_init <= 0:
-            raise ConfigError(f"bad value for 'algo.alpha_init': {cfg.alpha_init} (must be > 0)")
+    limits: ClassVar[dict] = {**OffPolicy.limits, "alpha_init": (0, None), "alpha_lr": (0, None)}
+    positive: ClassVar[tuple] = (*OffPolicy.positive, "alpha_init", "alpha_lr")
 
     def build(self) -> None:
         cfg = self.cfg

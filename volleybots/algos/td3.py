@@ -5,11 +5,11 @@ and an actor updated every ``policy_delay`` critic updates."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 from torchrl.objectives import TD3Loss
 
 from volleybots.algos.ddpg import DDPG, DDPGConfig
-from volleybots.config import ConfigError
 
 
 @dataclass
@@ -23,14 +23,7 @@ class TD3Config(DDPGConfig):
 class TD3(DDPG):
     name = "td3"
     config_cls = TD3Config
-
-    @classmethod
-    def check(cls, cfg, task_cls, action_space):
-        super().check(cfg, task_cls, action_space)
-        if cfg.policy_delay < 1:
-            raise ConfigError(f"bad value for 'algo.policy_delay': {cfg.policy_delay} (must be >= 1)")
-        if cfg.target_noise < 0 or cfg.noise_clip < 0:
-            raise ConfigError(f"bad value for 'algo.target_noise' / 'algo.noise_clip': {cfg.target_noise} / {cfg.noise_clip} (must be >= 0)")
+    limits: ClassVar[dict] = {**DDPG.limits, "policy_delay": (1, None), "target_noise": (0, None), "noise_clip": (0, None)}
 
     def make_loss(self, actor, critic):
         return TD3Loss(
