@@ -9,6 +9,7 @@ prediction, launch and racket solutions), ``plan`` (strike planner, trajectories
 from volleybots.scripted.ballistics import ball_at, bounce, crossing, launch_for_apex, launch_for_range, racket_for, time_to_height
 from volleybots.scripted.control import DroneController, DroneObs, Gains
 from volleybots.scripted.plan import Strike, StrikePlanner, goto_accel, off_centre, quintic, terminal_guidance
+from volleybots.scripted import players  # noqa: F401  (registers the multi-drone players)
 from volleybots.scripted.policies import (
     SCRIPTED_POLICIES,
     BackAndForthPolicy,
