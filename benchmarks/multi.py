@@ -1,0 +1,110 @@
+"""Scripted players on the multi-drone tasks (not a test: it takes minutes).
+
+    python benchmarks/multi.py [--episodes 100] [--envs 50] [--tasks bump_and_pass,1v1,...] [--device cpu]
+
+For each cooperative task it runs the scripted pair for ``--episodes`` finished episodes and reports
+the task metric (mean, std). For 1 vs 1 and 3 vs 3 (6 vs 6 with ``--tasks``) it plays the scripted
+team against uniformly random actions, on both sides and with both servers, and reports wins, losses,
+draws and the win rate of decisive games; then scripted against itself, reporting the share of
+games with a rally of at least 3 touches and how the rallies ended. Targets (spec): Bump and Pass
+>= 13.71 bumps, Set and Spike Easy >= 0.99 and Hard >= 0.80 success rate; scripted teams win >= 95 %
+of decisive games against random and rally (>= 3 touches) in most games against themselves.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import torch
+
+import volleybots
+from volleybots.rules import Referee
+from volleybots.scripted import make_scripted_policy
+from volleybots.tasks.multi import TeamPolicies
+
+COOP = ("bump_and_pass", "set_and_spike_easy", "set_and_spike_hard")
+MATCHES = ("1v1", "3v3")
+
+
+def random_policy(td):
+    agents = td.get("agents")
+    td.set(("agents", "action"), torch.rand(*agents.batch_size, 4, device=td.device) * 2 - 1)
+    return td
+
+
+def finished_episodes(env, policy, episodes: int, keys) -> dict[str, torch.Tensor]:
+    """Step ``env`` under ``policy`` (auto-resetting) until ``episodes`` episodes have ended; their stats."""
+    got: dict[str, list] = {k: [] for k in keys}
+    td = env.reset()
+    n = 0
+    while n < episodes:
+        td = policy(td)
+        out, td = env.step_and_maybe_reset(td)
+        done = out["next", "done"].reshape(-1)
+        if done.any():
+            for k in keys:
+                got[k].append(out["next", "stats", k].reshape(-1)[done])
+            n += int(done.sum())
+    return {k: torch.cat(v)[:episodes] for k, v in got.items()}
+
+
+def coop(task: str, episodes: int, envs: int, device, seed: int) -> str:
+    env = volleybots.make_env(task, num_envs=envs, device=device, seed=seed)
+    keys = (env.metric, *env.extra_stats)
+    st = finished_episodes(env, make_scripted_policy(env), episodes, keys)
+    m = st[env.metric]
+    parts = ", ".join(f"{k} {st[k].mean():.2f}" for k in env.extra_stats)
+    return f"| {task} | {env.metric} | {m.mean():.3f} +- {m.std():.3f} | {parts} |"
+
+
+def match(task: str, episodes: int, envs: int, device, seed: int) -> list[str]:
+    rows = []
+    keys = ("win", "loss", "draw", "reason", "hits_team0", "hits_team1")
+    for label, sides in (("scripted vs random", "random"), ("scripted vs itself", "self")):
+        res = []
+        for scripted_team in ((0, 1) if sides == "random" else (0,)):
+            for serve in (0, 1):
+                env = volleybots.make_env(task, num_envs=envs, device=device, seed=seed + serve, serve=serve)
+                player = make_scripted_policy(env)
+                pols = [player, player] if sides == "self" else [random_policy, random_policy]
+                pols[scripted_team] = player
+                st = finished_episodes(env, TeamPolicies(env, tuple(pols)), episodes // (4 if sides == "random" else 2), keys)
+                if scripted_team == 1:  # count from the scripted team's side
+                    st["win"], st["loss"] = st["loss"], st["win"]
+                res.append(st)
+        st = {k: torch.cat([r[k] for r in res]) for k in keys}
+        w, l, d = (int(st[k].sum()) for k in ("win", "loss", "draw"))
+        rally = ((st["hits_team0"] + st["hits_team1"]) >= 3).float().mean()
+        reasons = torch.bincount((st["reason"] + 1).long(), minlength=len(Referee.FAULTS) + 1)
+        ended = ", ".join(f"{name} {int(c)}" for name, c in zip(("draw",) + Referee.FAULTS, reasons.tolist()) if c)
+        rate = w / max(w + l, 1)
+        rows.append(f"| {task} | {label} | {len(st['win'])} | {w} / {l} / {d} | {rate:.2f} | {rally:.2f} | {ended} |")
+    return rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--episodes", type=int, default=100)
+    ap.add_argument("--envs", type=int, default=50)
+    ap.add_argument("--tasks", default=",".join(COOP + MATCHES))
+    ap.add_argument("--device", default="cpu")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+    tasks = args.tasks.split(",")
+    t0 = time.time()
+    print("| task | metric | mean +- std | components |\n|---|---|---|---|")
+    for task in tasks:
+        if task in COOP:
+            print(coop(task, args.episodes, args.envs, args.device, args.seed), flush=True)
+    print("\n| task | games | n | scripted wins / losses / draws | win rate (decisive) | rally >= 3 touches | how games ended |")
+    print("|---|---|---|---|---|---|---|")
+    for task in tasks:
+        if task not in COOP:
+            for row in match(task, args.episodes, args.envs, args.device, args.seed):
+                print(row, flush=True)
+    print(f"\n{time.time() - t0:.0f} s on {args.device}")
+
+
+if __name__ == "__main__":
+    main()
