@@ -125,7 +125,7 @@ class BumpAndPassPlayer(_Player):
 # --------------------------------------------------------------------------- Set and Spike
 @dataclass(frozen=True)
 class SpikeConfig:
-    attack_spot: tuple[float, float, float] = (0.9, 1.0, 3.3)  # where the attacker meets the set (drone centre)
+    attack_spot: tuple[float, float, float] = (1.5, 0.5, 3.0)  # where the attacker meets the set (drone centre), clear of the net
     set_apex: float = 4.6  # the set's apex: a steep fall onto the attacker needs less racket tilt
     target: tuple[float, float] = (-4.5, 0.0)  # where the spike should land
     land_z: float = 0.1
@@ -141,7 +141,7 @@ class SetAndSpikePlayer(_Player):
     task = "set_and_spike_easy"
 
     def __init__(self, action_space="prt", params=None, gains=None, cfg: SpikeConfig = SpikeConfig(),
-                 touch: TouchConfig = TouchConfig(contact_z=3.3, first_contact_z=2.45, early=())):
+                 touch: TouchConfig = TouchConfig(contact_z=3.0, first_contact_z=2.45, early=())):
         super().__init__(action_space, params, gains, touch)
         self.cfg = cfg
 
