@@ -18,7 +18,7 @@ TOTAL = 6 * FPB
 COMMON = [
     "task=hover", f"env.num_envs={ENVS}", f"algo.steps_per_batch={STEPS}", "algo.minibatches=4", "seed=5",
     "threads=1", "progress=false", f"checkpoint.every={2 * FPB}", "checkpoint.keep=5",
-    "evaluation.every=0", "evaluation.episodes=2", "evaluation.record=false", f"total_frames={TOTAL}",
+    f"evaluation.every={3 * FPB}", "evaluation.episodes=2", "evaluation.record=false", f"total_frames={TOTAL}",
 ]
 
 
@@ -84,5 +84,9 @@ def test_resume_after_a_kill_repeats_the_uninterrupted_run(tmp_path):
     assert [r["frames"] for r in ra] == [r["frames"] for r in rb] == [str(FPB * i) for i in range(1, 7)]
     for col in ("return", "episode_len", "loss_critic", "entropy"):
         assert [r[col] for r in ra] == [r[col] for r in rb], col
+    # the periodic evaluation (between two checkpoints) and the final one agree as well
+    ea, eb = a["evals"], b["evals"]
+    assert [e["frames"] for e in ea] == [e["frames"] for e in eb] == [3 * FPB, TOTAL]
+    assert ea == eb
     # a fresh run of the same config differs: equality above is not vacuous
     assert any(not torch.equal(fa[k], torch.zeros_like(fa[k])) for k in fa if isinstance(fa[k], torch.Tensor) and k.startswith("actor"))
