@@ -134,6 +134,13 @@ def test_train_cfg_prints_the_config_without_training(tmp_path):
     assert not any(tmp_path.iterdir())  # nothing was trained or written
 
 
+def test_bench_prints_the_speed_table():
+    res = runner.invoke(app, ["bench", "tasks=[hover]", "backends=[torch]", "num_envs=[4]", "devices=[cpu]", "repeats=1", "steps=5"])
+    assert res.exit_code == 0, res.output
+    rows = [line for line in res.stdout.splitlines() if line.startswith("| hover")]
+    assert len(rows) == 1 and "| torch |" in rows[0]
+
+
 def test_multirun_sweeps_seeds(tmp_path):
     res = _volleybots("train", "-m", "seed=0,1", *[o for o in TINY if not o.startswith("total_frames")], "total_frames=512",
                       "evaluation.episodes=1", "evaluation.record=false", f"hydra.sweep.dir={tmp_path / 'sweep'}")

@@ -124,7 +124,7 @@ class PPO(Algorithm):
         super().__init__(cfg, env)
         dev = self.device
         self.obs_norm = TensorDictModule(ObsNorm(self.obs_dim), [OBS], [OBS_NORM]).to(dev) if cfg.obs_norm else None
-        obs_in = OBS_NORM if cfg.obs_norm else OBS
+        obs_in = self._obs_in = OBS_NORM if cfg.obs_norm else OBS
         if self.continuous:
             net = nn.Sequential(
                 mlp(self.obs_dim, self.action_dim, cfg.hidden, cfg.activation, out_gain=0.01),
@@ -183,7 +183,8 @@ class PPO(Algorithm):
             if self.obs_norm is not None:
                 self.obs_norm(batch["next"])  # the same statistics the rollout used
             self.loss.value_estimator(batch)
-        flat = batch.reshape(-1)
+        # only what the loss reads, so that minibatch indexing copies no more than it must
+        flat = batch.select(self._obs_in, ACTION, LOG_PROB, VALUE, "advantage", "value_target").reshape(-1)
         n = flat.numel()
         size = n // cfg.minibatches
         sums: dict[str, float] = {}
