@@ -37,9 +37,10 @@ class Gains:
     pos_accel_xy: float = 4.0  # m/s^2 the position law plans to brake with, beyond its linear range
     pos_accel_z: float = 3.0
     k_vel_xy: float = 5.0  # 1/s: velocity error -> acceleration
+    k_vel_xy_ctbr: float = 4.0  # ... through the slower CTBR attitude loop
     k_vel_z: float = 7.0
     k_att: float = 20.0  # tilt error (rad) -> body rate (rad/s), PRT
-    k_att_ctbr: float = 7.0  # the CTBR rate loop is slower, so the attitude loop must be too
+    k_att_ctbr: float = 10.0  # the CTBR rate loop is slower, so the attitude loop must be too
     att_accel: float = 12.0  # rad/s^2 the attitude law plans to brake with (the Iris can do about 35 at hover)
     att_accel_ctbr: float = 15.0
     att_delay: float = 0.05  # s: rotor lag plus the hold of a control step, anticipated by the attitude law
@@ -151,7 +152,8 @@ class DroneController:
         ez = e[..., 2:]
         v_z = torch.sign(ez) * sqrt_law(ez.abs(), g.k_pos_z, g.pos_accel_z)
         dv = v_ref + torch.cat((v_h, v_z), -1) - drone.vel
-        acc = torch.cat((g.k_vel_xy * dv[..., :2], g.k_vel_z * dv[..., 2:]), -1)
+        k_xy = g.k_vel_xy_ctbr if self.action_space == "ctbr" else g.k_vel_xy
+        acc = torch.cat((k_xy * dv[..., :2], g.k_vel_z * dv[..., 2:]), -1)
         return acc if a_ref is None else acc + a_ref
 
     def thrust_vector(self, drone: DroneObs, accel: torch.Tensor) -> torch.Tensor:

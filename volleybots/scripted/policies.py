@@ -65,12 +65,13 @@ class HoverPolicy(ScriptedPolicy):
 
     task = "hover"
 
-    default_gains: Gains | None = None
-    default_goto = GotoConfig(accel=6.0, brake=4.5, lead=0.15)  # within the default 30 degree tilt
+    # per action space: (gains, guidance); the defaults keep within the default 30 degree tilt
+    defaults = {"prt": (None, GotoConfig(accel=6.0, brake=4.5, lead=0.15)), "ctbr": (None, GotoConfig(accel=6.0, brake=4.5, lead=0.15))}
 
     def __init__(self, action_space="prt", params=None, gains=None, goto: GotoConfig | None = None):
-        super().__init__(action_space, params, gains or self.default_gains)
-        self.goto = goto or self.default_goto
+        default_gains, default_goto = self.defaults.get(action_space, (None, None))
+        super().__init__(action_space, params, gains or default_gains)
+        self.goto = goto or default_goto
 
     def target(self, drone: DroneObs, task_obs: torch.Tensor) -> torch.Tensor:
         return drone.pos - task_obs[..., 0:3]
@@ -91,9 +92,12 @@ class BackAndForthPolicy(HoverPolicy):
 
     task = "back_and_forth"
 
-    # full thrust, steep tilts and the full rotor-lag inversion: the legs are bang-bang
-    default_gains = Gains(max_tilt=math.radians(55.0), thrust_margin=1.0, lag_comp=1.0)
-    default_goto = GotoConfig(accel=13.0, brake=9.0, lead=0.2, stop_at=0.5, k_p=6.0, k_v=4.0)
+    # the legs are bang-bang: full thrust and steep tilts (PRT also inverts the rotor lag fully;
+    # CTBR turns at most 144 deg/s, so it tilts less)
+    defaults = {
+        "prt": (Gains(max_tilt=math.radians(55.0), thrust_margin=1.0, lag_comp=1.0), GotoConfig(accel=13.0, brake=9.0, lead=0.2, stop_at=0.5, k_p=6.0, k_v=4.0)),
+        "ctbr": (Gains(max_tilt=math.radians(45.0), thrust_margin=1.0), GotoConfig(accel=12.0, brake=8.0, lead=0.2, stop_at=0.5, k_p=4.0, k_v=4.0)),
+    }
 
 
 class _BallPolicy(ScriptedPolicy):
