@@ -87,6 +87,7 @@ class StrikePlanner:
     ``contact_thrust`` m/s^2 of specific thrust (None: exactly what keeps the height).
 
     ``reference(strike, window)``: a fixed path into the contact state (hold, then a quintic).
+    ``run_up(strike)``: rest, then a constant-acceleration run-up into the contact (fast strikes).
     ``guidance(strike, pos, vel)``: the acceleration that brings the drone from its current state
     into the contact state on time (``terminal_guidance``), re-planned every step.
     """
@@ -133,6 +134,22 @@ class StrikePlanner:
         zero = torch.zeros_like(hold)
         elapsed = (window - strike.t).clamp_min(0.0)
         return quintic(hold, zero, zero, strike.drone_pos, strike.drone_vel, strike.drone_acc, window, elapsed)
+
+    def run_up(self, strike: Strike):
+        """Reference (position, velocity, acceleration) of a strike flown as a run-up: the drone
+        waits at rest, then accelerates with the constant acceleration ``strike.drone_acc`` (thrust
+        along the racket normal: the racket is at its contact tilt all through the run-up) for as
+        long as it takes to reach the racket speed, and meets the ball at the contact point. The
+        contact velocity is then ``drone_acc * duration`` (its normal part is ``strike.speed``)."""
+        a = strike.drone_acc
+        along = (a * strike.normal).sum(-1).clamp_min(0.5)
+        duration = (strike.speed / along).clamp_min(0.0).unsqueeze(-1)
+        v_c = a * duration
+        tau = torch.minimum(strike.t.clamp_min(0.0).unsqueeze(-1), duration)  # time to go within the run-up
+        p = strike.drone_pos - v_c * tau + 0.5 * a * tau * tau
+        v = v_c - a * tau
+        acc = torch.where(strike.t.unsqueeze(-1) < duration, a, torch.zeros_like(a))
+        return p, v, acc
 
     def guidance(self, strike: Strike, pos, vel, min_time: float = 0.35) -> torch.Tensor:
         """Acceleration command [..., 3] that steers the drone into the contact state on time."""

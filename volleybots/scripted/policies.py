@@ -16,7 +16,7 @@ from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 
 from volleybots.physics.params import WorldParams
-from volleybots.scripted.ballistics import launch_for_apex, launch_for_range, racket_for
+from volleybots.scripted.ballistics import launch_for_apex, time_to_height
 from volleybots.scripted.control import DroneController, DroneObs, Gains
 from volleybots.scripted.plan import StrikePlanner, goto_accel, off_centre
 
@@ -174,63 +174,74 @@ class SoloBumpPolicy(_BallPolicy):
 
 @dataclass(frozen=True)
 class HitConfig:
-    distance: float = 12.0  # m: aimed 4.5 - x where the ball comes down through z = 2
-    contact_z: float = 2.75  # drone centre height at contact: the climb adds racket speed
-    guided: bool = False
-    window: float = 0.7
-    min_time: float = 0.15  # s: floor of the guidance horizon
-    lock_time: float = 0.1  # s before contact when the racket is held along the planned normal
-    max_tilt: float = math.radians(55.0)
-    elevations: tuple[float, float, int] = (20.0, 75.0, 23)  # launch angles tried (deg): first, last, count
+    contact_z: float = 3.0  # drone centre height at contact: the climb to it gives the racket speed
+    lock_time: float = 0.2  # s before contact when the racket turns to its tilt
+    run: float = 1.0  # m/s toward -x at contact
+    tilts: tuple[float, float, int] = (5.0, 50.0, 46)  # racket tilts tried (deg): first, last, count
+    net_clearance: float = 2.6  # the ball's centre must pass x = 0 above this (the net is 2.43 m)
+    max_tilt: float = math.radians(50.0)
 
 
 class HitTheBallPolicy(_BallPolicy):
     """Hit the falling ball once, as far as possible toward -x, over the net.
 
-    The launch is aimed at ``distance``; of the launch angles that reach it the one needing the
-    slowest racket is flown. Terminal guidance swings the drone into the ball at full thrust along
-    the racket normal (the optimal manoeuvre found offline by direct transcription: a short push
-    away from the ball's line, then full thrust tilted toward -x while climbing). After the hit
-    (the ball flies toward -x) the drone returns to the anchor and waits there.
+    The strike is a climb: from the anchor's height the drone climbs under the ball's line at a
+    uniform acceleration timed from the ball's release (the ball falls from rest, so the time since
+    its release is -vz / g), meeting it at ``contact_z`` with the speed that climb gives; only in
+    the last ``lock_time`` s does the racket tilt toward -x. Of the tilts in ``tilts`` the one whose
+    return (restitution law, ballistic flight) comes down through z = 2 farthest away while
+    clearing the net is flown. After the hit (the ball flies toward -x) the drone returns to the
+    anchor and waits there.
     """
 
     task = "hit_the_ball"
 
     def __init__(self, action_space="prt", params=None, gains=None, cfg: HitConfig = HitConfig()):
-        super().__init__(action_space, params, gains or Gains(max_tilt=cfg.max_tilt, max_climb=6.0, vertical_first=False))
+        super().__init__(action_space, params, gains or Gains(max_tilt=cfg.max_tilt, thrust_margin=1.0))
         self.cfg = cfg
-        self.planner = StrikePlanner(self.params, contact_thrust=self.ctrl.gains.thrust_margin * self.ctrl.max_accel)
+        self.planner = StrikePlanner(self.params)
 
-    def plan(self, drone, task_obs):
-        c = self.cfg
-        ball_p, ball_v = self.ball(drone, task_obs)
-        anchor = self._vec(ball_p, ANCHOR)
-        lo, hi, k = c.elevations
-        elev = torch.deg2rad(torch.linspace(lo, hi, k, dtype=ball_p.dtype, device=ball_p.device))
-        e = self.params.ball.restitution
+    def climb(self, ball_p: torch.Tensor, ball_v: torch.Tensor):
+        """Time from the ball's release to the contact [...] and the climb's speed at contact [...]."""
+        g = self.params.gravity
+        z_ball = self.cfg.contact_z + self.planner.reach
+        total = torch.sqrt(2.0 * (ball_p[..., 2] + ball_v[..., 2] ** 2 / (2.0 * g) - z_ball).clamp_min(1e-3) / g)
+        return total, 2.0 * (self.cfg.contact_z - ANCHOR[2]) / total
 
-        def want_out(bp, bv):
-            target = torch.stack((torch.full_like(bp[..., 0], anchor[0].item() - c.distance), bp[..., 1]), -1)
-            shape = bp.shape[:-1] + (k,)
-            v = launch_for_range(bp.unsqueeze(-2).expand(*shape, 3), target.unsqueeze(-2).expand(*shape, 2), ANCHOR[2], elev.expand(shape))
-            _, s = racket_for(bv.unsqueeze(-2).expand_as(v), v, e)
-            best = torch.where(torch.isfinite(s), s, torch.full_like(s, float("inf"))).argmin(-1)
-            return torch.gather(v, -2, best[..., None, None].expand(*bp.shape[:-1], 1, 3)).squeeze(-2)
-
-        return self.planner.plan(ball_p, ball_v, c.contact_z + self.planner.reach, want_out, c.max_tilt)
+    def best_return(self, bp: torch.Tensor, bv: torch.Tensor, speed: torch.Tensor) -> torch.Tensor:
+        """Outgoing velocity of the racket tilt (in the x-z plane) that sends the ball farthest, for
+        a racket rising at ``speed``."""
+        c, g, e = self.cfg, self.params.gravity, self.params.ball.restitution
+        lo, hi, k = c.tilts
+        th = torch.deg2rad(torch.linspace(lo, hi, k, dtype=bp.dtype, device=bp.device))
+        n = torch.stack((-torch.sin(th), torch.zeros_like(th), torch.cos(th)), -1)  # [k, 3]
+        s = speed.unsqueeze(-1) * n[:, 2] - self.cfg.run * n[:, 0]  # racket speed along n
+        bv_k = bv.unsqueeze(-2)
+        v_out = bv_k + ((1.0 + e) * (s - (bv_k * n).sum(-1))).unsqueeze(-1) * n  # [..., k, 3]
+        z0 = bp[..., 2:3]
+        dist = -v_out[..., 0] * time_to_height(z0.expand_as(v_out[..., 2]), v_out[..., 2], ANCHOR[2], g)
+        t_net = bp[..., 0:1] / (-v_out[..., 0]).clamp_min(1e-3)
+        z_net = z0 + v_out[..., 2] * t_net - 0.5 * g * t_net * t_net
+        dist = torch.where(torch.isfinite(dist) & (z_net > c.net_clearance), dist, torch.full_like(dist, -1e9))
+        best = dist.argmax(-1)
+        return torch.gather(v_out, -2, best[..., None, None].expand(*bp.shape[:-1], 1, 3)).squeeze(-2)
 
     def act(self, drone, task_obs):
         c = self.cfg
-        _, ball_v = self.ball(drone, task_obs)
+        ball_p, ball_v = self.ball(drone, task_obs)
         anchor = self._vec(drone.pos, ANCHOR).expand_as(drone.pos)
-        strike = self.plan(drone, task_obs)
-        if c.guided:
-            f = self.ctrl.thrust_vector(drone, self.planner.guidance(strike, drone.pos, drone.vel, c.min_time))
-            n = strike.normal
-            f = torch.where((strike.t < c.lock_time).unsqueeze(-1), f.norm(dim=-1, keepdim=True) * n, f)
-            hit = self.ctrl.act_thrust(drone, f)
-        else:
-            hit = self.strike_action(drone, strike, anchor, c.window, c.lock_time, anchor, early=(1,))
+        total, speed = self.climb(ball_p, ball_v)
+        strike = self.planner.plan(ball_p, ball_v, c.contact_z + self.planner.reach, lambda bp, bv: self.best_return(bp, bv, speed), c.max_tilt)
+        # the climb: up at contact, plus a run toward -x (only the normal part of the racket's
+        # velocity counts); the run starts from rest c.run * total / 2 behind the contact point
+        vel = torch.zeros_like(strike.drone_vel)
+        vel[..., 0] = -c.run
+        vel[..., 2] = speed
+        strike.drone_vel = vel
+        strike.drone_acc = vel / total.unsqueeze(-1)
+        hold = strike.drone_pos - 0.5 * total.unsqueeze(-1) * vel
+        hold = torch.cat((hold[..., :2], anchor[..., 2:]), -1)
+        hit = self.strike_action(drone, strike, anchor, total, c.lock_time, hold, early=(1,))
         # after the hit the ball flies toward -x: go home, out of its way
         home = self.ctrl.act(drone, anchor, torch.zeros_like(drone.vel))
         return torch.where((ball_v[..., :1] < -1.0), home, hit)
