@@ -8,7 +8,7 @@ prediction, launch and racket solutions), ``plan`` (strike planner, trajectories
 
 from volleybots.scripted.ballistics import ball_at, bounce, crossing, launch_for_apex, launch_for_range, racket_for, time_to_height
 from volleybots.scripted.control import DroneController, DroneObs, Gains
-from volleybots.scripted.plan import Strike, StrikePlanner, goto_accel, off_centre, quintic, terminal_guidance
+from volleybots.scripted.plan import Strike, StrikePlanner, goto_accel, off_centre, quintic
 from volleybots.scripted import players  # noqa: F401  (registers the multi-drone players)
 from volleybots.scripted.policies import (
     SCRIPTED_POLICIES,
@@ -24,5 +24,5 @@ __all__ = [
     "SCRIPTED_POLICIES", "BackAndForthPolicy", "DroneController", "DroneObs", "Gains", "HitTheBallPolicy",
     "HoverPolicy", "ScriptedPolicy", "SoloBumpPolicy", "Strike", "StrikePlanner", "ball_at", "bounce", "crossing",
     "goto_accel", "launch_for_apex", "launch_for_range", "make_scripted_policy", "off_centre", "quintic",
-    "racket_for", "terminal_guidance", "time_to_height",
+    "racket_for", "time_to_height",
 ]

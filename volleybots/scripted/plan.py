@@ -87,9 +87,6 @@ class StrikePlanner:
     ``contact_thrust`` m/s^2 of specific thrust (None: exactly what keeps the height).
 
     ``reference(strike, window)``: a fixed path into the contact state (hold, then a quintic).
-    ``run_up(strike)``: rest, then a constant-acceleration run-up into the contact (fast strikes).
-    ``guidance(strike, pos, vel)``: the acceleration that brings the drone from its current state
-    into the contact state on time (``terminal_guidance``), re-planned every step.
     """
 
     def __init__(self, params: WorldParams | None = None, contact_thrust: float | None = None):
@@ -135,41 +132,6 @@ class StrikePlanner:
         elapsed = (window - strike.t).clamp_min(0.0)
         return quintic(hold, zero, zero, strike.drone_pos, strike.drone_vel, strike.drone_acc, window, elapsed)
 
-    def run_up(self, strike: Strike):
-        """Reference (position, velocity, acceleration) of a strike flown as a run-up: the drone
-        waits at rest, then accelerates with the constant acceleration ``strike.drone_acc`` (thrust
-        along the racket normal: the racket is at its contact tilt all through the run-up) for as
-        long as it takes to reach the racket speed, and meets the ball at the contact point. The
-        contact velocity is then ``drone_acc * duration`` (its normal part is ``strike.speed``)."""
-        a = strike.drone_acc
-        along = (a * strike.normal).sum(-1).clamp_min(0.5)
-        duration = (strike.speed / along).clamp_min(0.0).unsqueeze(-1)
-        v_c = a * duration
-        tau = torch.minimum(strike.t.clamp_min(0.0).unsqueeze(-1), duration)  # time to go within the run-up
-        p = strike.drone_pos - v_c * tau + 0.5 * a * tau * tau
-        v = v_c - a * tau
-        acc = torch.where(strike.t.unsqueeze(-1) < duration, a, torch.zeros_like(a))
-        return p, v, acc
-
-    def guidance(self, strike: Strike, pos, vel, min_time: float = 0.35) -> torch.Tensor:
-        """Acceleration command [..., 3] that steers the drone into the contact state on time."""
-        T = torch.where(strike.valid, strike.t, torch.full_like(strike.t, min_time))
-        return terminal_guidance(pos, vel, strike.drone_pos, strike.drone_vel, strike.drone_acc, T, min_time)
-
-
-def terminal_guidance(pos, vel, p1, v1, a1, time_to_go: torch.Tensor, min_time: float = 0.35) -> torch.Tensor:
-    """Acceleration to apply now to arrive at (p1, v1) with acceleration a1 in ``time_to_go`` s.
-
-    It is the first acceleration of the minimum-jerk path whose initial acceleration is free (the
-    drone can change it quickly; the natural boundary condition makes the initial jerk zero):
-    ``a = (20 dp - 8 dv T + a1 T^2) / (3 T^2)`` with ``dp = p1 - p - v T`` and ``dv = v1 - v``. Re-applied
-    every step it is a feedback law (gains 20/(3T^2) and 4/T), so the horizon is floored at
-    ``min_time``: below it the gains would outrun the attitude loop."""
-    T = time_to_go.clamp_min(min_time).unsqueeze(-1)
-    dp = p1 - pos - vel * T
-    dv = v1 - vel
-    return (20.0 * dp - 8.0 * dv * T + a1 * T * T) / (3.0 * T * T)
-
 
 def off_centre(strike: Strike, pos: torch.Tensor, slack: float) -> Strike:
     """Let the racket meet the ball up to ``slack`` metres off its centre, on the side where the
@@ -194,4 +156,4 @@ def limit_tilt(n: torch.Tensor, max_tilt: float) -> torch.Tensor:
     return out / out.norm(dim=-1, keepdim=True)
 
 
-__all__ = ["Strike", "StrikePlanner", "goto_accel", "limit_tilt", "off_centre", "quintic", "terminal_guidance"]
+__all__ = ["Strike", "StrikePlanner", "goto_accel", "limit_tilt", "off_centre", "quintic"]
