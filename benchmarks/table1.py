@@ -16,7 +16,8 @@ and its value fills both columns.
 
 Runs live under ``--out`` as ``<task>_<space>_<algo>_s<seed>/`` (ordinary run directories: metrics.csv,
 checkpoints, summary.json); a run that has its summary.json is not repeated, so an interrupted
-benchmark continues where it stopped. Writes ``table1.json``, ``table1.md`` and ``table1.png``
+benchmark continues where it stopped (and a finished one only re-tabulates). Writes ``table1.json``,
+``table1.md`` (the task metric, and the episode return as a finer second table) and ``table1.png``
 (learning curves: the training episodes' metric over frames, mean over seeds) into ``--out``.
 Needs matplotlib for the figure (``pip install 'volleybots[plot]'``).
 """
@@ -91,15 +92,16 @@ def run_one(job, args) -> dict:
     return summary
 
 
-def collect_results(args) -> dict:
-    """{task: {algo: {space: [per-seed final metric]}}} from the runs' summaries."""
+def collect_results(args, stat: str | None = None) -> dict:
+    """{task: {algo: {space: [per-seed final evaluation mean]}}} of the task metric (or of ``stat``,
+    e.g. ``return``) from the runs' summaries."""
     res: dict = {}
     for task, space, algo, seed in jobs(args):
         path = Path(args.out) / f"{task}_{space}_{algo}_s{seed}" / "summary.json"
         if not path.is_file():
             continue
         s = json.loads(path.read_text())
-        value = s["final_eval"]["stats"][s["metric"]]["mean"]
+        value = s["final_eval"]["stats"][stat or s["metric"]]["mean"]
         for col in SPACES if algo == "dqn" else (space,):
             res.setdefault(task, {}).setdefault(algo, {}).setdefault(col, []).append(value)
     return res
@@ -229,11 +231,11 @@ def main(argv=None) -> int:
     else:
         for job in todo:
             run_one(job, args)
-    res = collect_results(args)
-    table = format_table(res, args)
-    (out / "table1.json").write_text(json.dumps({"args": vars(args), "results": res}, indent=1) + "\n")
-    (out / "table1.md").write_text(table + "\n")
-    print(table)
+    res, returns = collect_results(args), collect_results(args, "return")
+    table, table_returns = format_table(res, args), format_table(returns, args)
+    (out / "table1.json").write_text(json.dumps({"args": vars(args), "metric": res, "return": returns}, indent=1) + "\n")
+    (out / "table1.md").write_text(f"Task metric:\n\n{table}\n\nEpisode return:\n\n{table_returns}\n")
+    print(f"task metric:\n{table}\n\nepisode return:\n{table_returns}")
     try:
         plot(args, out / "table1.png")
     except ImportError:
