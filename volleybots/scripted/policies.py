@@ -95,7 +95,7 @@ class BackAndForthPolicy(HoverPolicy):
     # the legs are bang-bang: full thrust and steep tilts (PRT also inverts the rotor lag fully;
     # CTBR turns at most 144 deg/s, so it tilts less)
     defaults = {
-        "prt": (Gains(max_tilt=math.radians(55.0), thrust_margin=1.0, lag_comp=1.0), GotoConfig(accel=13.0, brake=9.0, lead=0.2, stop_at=0.5, k_p=6.0, k_v=4.0)),
+        "prt": (Gains(max_tilt=math.radians(50.0), thrust_margin=1.0, lag_comp=1.0, thrust_keep=0.8), GotoConfig(accel=13.0, brake=8.5, lead=0.2, stop_at=0.4, k_p=10.0, k_v=6.0)),
         "ctbr": (Gains(max_tilt=math.radians(45.0), thrust_margin=1.0), GotoConfig(accel=12.0, brake=8.0, lead=0.2, stop_at=0.5, k_p=4.0, k_v=4.0)),
     }
 
