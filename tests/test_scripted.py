@@ -12,7 +12,7 @@ from volleybots.physics.params import DroneParams
 from volleybots.physics.torch_backend import Constants
 from volleybots.scripted import DroneController, StrikePlanner, make_scripted_policy, quintic
 from volleybots.scripted.ballistics import ball_at, bounce, launch_for_apex, launch_for_range, racket_for, time_to_height
-from volleybots.scripted.control import DroneObs
+from volleybots.scripted.control import DroneObs, heading_yaw_rate
 
 
 def test_allocation_inverts_the_airframe():
@@ -48,6 +48,22 @@ def test_position_controller_reaches_and_holds_a_target(space):
     err = (env.physics.state.pos - target).norm(dim=-1)
     assert err.max() < 0.05, err
     assert env.physics.state.vel.norm(dim=-1).max() < 0.1
+
+
+def test_heading_control_turns_the_drone():
+    env = volleybots.make_env("hover", num_envs=2, seed=0)
+    td = env.reset()
+    ctrl = DroneController(env.params)
+    hold = env.physics.state.pos.clone()
+    yaw_des = torch.tensor([[2.0], [-1.0]])
+    for _ in range(250):  # yaw authority is small: the rotors' drag torque arm is KM / KF = 16 mm
+        drone = DroneObs.from_obs(td["agents", "observation"], True)
+        td["agents", "action"] = ctrl.act(drone, hold, torch.zeros_like(hold), yaw_rate=heading_yaw_rate(drone, yaw_des, 2.0))
+        td = env.step(td)["next"]
+    heading = td["agents", "observation"][..., 13:16]
+    yaw = torch.atan2(heading[..., 1], heading[..., 0])
+    assert torch.allclose(yaw, yaw_des, atol=0.05), yaw
+    assert (env.physics.state.pos - hold).norm(dim=-1).max() < 0.15  # a fast turn saturates the rotors a while
 
 
 def test_intercept_prediction_matches_the_physics():

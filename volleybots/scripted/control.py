@@ -44,7 +44,6 @@ class Gains:
     att_accel: float = 12.0  # rad/s^2 the attitude law plans to brake with (the Iris can do about 35 at hover)
     att_accel_ctbr: float = 15.0
     att_delay: float = 0.05  # s: rotor lag plus the hold of a control step, anticipated by the attitude law
-    k_yaw: float = 1.0  # heading error -> yaw rate
     k_rate: float = 30.0  # PRT inner loop: rate error -> angular acceleration
     max_tilt: float = math.radians(30.0)
     thrust_margin: float = 0.95  # fraction of the maximum total thrust the position loop may ask for
@@ -125,17 +124,6 @@ class DroneController:
                 "ez": torch.tensor((0.0, 0.0, 1.0), device=ref.device, dtype=ref.dtype),
             }
         return self._cache[key]
-
-    def accel_estimate(self, drone: DroneObs) -> torch.Tensor:
-        """The drone's acceleration now, from its tilt and, where observed, its rotor throttles
-        (thrust = throttle^2 KF per rotor); without throttles the thrust is taken to hold height."""
-        _, up = quat_axes(drone.quat)
-        if drone.throttle is None:
-            thrust = self.g / up[..., 2:].clamp_min(0.5)
-        else:
-            thrust = (drone.throttle * drone.throttle).sum(-1, keepdim=True) * (self.kf / self.mass)
-        acc = thrust * up - self.params.drone.lin_damping * drone.vel
-        return torch.cat((acc[..., :2], acc[..., 2:] - self.g), -1)
 
     # ------------------------------------------------------------------ outer loops
     def position_accel(self, drone: DroneObs, p_ref, v_ref, a_ref=None) -> torch.Tensor:
