@@ -66,7 +66,7 @@ class HoverPolicy(ScriptedPolicy):
     task = "hover"
 
     # per action space: (gains, guidance); the defaults keep within the default 30 degree tilt
-    defaults = {"prt": (None, GotoConfig(accel=6.0, brake=4.5, lead=0.15)), "ctbr": (None, GotoConfig(accel=6.0, brake=4.5, lead=0.15))}
+    defaults = dict.fromkeys(("prt", "ctbr"), (None, GotoConfig(accel=6.0, brake=4.5, lead=0.15)))
 
     def __init__(self, action_space="prt", params=None, gains=None, goto: GotoConfig | None = None):
         default_gains, default_goto = self.defaults.get(action_space, (None, None))
