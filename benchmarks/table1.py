@@ -17,8 +17,9 @@ and its value fills both columns.
 Runs live under ``--out`` as ``<task>_<space>_<algo>_s<seed>/`` (ordinary run directories: metrics.csv,
 checkpoints, summary.json); a run that has its summary.json is not repeated, so an interrupted
 benchmark continues where it stopped (and a finished one only re-tabulates). Writes ``table1.json``,
-``table1.md`` (the task metric, and the episode return as a finer second table) and ``table1.png``
-(learning curves: the training episodes' metric over frames, mean over seeds) into ``--out``.
+``table1.md`` (the task metric, and the episode return as a finer second table), ``table1.png`` and
+``table1_return.png`` (learning curves: the training episodes' metric, or return, over frames, mean
+over seeds) into ``--out``.
 Needs matplotlib for the figure (``pip install 'volleybots[plot]'``).
 """
 
@@ -131,8 +132,9 @@ def format_table(res: dict, args, paper: bool = False) -> str:
     return "\n".join(lines)
 
 
-def curves(args) -> dict:
-    """{(task, space): {algo: (frames, mean over seeds of the smoothed training-episode metric)}}."""
+def curves(args, stat: str | None = None) -> dict:
+    """{(task, space): {algo: (frames, mean over seeds of the smoothed training-episode metric)}}
+    (or of ``stat``, e.g. ``return``)."""
     from volleybots.runs import read_metrics
     from volleybots.tasks import TASKS as ENVS
 
@@ -141,7 +143,7 @@ def curves(args) -> dict:
         path = Path(args.out) / f"{task}_{space}_{algo}_s{seed}" / "metrics.csv"
         if not path.is_file():
             continue
-        metric = ENVS[task].metric
+        metric = stat or ENVS[task].metric
         rows = [r for r in read_metrics(path) if r["phase"] == "train"]
         frames = [r["frames"] for r in rows]
         vals = _smooth([r.get(metric, math.nan) for r in rows], 5)
@@ -172,7 +174,7 @@ def _smooth(xs, k):
     return out
 
 
-def plot(args, path: Path) -> None:
+def plot(args, path: Path, stat: str | None = None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -180,7 +182,7 @@ def plot(args, path: Path) -> None:
 
     from volleybots.tasks import TASKS as ENVS
 
-    data = curves(args)
+    data = curves(args, stat)
     fig, axes = plt.subplots(len(SPACES), len(args.tasks), figsize=(max(4.2 * len(args.tasks), 8.0), 6.5), squeeze=False)
     colors = {"dqn": "tab:red", "ddpg": "tab:blue", "td3": "tab:green", "sac": "tab:purple", "ppo": "tab:orange"}
     for j, task in enumerate(args.tasks):
@@ -191,7 +193,7 @@ def plot(args, path: Path) -> None:
                 ax.plot(frames, vals, color=colors.get(algo), label=label)
             ax.set_title(f"{TITLES[task]} ({space.upper()})", fontsize=10)
             ax.set_xlabel("env steps")
-            ax.set_ylabel(f"train episodes: {ENVS[task].metric}")
+            ax.set_ylabel(f"train episodes: {stat or ENVS[task].metric}")
             ax.grid(alpha=0.3)
     axes[0][0].legend(fontsize=8)
     fig.suptitle(f"{int(args.frames):,} env steps x {len(args.seeds)} seeds, {args.num_envs} envs (mean over seeds, last 5 batches)", fontsize=10)
@@ -238,6 +240,7 @@ def main(argv=None) -> int:
     print(f"task metric:\n{table}\n\nepisode return:\n{table_returns}")
     try:
         plot(args, out / "table1.png")
+        plot(args, out / "table1_return.png", "return")
     except ImportError:
         print("matplotlib is not installed: no figure (pip install 'volleybots[plot]')", file=sys.stderr)
     return 0
