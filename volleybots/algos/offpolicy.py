@@ -158,7 +158,7 @@ class OffPolicy(Algorithm):
         self.loss.make_value_estimator(gamma=cfg.gamma)
         self.target_updater = SoftUpdate(self.loss, tau=cfg.tau)
         buffer_device = torch.device(cfg.buffer_device) if cfg.buffer_device is not None else self.device
-        self.rb_gen = torch.Generator()  # replay sampling (indices are drawn on the CPU)
+        self.rb_gen = torch.Generator(device=buffer_device)  # replay sampling: indices are drawn on the storage's device
         self.rb_gen.manual_seed(seed + 1)
         self.buffer = TensorDictReplayBuffer(
             storage=LazyTensorStorage(cfg.buffer_size, device=buffer_device), batch_size=cfg.batch_size, generator=self.rb_gen
