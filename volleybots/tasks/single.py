@@ -32,6 +32,8 @@ class Hover(VolleyEnv):
     shaping_terms = ("up", "spin")
     metric = "distance"  # mean distance to the target over the episode, m (lower is better)
 
+    max_distance = 8.0  # m from the target; farther than any start, so only flying away ends an episode
+
     def __init__(self, *args, target=None, **kw):
         self.fixed_target = target
         super().__init__(*args, **kw)
@@ -61,7 +63,8 @@ class Hover(VolleyEnv):
         pose = 1.0 / (1.0 + (1.2 * d) ** 2)
         upright = ((up[:, 2] + 1) / 2) ** 2
         spin = 1.0 / (1.0 + s.omega[:, 0, 2] ** 2)
-        crash = (s.pos[:, 0, 2] < 0.2) | (d > 4.0)
+        # start and target are drawn independently (up to 7.2 m apart): only flying away ends it
+        crash = (s.pos[:, 0, 2] < 0.2) | (d > self.max_distance)
         mean_d = (self._stats["distance"] * self.t.sub(1).clamp_min(0) + d) / self.t.clamp_min(1)
         return StepResult(
             terms={"pose": _col(pose), "up": _col(pose * upright), "spin": _col(pose * spin), "crash": _col(crash * MISBEHAVE)},
