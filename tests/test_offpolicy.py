@@ -42,13 +42,13 @@ def rollout(algo, env, steps: int):
 
 
 def test_transitions_flatten_agents_and_keep_the_pre_reset_observation():
-    algo, env = make("ddpg", num_envs=3, episode_len=20)
-    batch = rollout(algo, env, 80)  # episodes end by crashing (terminated) or at 20 steps (truncated)
+    algo, env = make("ddpg", num_envs=4, episode_len=40)
+    batch = rollout(algo, env, 100)  # random flight falls in ~25-60 steps (terminated) or lasts 40 (truncated)
     data = transitions(batch)
-    assert data.batch_size == torch.Size([3 * 80])
-    assert data["observation"].shape == (240, env.obs_dim) and data["action"].shape == (240, 4)
-    assert data["next", "reward"].shape == (240, 1) and data["next", "terminated"].shape == (240, 1)
-    flat_next = batch["next", "agents", "observation"].reshape(240, -1)
+    assert data.batch_size == torch.Size([4 * 100])
+    assert data["observation"].shape == (400, env.obs_dim) and data["action"].shape == (400, 4)
+    assert data["next", "reward"].shape == (400, 1) and data["next", "terminated"].shape == (400, 1)
+    flat_next = batch["next", "agents", "observation"].reshape(400, -1)
     assert torch.equal(data["next", "observation"], flat_next)
     done, terminated = batch["next", "done"].reshape(-1), batch["next", "terminated"].reshape(-1)
     assert (done & ~terminated).any() and terminated.any(), "the test needs both kinds of episode end"
