@@ -227,7 +227,7 @@ def list_cmd() -> None:
     from volleybots.algos import ALGOS
     from volleybots.algos.base import class_attr
     from volleybots.config import group_options
-    from volleybots.physics import ACTION_SPACES, BACKENDS
+    from volleybots.physics import ACTION_SPACE_INFO, BACKEND_INFO
     from volleybots.tasks import TASKS
 
     typer.echo("tasks (task=NAME):")
@@ -240,12 +240,11 @@ def list_cmd() -> None:
         kind = "one or more drones" if cls.multi_agent else "one drone"
         typer.echo(f"  {name:<20} {kind}; action spaces: {', '.join(cls.action_spaces)}")
     typer.echo("physics backends (env.physics=NAME):")
-    for name in BACKENDS:
-        typer.echo(f"  {name}")
+    for name, text in BACKEND_INFO.items():
+        typer.echo(f"  {name:<20} {text}")
     typer.echo("action spaces (env.action_space=NAME):")
-    described = {"prt": "per-rotor thrust, 4 values in [-1, 1]", "ctbr": "collective thrust + body rates through a rate controller", "discrete": "16 actions: each rotor off or full"}
-    for name in ACTION_SPACES:
-        typer.echo(f"  {name:<20} {described.get(name, '')}")
+    for name, text in ACTION_SPACE_INFO.items():
+        typer.echo(f"  {name:<20} {text}")
 
 
 @app.command(context_settings=_PASS_THROUGH)

@@ -1,11 +1,15 @@
 """Pure batched dynamics of drones and ball: no volleyball rules here."""
 
-from volleybots.physics.actions import ACTION_SPACES, make_action_space
+from volleybots.physics.actions import ACTION_SPACE_INFO, ACTION_SPACES, make_action_space
 from volleybots.physics.controllers import RateController
 from volleybots.physics.params import BallParams, DroneParams, WorldParams
 from volleybots.physics.torch_backend import Contacts, PhysicsState, TorchPhysics
 
-BACKENDS = ("torch", "mujoco")
+BACKEND_INFO = {
+    "torch": "batched PyTorch rigid-body physics on CPU or CUDA, swept racket contact (fast default)",
+    "mujoco": "the same scene in MuJoCo, all envs stepped by mujoco.rollout (reference fidelity)",
+}
+BACKENDS = tuple(BACKEND_INFO)
 
 
 def make_physics(name: str, params: WorldParams, num_envs: int, n_drones: int, device="cpu", compile: bool = False):
@@ -20,6 +24,6 @@ def make_physics(name: str, params: WorldParams, num_envs: int, n_drones: int, d
 
 
 __all__ = [
-    "ACTION_SPACES", "BACKENDS", "BallParams", "Contacts", "DroneParams", "PhysicsState", "RateController",
+    "ACTION_SPACE_INFO", "ACTION_SPACES", "BACKEND_INFO", "BACKENDS", "BallParams", "Contacts", "DroneParams", "PhysicsState", "RateController",
     "TorchPhysics", "WorldParams", "make_action_space", "make_physics",
 ]

@@ -13,7 +13,12 @@ import torch
 from volleybots.physics.controllers import RateController
 from volleybots.physics.params import WorldParams
 
-ACTION_SPACES = ("prt", "ctbr", "discrete")
+ACTION_SPACE_INFO = {
+    "prt": "per-rotor thrust: 4 commands in [-1, 1] (default)",
+    "ctbr": "collective thrust + body rates, through the 200 Hz PID rate controller",
+    "discrete": "16 actions: each rotor at -1 or +1 (value-based methods such as DQN)",
+}
+ACTION_SPACES = tuple(ACTION_SPACE_INFO)
 
 
 def discrete_table(device=None, dtype=torch.float32) -> torch.Tensor:
