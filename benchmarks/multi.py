@@ -34,19 +34,23 @@ def random_policy(td):
 
 
 def finished_episodes(env, policy, episodes: int, keys) -> dict[str, torch.Tensor]:
-    """Step ``env`` under ``policy`` (auto-resetting) until ``episodes`` episodes have ended; their stats."""
-    got: dict[str, list] = {k: [] for k in keys}
+    """Step ``env`` under ``policy`` (auto-resetting) until every env has finished its first
+    ``ceil(episodes / num_envs)`` episodes; the stats of ``episodes`` of them, taken by env index, not
+    by when they ended: taking whichever episodes end first would favour short (failed) episodes."""
+    per_env = -(-episodes // env.num_envs)
+    got = {k: torch.zeros(per_env, env.num_envs, device=env.device) for k in keys}
+    count = torch.zeros(env.num_envs, dtype=torch.long, device=env.device)
     td = env.reset()
-    n = 0
-    while n < episodes:
+    while bool((count < per_env).any()):
         td = policy(td)
         out, td = env.step_and_maybe_reset(td)
-        done = out["next", "done"].reshape(-1)
+        done = out["next", "done"].reshape(-1) & (count < per_env)
         if done.any():
+            idx = done.nonzero().squeeze(-1)
             for k in keys:
-                got[k].append(out["next", "stats", k].reshape(-1)[done])
-            n += int(done.sum())
-    return {k: torch.cat(v)[:episodes] for k, v in got.items()}
+                got[k][count[idx], idx] = out["next", "stats", k].reshape(-1)[idx].float()
+            count += done.long()
+    return {k: v.reshape(-1)[:episodes] for k, v in got.items()}
 
 
 def coop(task: str, episodes: int, envs: int, device, seed: int) -> str:
