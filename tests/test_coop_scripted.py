@@ -15,8 +15,10 @@ def episodes(task, steps, n=8):
 
 def test_bump_and_pass_pair_opens_with_a_legal_bump_and_stays_airborne():
     st, td = episodes("bump_and_pass", 150)
-    assert len(st["hits"]) >= 3
-    assert (st["hits"] >= 1).all()  # every episode starts with a legal racket touch by drone 1
+    # every env makes its opening touch (a legal racket hit by drone 1) within the 3 s, and every
+    # episode that ended had it
+    assert (td["next", "stats", "hits"].squeeze(-1).amax(-1) >= 1).all()
+    assert (st["hits"] >= 1).all()
     assert (st["r_drone_misbehave"] == 0).all()
     assert (td["next", "agents", "observation"][..., 2] > 1.0).all()  # nobody sinks
 
