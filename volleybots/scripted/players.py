@@ -203,11 +203,12 @@ class _MatchPlayer(_Player):
 
     half_length: float = 0.0  # the task's court
     team_size: int = 1
+    default_cfg = MatchConfig()
+    default_touch = TouchConfig(contact_z=2.6, first_contact_z=2.1, early=(1,))
 
-    def __init__(self, action_space="prt", params=None, gains=None, cfg: MatchConfig = MatchConfig(),
-                 touch: TouchConfig = TouchConfig(contact_z=2.6, first_contact_z=2.1, early=(1,))):
-        super().__init__(action_space, params, gains, touch)
-        self.cfg = cfg
+    def __init__(self, action_space="prt", params=None, gains=None, cfg: MatchConfig | None = None, touch: TouchConfig | None = None):
+        super().__init__(action_space, params, gains, touch or self.default_touch)
+        self.cfg = cfg or self.default_cfg
 
     def parse(self, drone, t):
         """(anchor, ball position, ball velocity, I may hit, my team's turn, my teammates' positions [..., k, 3])."""
@@ -262,6 +263,10 @@ class OneVsOnePlayer(_MatchPlayer):
     task = "1v1"
     half_length = COURTS["1v1"].length / 2
     team_size = 1
+    # on the small court a shot 30 % deep comes down where the receiver must let it go (too close to
+    # the net); deep shots are playable. The serve is met higher: from 2.1 m it goes into the net.
+    default_cfg = MatchConfig(depth=0.8)
+    default_touch = TouchConfig(contact_z=2.6, first_contact_z=2.4, early=(1,))
 
 
 class ThreeVsThreePlayer(_MatchPlayer):
