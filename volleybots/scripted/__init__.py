@@ -6,10 +6,24 @@ reusable: ``control`` (position/attitude cascade to PRT or CTBR actions), ``ball
 prediction, launch and racket solutions), ``plan`` (strike planner, trajectories, guidance).
 """
 
-from volleybots.scripted.ballistics import ball_at, bounce, crossing, launch_for_apex, launch_for_range, racket_for, time_to_height
+from volleybots.scripted import bump_and_pass, match, set_and_spike  # noqa: F401  (register the multi-drone players)
+from volleybots.scripted.ballistics import (
+    ball_at,
+    bounce,
+    crossing,
+    launch_for_apex,
+    launch_for_range,
+    racket_for,
+    time_to_height,
+)
 from volleybots.scripted.control import DroneController, DroneObs, Gains
-from volleybots.scripted.plan import Strike, StrikePlanner, goto_accel, off_centre, quintic
-from volleybots.scripted import players  # noqa: F401  (registers the multi-drone players)
+from volleybots.scripted.plan import (
+    Strike,
+    StrikePlanner,
+    goto_accel,
+    off_centre,
+    quintic,
+)
 from volleybots.scripted.policies import (
     SCRIPTED_POLICIES,
     BackAndForthPolicy,

@@ -65,7 +65,7 @@ class DroneObs:
     throttle: torch.Tensor | None  # [..., 4] in [0, 1], None without throttles in the observation (CTBR)
 
     @classmethod
-    def from_obs(cls, obs: torch.Tensor, with_throttle: bool) -> "DroneObs":
+    def from_obs(cls, obs: torch.Tensor, with_throttle: bool) -> DroneObs:
         thr = (obs[..., 19:23] + 1.0) * 0.5 if with_throttle else None
         return cls(obs[..., 0:3], obs[..., 3:7], obs[..., 7:10], obs[..., 10:13], thr)
 

@@ -10,8 +10,8 @@ reference is a pure function of the ball state, so a policy using it keeps no me
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import torch
 
