@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import torch
 
 from volleybots.rules import COURTS
-from volleybots.scripted.ballistics import crossing, launch_for_apex
-from volleybots.scripted.players import TouchConfig, _Player, with_z
+from volleybots.scripted.ballistics import crossing, launch_for_apex, time_to_height
+from volleybots.scripted.players import TouchConfig, _Player, is_drop, with_z
 from volleybots.scripted.policies import SCRIPTED_POLICIES
+from volleybots.tasks.match import SixVsSix, ThreeVsThree
 
 
 # --------------------------------------------------------------------------- matches
@@ -17,7 +18,6 @@ from volleybots.scripted.policies import SCRIPTED_POLICIES
 class MatchConfig:
     net_clear: float = 1.5  # m the ball's apex must be above the net top
     depth: float = 0.3  # attacks land at this fraction of the opponent's half length from the net
-    back_x: float = 0.6  # in teams a touch taken deeper than this fraction of the half length passes to the teammate nearest the net
     guard_x: float = 0.6  # a drone closer than this to the net drops everything and backs off (crossing loses the rally)
     reach_margin: float = 0.3  # ... and does not go for balls coming down closer than guard_x + this
 
@@ -28,21 +28,42 @@ class _MatchPlayer(_Player):
 
     - Who plays the ball: in 1 vs 1 the drone whose turn it is; in teams, of the drones of the team
       whose turn it is, the one nearest to where the ball comes down (if it may still touch it).
-    - Serve and attack: over the net, landing ``depth`` of the way into the opponent's half, with an
-      apex ``net_clear`` above the net. In teams a touch taken deep in the own half (beyond
-      ``back_x`` of the half length) is a pass forward to the set spot near the net instead, so the
-      attack is short.
+    - Attack: over the net, with an apex ``net_clear`` above the net, landing ``depth`` of the way
+      into the opponent's half (1 vs 1). Teams aim at an opponent instead: the ball comes down
+      through the contact height right where the opponent's drone nearest that point waits (its
+      anchor), so a receiver has its ball without flying for it; a ball nobody plays still lands in
+      the court.
+    - In teams the first touch of a possession (the serve, or a ball that came over the net) is a
+      pass to the teammate nearest the net, who attacks: a pass asks for a small turn of the ball,
+      where sending an incoming attack straight back needs racket tilts the drone does not have.
     - Everyone else holds at its anchor (at the contact height).
     """
 
     half_length: float = 0.0  # the task's court
     team_size: int = 1
+    opponents: tuple[tuple[float, float], ...] = ()  # (x, y) of the opponents' anchors in the own frame (teams)
     default_cfg = MatchConfig()
     default_touch = TouchConfig(contact_z=2.6, first_contact_z=2.1, early=(1,))
-
     def __init__(self, action_space="prt", params=None, gains=None, cfg: MatchConfig | None = None, touch: TouchConfig | None = None):
         super().__init__(action_space, params, gains, touch or self.default_touch)
         self.cfg = cfg or self.default_cfg
+
+    def strike_action(self, drone, strike, home, window, lock_time, hold=None, early=(0, 1)):
+        """As the base, but along the ``early`` axes the contact's acceleration is not fed forward
+        before the racket locks: held for the whole approach, a tilted racket's sideways
+        acceleration (g tan(tilt)) is balanced by a steady position error of a / (k_v k_p), about
+        0.2 m for a 14 degree tilt, so the ball came down on the racket's rim or the body. Before
+        the lock the drone waits where the locked tilt's acceleration, from rest, carries it to the
+        contact point in the lock's time."""
+        axes = torch.zeros(3, dtype=torch.bool, device=strike.drone_pos.device)
+        axes[list(early)] = True
+        pre = (strike.t >= lock_time).unsqueeze(-1) & axes
+        lock = torch.as_tensor(lock_time, dtype=strike.t.dtype, device=strike.t.device).expand_as(strike.t).unsqueeze(-1)
+        pos = torch.where(pre, strike.drone_pos - 0.5 * strike.drone_acc * lock * lock, strike.drone_pos)
+        vel = torch.where(pre, torch.zeros_like(strike.drone_vel), strike.drone_vel)
+        acc = torch.where(pre, torch.zeros_like(strike.drone_acc), strike.drone_acc)
+        strike = replace(strike, drone_pos=pos, drone_vel=vel, drone_acc=acc)
+        return super().strike_action(drone, strike, home, window, lock_time, hold, early)
 
     def parse(self, drone, t):
         """(anchor, ball position, ball velocity, I may hit, my team's turn, my teammates' positions [..., k, 3])."""
@@ -58,6 +79,16 @@ class _MatchPlayer(_Player):
         pos = t[..., 13 + k : 13 + k + 3 * k].unflatten(-1, (k, 3))
         return anchor, ball_p, ball_v, may, team_turn, pos
 
+    def attack_target(self, ball_p):
+        """Where the attack is to come down (xy [..., 2]) and through which ball height."""
+        c = self.cfg
+        point = torch.stack((torch.full_like(ball_p[..., 0], -c.depth * self.half_length), ball_p[..., 1]), -1)
+        if not self.opponents:
+            return point, 0.2
+        opp = torch.tensor(self.opponents, dtype=ball_p.dtype, device=ball_p.device)
+        near = (opp - point.unsqueeze(-2)).norm(dim=-1).argmin(-1)
+        return opp[near], self.touch.contact_z + self.planner.reach
+
     def act(self, drone, t):
         c = self.cfg
         g = self.params.gravity
@@ -68,25 +99,38 @@ class _MatchPlayer(_Player):
         d = (team_pos[..., :2] - fall[..., None, :2]).norm(dim=-1)
         me = (team_pos[..., :2] - drone.pos[..., None, :2]).norm(dim=-1).argmin(-1)
         nearest = d.argmin(-1) == me
+        # the opponents' ball flying over the net to us is ours from when it crosses (everyone may
+        # touch it then): the receiver gets under it before, it would not make it from there
+        incoming = ~team_turn & (ball_v[..., 0] > 0) & (fall[..., 0] > 0)
         # a ball coming down too close to the net is let go: reaching it would cross (losing anyway)
-        mine = may & team_turn & (nearest | (self.team_size == 1)) & (fall[..., 0] > c.guard_x + c.reach_margin)
-        attack_xy = torch.tensor((-c.depth * self.half_length, 0.0), dtype=ball_p.dtype, device=ball_p.device)
-        # the teammate nearest the net (not me) receives a back-court pass
+        mine = ((may & team_turn) | incoming) & (nearest | (self.team_size == 1)) & (fall[..., 0] > c.guard_x + c.reach_margin)
+        # the teammate nearest the net (not me) receives the pass
         others_x = torch.where(torch.arange(team_pos.shape[-2], device=me.device) == me.unsqueeze(-1), torch.full_like(team_pos[..., 0], float("inf")), team_pos[..., 0])
         front = others_x.argmin(-1) if self.team_size > 1 else me
         set_xy = torch.gather(team_pos[..., :2], -2, front[..., None, None].expand(*front.shape, 1, 2)).squeeze(-2)
-        deep = (fall[..., 0] > c.back_x * self.half_length) & (self.team_size > 1)
+        # the touch that sent the ball was where it last passed the contact height going up: on the
+        # opponent's side (x < 0) it came over the net and this is the possession's first touch
+        t_up = time_to_height(ball_p[..., 2], ball_v[..., 2], contact_z, g, descending=False)
+        sent_x = ball_p[..., 0] + ball_v[..., 0] * torch.where(torch.isfinite(t_up), t_up, torch.zeros_like(t_up))
+        passing = (is_drop(ball_v) | (sent_x < 0)) & (self.team_size > 1)
         apex = torch.maximum(torch.as_tensor(2.43 + c.net_clear), contact_z + 0.5)
 
         def want_out(bp, bv):
-            over = launch_for_apex(bp, attack_xy.expand_as(bp[..., :2]), apex, 0.2, g)
+            target, land_z = self.attack_target(bp)
+            over = launch_for_apex(bp, target, apex, land_z, g)
             fwd = launch_for_apex(bp, set_xy, apex, self.touch.contact_z + self.planner.reach, g)
-            return torch.where(deep.unsqueeze(-1), fwd, over)
+            return torch.where(passing.unsqueeze(-1), fwd, over)
 
         home = with_z(anchor[..., :2], self.touch.contact_z)
         action = self.play(drone, ball_p, ball_v, want_out, mine, home)
         back = self.ctrl.act(drone, home, torch.zeros_like(home))
         return torch.where((drone.pos[..., :1] < c.guard_x), back, action)
+
+
+def opponents_of(task) -> tuple[tuple[float, float], ...]:
+    """The opponents' anchors (x, y) as a team of ``task`` sees them: its own anchors turned by 180
+    degrees about z (the mirrored frame shows every team its own half as team 0's)."""
+    return tuple((-x, -y) for x, y, _ in task.anchors_xyz[: task.team_size])
 
 
 class OneVsOnePlayer(_MatchPlayer):
@@ -103,12 +147,14 @@ class ThreeVsThreePlayer(_MatchPlayer):
     task = "3v3"
     half_length = COURTS["3v3"].length / 2
     team_size = 3
+    opponents = opponents_of(ThreeVsThree)
 
 
 class SixVsSixPlayer(_MatchPlayer):
     task = "6v6"
     half_length = COURTS["full"].length / 2
     team_size = 6
+    opponents = opponents_of(SixVsSix)
 
 
 SCRIPTED_POLICIES.update({cls.task: cls for cls in (OneVsOnePlayer, ThreeVsThreePlayer, SixVsSixPlayer,)})
