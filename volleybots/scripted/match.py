@@ -10,7 +10,7 @@ from volleybots.rules import COURTS
 from volleybots.scripted.ballistics import crossing, launch_for_apex, time_to_height
 from volleybots.scripted.players import TouchConfig, _Player, is_drop, with_z
 from volleybots.scripted.policies import SCRIPTED_POLICIES
-from volleybots.tasks.match import SixVsSix, ThreeVsThree
+from volleybots.tasks.match import OneVsOne, SixVsSix, ThreeVsThree
 
 
 # --------------------------------------------------------------------------- matches
@@ -20,6 +20,7 @@ class MatchConfig:
     depth: float = 0.3  # attacks land at this fraction of the opponent's half length from the net
     guard_x: float = 0.6  # a drone closer than this to the net drops everything and backs off (crossing loses the rally)
     reach_margin: float = 0.3  # ... and does not go for balls coming down closer than guard_x + this
+    side_cost: float = 0.1  # m of depth one metre sideways counts for when choosing whom to pass to
 
 
 class _MatchPlayer(_Player):
@@ -41,7 +42,7 @@ class _MatchPlayer(_Player):
 
     half_length: float = 0.0  # the task's court
     team_size: int = 1
-    opponents: tuple[tuple[float, float], ...] = ()  # (x, y) of the opponents' anchors in the own frame (teams)
+    anchors: tuple[tuple[float, float, float], ...] = ()  # the team's anchors in its own frame (the task's team 0 anchors)
     default_cfg = MatchConfig()
     default_touch = TouchConfig(contact_z=2.6, first_contact_z=2.1, early=(1,))
     def __init__(self, action_space="prt", params=None, gains=None, cfg: MatchConfig | None = None, touch: TouchConfig | None = None):
@@ -83,11 +84,21 @@ class _MatchPlayer(_Player):
         """Where the attack is to come down (xy [..., 2]) and through which ball height."""
         c = self.cfg
         point = torch.stack((torch.full_like(ball_p[..., 0], -c.depth * self.half_length), ball_p[..., 1]), -1)
-        if not self.opponents:
+        if self.team_size == 1:
             return point, 0.2
-        opp = torch.tensor(self.opponents, dtype=ball_p.dtype, device=ball_p.device)
+        # the opponents' anchors: the own ones turned by 180 degrees about z
+        opp = -torch.tensor(self.anchors, dtype=ball_p.dtype, device=ball_p.device)[:, :2]
         near = (opp - point.unsqueeze(-2)).norm(dim=-1).argmin(-1)
         return opp[near], self.touch.contact_z + self.planner.reach
+
+    def pass_target(self, ball_p, me):
+        """Where a pass goes (xy [..., 2]): to the anchor, where it waits, of the teammate nearest the
+        net and, of those, nearest the ball sideways; not mine (``me`` [...], my index). Anchors, not
+        positions: two teammates about as near would swap as they move, and the racket with them."""
+        own = torch.tensor(self.anchors, dtype=ball_p.dtype, device=ball_p.device)[:, :2]
+        cost = own[:, 0] + self.cfg.side_cost * (own[:, 1] - ball_p[..., 1:2]).abs()
+        cost = torch.where(torch.arange(len(own), device=me.device) == me.unsqueeze(-1), torch.full_like(cost, float("inf")), cost)
+        return own[cost.argmin(-1)]
 
     def act(self, drone, t):
         c = self.cfg
@@ -104,10 +115,6 @@ class _MatchPlayer(_Player):
         incoming = ~team_turn & (ball_v[..., 0] > 0) & (fall[..., 0] > 0)
         # a ball coming down too close to the net is let go: reaching it would cross (losing anyway)
         mine = ((may & team_turn) | incoming) & (nearest | (self.team_size == 1)) & (fall[..., 0] > c.guard_x + c.reach_margin)
-        # the teammate nearest the net (not me) receives the pass
-        others_x = torch.where(torch.arange(team_pos.shape[-2], device=me.device) == me.unsqueeze(-1), torch.full_like(team_pos[..., 0], float("inf")), team_pos[..., 0])
-        front = others_x.argmin(-1) if self.team_size > 1 else me
-        set_xy = torch.gather(team_pos[..., :2], -2, front[..., None, None].expand(*front.shape, 1, 2)).squeeze(-2)
         # the touch that sent the ball was where it last passed the contact height going up: on the
         # opponent's side (x < 0) it came over the net and this is the possession's first touch
         t_up = time_to_height(ball_p[..., 2], ball_v[..., 2], contact_z, g, descending=False)
@@ -118,7 +125,7 @@ class _MatchPlayer(_Player):
         def want_out(bp, bv):
             target, land_z = self.attack_target(bp)
             over = launch_for_apex(bp, target, apex, land_z, g)
-            fwd = launch_for_apex(bp, set_xy, apex, self.touch.contact_z + self.planner.reach, g)
+            fwd = launch_for_apex(bp, self.pass_target(bp, me), apex, self.touch.contact_z + self.planner.reach, g)
             return torch.where(passing.unsqueeze(-1), fwd, over)
 
         home = with_z(anchor[..., :2], self.touch.contact_z)
@@ -127,16 +134,11 @@ class _MatchPlayer(_Player):
         return torch.where((drone.pos[..., :1] < c.guard_x), back, action)
 
 
-def opponents_of(task) -> tuple[tuple[float, float], ...]:
-    """The opponents' anchors (x, y) as a team of ``task`` sees them: its own anchors turned by 180
-    degrees about z (the mirrored frame shows every team its own half as team 0's)."""
-    return tuple((-x, -y) for x, y, _ in task.anchors_xyz[: task.team_size])
-
-
 class OneVsOnePlayer(_MatchPlayer):
     task = "1v1"
     half_length = COURTS["1v1"].length / 2
     team_size = 1
+    anchors = OneVsOne.anchors_xyz[:1]
     # on the small court a shot 30 % deep comes down where the receiver must let it go (too close to
     # the net); deep shots are playable. The serve is met higher: from 2.1 m it goes into the net.
     default_cfg = MatchConfig(depth=0.8)
@@ -147,14 +149,14 @@ class ThreeVsThreePlayer(_MatchPlayer):
     task = "3v3"
     half_length = COURTS["3v3"].length / 2
     team_size = 3
-    opponents = opponents_of(ThreeVsThree)
+    anchors = ThreeVsThree.anchors_xyz[:3]
 
 
 class SixVsSixPlayer(_MatchPlayer):
     task = "6v6"
     half_length = COURTS["full"].length / 2
     team_size = 6
-    opponents = opponents_of(SixVsSix)
+    anchors = SixVsSix.anchors_xyz[:6]
 
 
 SCRIPTED_POLICIES.update({cls.task: cls for cls in (OneVsOnePlayer, ThreeVsThreePlayer, SixVsSixPlayer,)})
