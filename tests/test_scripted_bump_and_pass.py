@@ -1,5 +1,7 @@
 """Scripted Bump and Pass pair: plays full episodes with legal bumps and stays airborne."""
 
+import torch
+
 import volleybots
 from volleybots.scripted import make_scripted_policy
 
@@ -20,3 +22,14 @@ def test_bump_and_pass_pair_opens_with_a_legal_bump_and_stays_airborne():
     assert (st["hits"] >= 1).all()
     assert (st["r_drone_misbehave"] == 0).all()
     assert (td["next", "agents", "observation"][..., 2] > 1.0).all()  # nobody sinks
+
+
+def test_bump_and_pass_pair_keeps_passing_for_the_whole_episode():
+    _, td = episodes("bump_and_pass", 800)
+    done = td["next", "done"].squeeze(-1)
+    first = done.float().argmax(-1)  # the step each env's first episode ends
+    envs = torch.arange(done.shape[0])
+    bumps = td["next", "stats", "bumps"].squeeze(-1)[envs, first]
+    # seed 2 gives 10 or 11 bumps in every env, each episode running the full 800 steps
+    assert (first == 799).float().mean() >= 0.75
+    assert bumps.mean() >= 9.5
