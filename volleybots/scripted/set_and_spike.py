@@ -2,50 +2,142 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 
 import torch
 
-from volleybots.scripted.ballistics import launch_for_apex, launch_for_range, racket_for
-from volleybots.scripted.players import TouchConfig, _Player
+from volleybots.scripted.ballistics import launch_for_apex, time_to_height
+from volleybots.scripted.control import DroneController, Gains
+from volleybots.scripted.plan import goto_accel
+from volleybots.scripted.players import TouchConfig, _Player, apex_height
 from volleybots.scripted.policies import SCRIPTED_POLICIES
 
 
 # --------------------------------------------------------------------------- Set and Spike
 @dataclass(frozen=True)
 class SpikeConfig:
-    attack_spot: tuple[float, float, float] = (1.5, 0.5, 3.0)  # where the attacker meets the set (drone centre), clear of the net
-    set_apex: float = 4.6  # the set's apex: a steep fall onto the attacker needs less racket tilt
+    # the set
+    set_apex: float = 4.8  # the set's apex (the setter swings from rest in half a second: it cannot set much higher)
+    set_touch: TouchConfig = TouchConfig(first_contact_z=2.7, first_window=0.4, first_lock=0.2, early=())
+    # the spike
+    attack_spot: tuple[float, float, float] = (1.2, -1.0, 2.9)  # where the attacker meets the set (drone centre)
     target: tuple[float, float] = (-4.5, 0.0)  # where the spike should land
-    land_z: float = 0.1
-    elevations: tuple[float, float, int] = (-40.0, -1.0, 40)  # downward launch angles tried for the spike (deg)
-    max_vx: float = float("inf")  # cap on the spike's speed toward -x (a tip under 2 m/s never wakes the defence racket)
+    short: float = 0.5  # m short of the target the spike aims (the near side of the target circle)
+    land_z: float = 0.2  # the ball lands when its centre is this low
+    spike_vz: float = -0.6  # m/s the spike leaves with downward: barely (the fall time is the range)
+    max_vx: float = float("inf")  # cap on the spike's speed toward -x
+    max_tilt: float = math.radians(50.0)  # racket tilt at most
+    apex_margin: float = 0.3  # a set peaking below the attack height is met this far under its apex
+    throw: float = 0.25  # s of the spike's throw: constant thrust along the racket's normal into the contact
+    lead: float = 0.1  # s the turn to the normal starts before the throw (the attitude takes time)
+    throw_kp: float = 25.0  # 1/s^2: position gain in the racket's plane during the throw
+    throw_kd: float = 10.0  # 1/s: its speed gain
+    throw_fix: float = 4.0  # m/s^2 of correction at most
+    lock: float = 0.06  # s before the contact the racket is left on its normal
+    min_thrust: float = 3.0  # m/s^2 of specific thrust in the throw at least (attitude needs some)
+    max_thrust: float = 15.5  # ... and at most (the airframe's maximum is 15.8)
+    rush_accel: float = 8.0  # m/s^2 the attacker flies to its spot with
+    rush_brake: float = 4.0  # m/s^2 it plans to brake with
+    rush_speed: float = 6.0  # m/s at most
+    rush_lead: float = 0.3  # s: it plans the braking this early (turning the thrust around takes that long)
+    rush_tilt: float = math.radians(45.0)  # the attacker's tilt limit when it flies
+    min_x: float = 0.7  # m: the set is met no closer to the net than this (the spike's tilt carries the drone toward it)
+    slack: float = 0.0  # m the ball is met off the racket's centre, on the net's side: the drone stays back
 
 
 class SetAndSpikePlayer(_Player):
-    """Drone 1 (the setter) sets the dropped ball to the attack spot; drone 2 (the attacker) waits
-    there and spikes it down to the target with the launch angle that needs the least racket tilt.
-    Before and after its touch each waits at its spot."""
+    """Drone 1 (the setter) sets the dropped ball high to the attack spot; drone 2 (the attacker)
+    waits there and meets the set as it comes down, sending it to the target barely downward.
+
+    Why a high set: the racket's normal is along the ball's change of velocity, so its tilt is
+    ``atan(horizontal change / vertical change)``. The spike needs ~6 m/s toward -x and leaves barely
+    falling, so the vertical change is the set's fall speed at the attacker: the faster it falls, the
+    less tilt. The attack spot is on the setter's side of y = 0, so the set already carries the ball
+    a little toward the target."""
 
     task = "set_and_spike_easy"
 
-    def __init__(self, action_space="prt", params=None, gains=None, cfg: SpikeConfig = SpikeConfig(),
-                 touch: TouchConfig = TouchConfig(contact_z=3.0, first_contact_z=2.45, early=())):
-        super().__init__(action_space, params, gains, touch)
+    def __init__(self, action_space="prt", params=None, gains=None, cfg: SpikeConfig = SpikeConfig()):
+        # the setter's climb needs the airframe's full thrust
+        super().__init__(action_space, params, gains or Gains(thrust_margin=1.0, max_climb=6.0), cfg.set_touch)
         self.cfg = cfg
+        # the attacker crosses the court to its spot and throws itself into the spike: steeper tilts
+        self.attack_ctrl = DroneController(self.params, action_space, replace(self.ctrl.gains, max_tilt=cfg.rush_tilt))
 
+    # ------------------------------------------------------------------ the spike
     def spike(self, bp, bv):
-        """Outgoing velocity [..., 3] that lands the ball on the target, going down, with the least tilt."""
+        """Outgoing velocity [..., 3]: down at ``spike_vz``, landing ``short`` of the target."""
         c = self.cfg
-        lo, hi, k = c.elevations
-        elev = torch.deg2rad(torch.linspace(lo, hi, k, dtype=bp.dtype, device=bp.device))
-        shape = bp.shape[:-1] + (k,)
-        target = torch.tensor(c.target, dtype=bp.dtype, device=bp.device).expand(*shape, 2)
-        v = launch_for_range(bp.unsqueeze(-2).expand(*shape, 3), target, c.land_z, elev.expand(shape))
-        n, _ = racket_for(bv.unsqueeze(-2).expand_as(v), v, self.params.ball.restitution)
-        cost = torch.where(torch.isfinite(v).all(-1) & (v[..., 0] >= -c.max_vx), -n[..., 2], torch.full_like(n[..., 2], float("inf")))
-        best = cost.argmin(-1)
-        return torch.gather(v, -2, best[..., None, None].expand(*bp.shape[:-1], 1, 3)).squeeze(-2)
+        target = torch.tensor(c.target, dtype=bp.dtype, device=bp.device)
+        d = target - bp[..., :2]
+        dist = d.norm(dim=-1, keepdim=True)
+        aim = d * ((dist - c.short) / dist.clamp_min(1e-6))
+        vz = torch.full_like(bp[..., 2], c.spike_vz)
+        t = time_to_height(bp[..., 2], vz, c.land_z, self.params.gravity).clamp_min(0.05)
+        vh = aim / t.unsqueeze(-1)
+        vh = vh * (c.max_vx / (-vh[..., :1]).clamp_min(1e-6)).clamp(max=1.0)
+        return torch.cat((vh, vz.unsqueeze(-1)), -1)
+
+    def spike_height(self, ball_p, ball_v):
+        """Ball-centre height [...] of the spike: the attack height, or higher where the set comes
+        down closer to the net than ``min_x`` there (met earlier, the ball is further back), or
+        lower for a set that does not come up to it."""
+        c, g = self.cfg, self.params.gravity
+        z = torch.full_like(ball_p[..., 2], c.attack_spot[2] + self.planner.reach)
+        vx = ball_v[..., 0]
+        t_x = (c.min_x - ball_p[..., 0]) / vx.clamp(max=-1e-6)  # when the ball passes min_x
+        z_x = ball_p[..., 2] + ball_v[..., 2] * t_x - 0.5 * g * t_x * t_x
+        late = (vx < 0) & (t_x > ball_v[..., 2] / g)  # passes min_x on the way down
+        z = torch.where(late, torch.maximum(z, z_x), z)
+        return torch.minimum(z, apex_height(ball_p, ball_v, g) - c.apex_margin)
+
+    def spike_action(self, drone, ball_p, ball_v, wait):
+        """The attacker's touch, a throw: the drone hovers at the point from which a constant
+        thrust along the racket's normal carries it into the contact point in ``throw`` seconds,
+        then turns to that normal and holds it. A tilted racket cannot be held still (its thrust
+        pushes the drone sideways), so the throw makes that push part of the plan. Along the
+        normal the thrust is closed-loop: whatever the turn cost, it is the thrust that brings the
+        racket's normal speed to the planned one at the contact."""
+        c, g = self.cfg, self.params.gravity
+        s = self.planner.plan(ball_p, ball_v, self.spike_height(ball_p, ball_v), self.spike, c.max_tilt)
+        n = s.normal
+        nz = n[..., 2].clamp_min(0.3)
+        # meet the ball off the racket's centre away from the net: the drone stays further back
+        back = torch.zeros_like(n)
+        back[..., 0] = 1.0
+        back = back - (back * n).sum(-1, keepdim=True) * n
+        p_c = s.drone_pos + c.slack * back / back.norm(dim=-1, keepdim=True).clamp_min(1e-9)
+        thrust0 = (g * nz + s.speed / c.throw).clamp(c.min_thrust, c.max_thrust)
+        acc = thrust0.unsqueeze(-1) * n
+        acc = torch.cat((acc[..., :2], acc[..., 2:] - g), -1)
+        start = p_c - 0.5 * c.throw**2 * acc
+        t_go = s.t.clamp_min(self.params.dt)
+        thrust = (g * nz + (s.speed - (drone.vel * n).sum(-1)) / t_go).clamp(c.min_thrust, c.max_thrust)
+        throw = thrust.unsqueeze(-1) * n
+        # in the racket's plane the throw follows its ideal path (the turn lags it), but leaves the
+        # racket on its normal for the last moments
+        tt = t_go.unsqueeze(-1).clamp(max=c.throw)
+        err = p_c - acc * (c.throw * tt - 0.5 * tt * tt) - drone.pos
+        verr = acc * (c.throw - tt) - drone.vel
+        fix = c.throw_kp * err + c.throw_kd * verr
+        fix = fix - (fix * n).sum(-1, keepdim=True) * n
+        fix = fix * (c.throw_fix / fix.norm(dim=-1, keepdim=True).clamp_min(1e-9)).clamp(max=1.0)
+        throw = throw + torch.where((s.t > c.lock).unsqueeze(-1), fix, torch.zeros_like(fix))
+        ctrl = self.attack_ctrl
+        # a ball that will not come down to the contact height, or has passed it: wait
+        valid = s.valid & (s.t > 0)
+        hover = ctrl.thrust_vector(drone, ctrl.position_accel(drone, start, torch.zeros_like(start)))
+        far = self.rush(drone, torch.where(valid.unsqueeze(-1), start, wait))
+        near = ((drone.pos - start).norm(dim=-1) < 0.3) & valid
+        f = torch.where(near.unsqueeze(-1), hover, far)
+        f = torch.where((valid & (s.t < c.throw + c.lead)).unsqueeze(-1), throw, f)
+        return ctrl.act_thrust(drone, f)
+
+    def rush(self, drone, target):
+        """Thrust [..., 3] that flies to ``target`` in about minimum time and stops there."""
+        c = self.cfg
+        return self.attack_ctrl.thrust_vector(drone, goto_accel(drone.pos, drone.vel, target, c.rush_accel, c.rush_speed, brake=c.rush_brake, lead=c.rush_lead))
 
     def act(self, drone, t):
         c = self.cfg
@@ -54,19 +146,26 @@ class SetAndSpikePlayer(_Player):
         turn = t[..., 12:15]
         setter = t[..., 15] > 0.5
         attack = torch.tensor(c.attack_spot, dtype=ball_p.dtype, device=ball_p.device)
-        land_z = attack[2] + self.planner.reach
-
-        def want_out(bp, bv):
-            set_v = launch_for_apex(bp, attack[:2].expand_as(bp[..., :2]), c.set_apex, land_z, self.params.gravity)
-            return torch.where(setter.unsqueeze(-1), set_v, self.spike(bp, bv))
-
-        mine = torch.where(setter, turn[..., 0] > 0.5, turn[..., 1] > 0.5)
+        attack_ball = attack + torch.tensor((0.0, 0.0, self.planner.reach), dtype=attack.dtype, device=attack.device)
         wait = torch.where(setter.unsqueeze(-1), anchor, attack.expand_as(anchor))
-        return self.play(drone, ball_p, ball_v, want_out, mine, wait)
+        idle = self.attack_ctrl.act_thrust(drone, self.rush(drone, wait))
+        spiking = (~setter & (turn[..., 1] > 0.5)).unsqueeze(-1)
+
+        def set_v(bp, bv):
+            return launch_for_apex(bp, attack_ball[..., :2], c.set_apex, attack_ball[..., 2], self.params.gravity)
+
+        setting = self.play(drone, ball_p, ball_v, set_v, setter & (turn[..., 0] > 0.5), wait)
+        return torch.where(spiking, self.spike_action(drone, ball_p, ball_v, wait), torch.where(setter.unsqueeze(-1), setting, idle))
 
 
 class SetAndSpikeHardPlayer(SetAndSpikePlayer):
+    """As Easy, but the spike is a tip: the defence racket only wakes for balls faster than 2 m/s
+    toward -x, so the tip stays under that and drops just behind the net."""
+
     task = "set_and_spike_hard"
+
+    def __init__(self, action_space="prt", params=None, gains=None, cfg: SpikeConfig = SpikeConfig(max_vx=1.8)):
+        super().__init__(action_space, params, gains, cfg)
 
 
 SCRIPTED_POLICIES.update({cls.task: cls for cls in (SetAndSpikePlayer, SetAndSpikeHardPlayer,)})
