@@ -29,12 +29,13 @@ class SpikeConfig:
     max_vx: float = float("inf")  # cap on the spike's speed toward -x
     max_tilt: float = math.radians(50.0)  # racket tilt at most
     apex_margin: float = 0.3  # a set peaking below the attack height is met this far under its apex
-    throw: float = 0.25  # s of the spike's throw: constant thrust along the racket's normal into the contact
-    lead: float = 0.1  # s the turn to the normal starts before the throw (the attitude takes time)
+    throw: float = 0.3  # s of the spike's throw: constant thrust along the racket's normal into the contact
+    lead: float = 0.15  # s the turn to the normal starts before the throw (the attitude takes time)
     throw_kp: float = 25.0  # 1/s^2: position gain in the racket's plane during the throw
     throw_kd: float = 10.0  # 1/s: its speed gain
     throw_fix: float = 4.0  # m/s^2 of correction at most
     lock: float = 0.06  # s before the contact the racket is left on its normal
+    soft_thrust: float = 5.0  # m/s^2: a soft touch's throw is as long as falling into it at this thrust takes
     min_thrust: float = 3.0  # m/s^2 of specific thrust in the throw at least (attitude needs some)
     max_thrust: float = 15.5  # ... and at most (the airframe's maximum is 15.8)
     rush_accel: float = 8.0  # m/s^2 the attacker flies to its spot with
@@ -42,6 +43,7 @@ class SpikeConfig:
     rush_speed: float = 6.0  # m/s at most
     rush_lead: float = 0.3  # s: it plans the braking this early (turning the thrust around takes that long)
     rush_tilt: float = math.radians(45.0)  # the attacker's tilt limit when it flies
+    att_accel: float = 12.0  # rad/s^2 the attacker plans its turns with
     min_x: float = 0.7  # m: the set is met no closer to the net than this (the spike's tilt carries the drone toward it)
     slack: float = 0.0  # m the ball is met off the racket's centre, on the net's side: the drone stays back
 
@@ -63,7 +65,7 @@ class SetAndSpikePlayer(_Player):
         super().__init__(action_space, params, gains or Gains(thrust_margin=1.0, max_climb=6.0), cfg.set_touch)
         self.cfg = cfg
         # the attacker crosses the court to its spot and throws itself into the spike: steeper tilts
-        self.attack_ctrl = DroneController(self.params, action_space, replace(self.ctrl.gains, max_tilt=cfg.rush_tilt))
+        self.attack_ctrl = DroneController(self.params, action_space, replace(self.ctrl.gains, max_tilt=cfg.rush_tilt, att_accel=cfg.att_accel))
 
     # ------------------------------------------------------------------ the spike
     def spike(self, bp, bv):
@@ -108,22 +110,26 @@ class SetAndSpikePlayer(_Player):
         back[..., 0] = 1.0
         back = back - (back * n).sum(-1, keepdim=True) * n
         p_c = s.drone_pos + c.slack * back / back.norm(dim=-1, keepdim=True).clamp_min(1e-9)
-        thrust0 = (g * nz + s.speed / c.throw).clamp(c.min_thrust, c.max_thrust)
+        # a racket that must give way (negative normal speed: a soft touch) falls into the
+        # contact, with at least ``min_thrust``: the throw then takes longer
+        throw = torch.maximum(torch.full_like(s.speed, c.throw), s.speed / (c.soft_thrust - g * nz).clamp(max=-1.0))
+        thrust0 = (g * nz + s.speed / throw).clamp(c.min_thrust, c.max_thrust)
         acc = thrust0.unsqueeze(-1) * n
         acc = torch.cat((acc[..., :2], acc[..., 2:] - g), -1)
-        start = p_c - 0.5 * c.throw**2 * acc
+        start = p_c - 0.5 * (throw**2).unsqueeze(-1) * acc
         t_go = s.t.clamp_min(self.params.dt)
         thrust = (g * nz + (s.speed - (drone.vel * n).sum(-1)) / t_go).clamp(c.min_thrust, c.max_thrust)
-        throw = thrust.unsqueeze(-1) * n
+        throw_f = thrust.unsqueeze(-1) * n
         # in the racket's plane the throw follows its ideal path (the turn lags it), but leaves the
         # racket on its normal for the last moments
-        tt = t_go.unsqueeze(-1).clamp(max=c.throw)
-        err = p_c - acc * (c.throw * tt - 0.5 * tt * tt) - drone.pos
-        verr = acc * (c.throw - tt) - drone.vel
+        tau = throw.unsqueeze(-1)
+        tt = torch.minimum(t_go.unsqueeze(-1), tau)
+        err = p_c - acc * (tau * tt - 0.5 * tt * tt) - drone.pos
+        verr = acc * (tau - tt) - drone.vel
         fix = c.throw_kp * err + c.throw_kd * verr
         fix = fix - (fix * n).sum(-1, keepdim=True) * n
         fix = fix * (c.throw_fix / fix.norm(dim=-1, keepdim=True).clamp_min(1e-9)).clamp(max=1.0)
-        throw = throw + torch.where((s.t > c.lock).unsqueeze(-1), fix, torch.zeros_like(fix))
+        throw_f = throw_f + torch.where((s.t > c.lock).unsqueeze(-1), fix, torch.zeros_like(fix))
         ctrl = self.attack_ctrl
         # a ball that will not come down to the contact height, or has passed it: wait
         valid = s.valid & (s.t > 0)
@@ -131,7 +137,7 @@ class SetAndSpikePlayer(_Player):
         far = self.rush(drone, torch.where(valid.unsqueeze(-1), start, wait))
         near = ((drone.pos - start).norm(dim=-1) < 0.3) & valid
         f = torch.where(near.unsqueeze(-1), hover, far)
-        f = torch.where((valid & (s.t < c.throw + c.lead)).unsqueeze(-1), throw, f)
+        f = torch.where((valid & (s.t < throw + c.lead)).unsqueeze(-1), throw_f, f)
         return ctrl.act_thrust(drone, f)
 
     def rush(self, drone, target):
@@ -147,7 +153,9 @@ class SetAndSpikePlayer(_Player):
         setter = t[..., 15] > 0.5
         attack = torch.tensor(c.attack_spot, dtype=ball_p.dtype, device=ball_p.device)
         attack_ball = attack + torch.tensor((0.0, 0.0, self.planner.reach), dtype=attack.dtype, device=attack.device)
-        wait = torch.where(setter.unsqueeze(-1), anchor, attack.expand_as(anchor))
+        # after the spike the attacker's throw carries it toward the net: it heads home at once
+        done = turn[..., 2:] > 0.5
+        wait = torch.where(setter.unsqueeze(-1) | done, anchor, attack.expand_as(anchor))
         idle = self.attack_ctrl.act_thrust(drone, self.rush(drone, wait))
         spiking = (~setter & (turn[..., 1] > 0.5)).unsqueeze(-1)
 
@@ -159,13 +167,9 @@ class SetAndSpikePlayer(_Player):
 
 
 class SetAndSpikeHardPlayer(SetAndSpikePlayer):
-    """As Easy, but the spike is a tip: the defence racket only wakes for balls faster than 2 m/s
-    toward -x, so the tip stays under that and drops just behind the net."""
+    """As Easy: the spike goes to the same spot, whatever the defence racket does."""
 
     task = "set_and_spike_hard"
-
-    def __init__(self, action_space="prt", params=None, gains=None, cfg: SpikeConfig = SpikeConfig(max_vx=1.8)):
-        super().__init__(action_space, params, gains, cfg)
 
 
 SCRIPTED_POLICIES.update({cls.task: cls for cls in (SetAndSpikePlayer, SetAndSpikeHardPlayer,)})
