@@ -150,6 +150,9 @@ class ThreeVsThreePlayer(_MatchPlayer):
     half_length = COURTS["3v3"].length / 2
     team_size = 3
     anchors = ThreeVsThree.anchors_xyz[:3]
+    # high, soft attacks (apex 5.4 m): they come down steeply onto the receiver waiting at its
+    # anchor, so it meets them without running and with a racket tilt it can hold
+    default_cfg = MatchConfig(net_clear=3.0)
 
 
 class SixVsSixPlayer(_MatchPlayer):
