@@ -43,8 +43,9 @@ class SpikeConfig:
     rush_speed: float = 6.0  # m/s at most
     rush_lead: float = 0.3  # s: it plans the braking this early (turning the thrust around takes that long)
     rush_tilt: float = math.radians(45.0)  # the attacker's tilt limit when it flies
-    att_accel: float = 12.0  # rad/s^2 the attacker plans its turns with
+    recover_att_accel: float = 25.0  # rad/s^2 the attacker plans its turn out of the throw with (the Iris can do about 35)
     min_x: float = 0.7  # m: the set is met no closer to the net than this (the spike's tilt carries the drone toward it)
+    retreat: float = 1.5  # m behind the attack spot the attacker flies to after the spike
     slack: float = 0.0  # m the ball is met off the racket's centre, on the net's side: the drone stays back
 
 
@@ -65,7 +66,9 @@ class SetAndSpikePlayer(_Player):
         super().__init__(action_space, params, gains or Gains(thrust_margin=1.0, max_climb=6.0), cfg.set_touch)
         self.cfg = cfg
         # the attacker crosses the court to its spot and throws itself into the spike: steeper tilts
-        self.attack_ctrl = DroneController(self.params, action_space, replace(self.ctrl.gains, max_tilt=cfg.rush_tilt, att_accel=cfg.att_accel))
+        self.attack_ctrl = DroneController(self.params, action_space, replace(self.ctrl.gains, max_tilt=cfg.rush_tilt))
+        # ... and, after the spike, turns out of its throw as fast as the airframe can
+        self.recover_ctrl = DroneController(self.params, action_space, replace(self.ctrl.gains, max_tilt=cfg.rush_tilt, att_accel=cfg.recover_att_accel))
 
     # ------------------------------------------------------------------ the spike
     def spike(self, bp, bv):
@@ -118,7 +121,12 @@ class SetAndSpikePlayer(_Player):
         acc = torch.cat((acc[..., :2], acc[..., 2:] - g), -1)
         start = p_c - 0.5 * (throw**2).unsqueeze(-1) * acc
         t_go = s.t.clamp_min(self.params.dt)
-        thrust = (g * nz + (s.speed - (drone.vel * n).sum(-1)) / t_go).clamp(c.min_thrust, c.max_thrust)
+        # along the normal: the constant-jerk law that arrives at the contact point with the planned
+        # normal speed (the turn into the throw costs some of both)
+        gap = ((p_c - drone.pos) * n).sum(-1)
+        t_n = t_go.clamp_min(c.lock)
+        a_n = 6.0 * gap / t_n**2 - (4.0 * (drone.vel * n).sum(-1) + 2.0 * s.speed) / t_n
+        thrust = (g * nz + a_n).clamp(c.min_thrust, c.max_thrust)
         throw_f = thrust.unsqueeze(-1) * n
         # in the racket's plane the throw follows its ideal path (the turn lags it), but leaves the
         # racket on its normal for the last moments
@@ -153,10 +161,11 @@ class SetAndSpikePlayer(_Player):
         setter = t[..., 15] > 0.5
         attack = torch.tensor(c.attack_spot, dtype=ball_p.dtype, device=ball_p.device)
         attack_ball = attack + torch.tensor((0.0, 0.0, self.planner.reach), dtype=attack.dtype, device=attack.device)
-        # after the spike the attacker's throw carries it toward the net: it heads home at once
+        # after the spike the attacker's throw carries it toward the net: it brakes straight away
         done = turn[..., 2:] > 0.5
-        wait = torch.where(setter.unsqueeze(-1) | done, anchor, attack.expand_as(anchor))
-        idle = self.attack_ctrl.act_thrust(drone, self.rush(drone, wait))
+        retreat = attack + torch.tensor((c.retreat, 0.0, 0.0), dtype=attack.dtype, device=attack.device)
+        wait = torch.where(setter.unsqueeze(-1), anchor, torch.where(done, retreat, attack))
+        idle = torch.where(done, self.recover_ctrl.act_thrust(drone, self.rush(drone, wait)), self.attack_ctrl.act_thrust(drone, self.rush(drone, wait)))
         spiking = (~setter & (turn[..., 1] > 0.5)).unsqueeze(-1)
 
         def set_v(bp, bv):
