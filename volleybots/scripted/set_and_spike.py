@@ -27,14 +27,14 @@ class SpikeConfig:
     land_z: float = 0.2  # the ball lands when its centre is this low
     spike_vz: float = -0.6  # m/s the spike leaves with downward: barely (the fall time is the range)
     max_vx: float = float("inf")  # cap on the spike's speed toward -x
-    max_tilt: float = math.radians(50.0)  # racket tilt at most
+    max_tilt: float = math.radians(55.0)  # racket tilt at most
     apex_margin: float = 0.3  # a set peaking below the attack height is met this far under its apex
     throw: float = 0.3  # s of the spike's throw: constant thrust along the racket's normal into the contact
     lead: float = 0.15  # s the turn to the normal starts before the throw (the attitude takes time)
-    throw_kp: float = 25.0  # 1/s^2: position gain in the racket's plane during the throw
-    throw_kd: float = 10.0  # 1/s: its speed gain
+    throw_kp: float = 40.0  # 1/s^2: position gain in the racket's plane during the throw
+    throw_kd: float = 12.0  # 1/s: its speed gain
     throw_fix: float = 4.0  # m/s^2 of correction at most
-    lock: float = 0.06  # s before the contact the racket is left on its normal
+    lock: float = 0.14  # s before the contact the racket is left on its normal
     soft_thrust: float = 5.0  # m/s^2: a soft touch's throw is as long as falling into it at this thrust takes
     min_thrust: float = 3.0  # m/s^2 of specific thrust in the throw at least (attitude needs some)
     max_thrust: float = 15.5  # ... and at most (the airframe's maximum is 15.8)
@@ -45,7 +45,7 @@ class SpikeConfig:
     rush_tilt: float = math.radians(45.0)  # the attacker's tilt limit when it flies
     recover_att_accel: float = 25.0  # rad/s^2 the attacker plans its turn out of the throw with (the Iris can do about 35)
     min_x: float = 0.7  # m: the set is met no closer to the net than this (the spike's tilt carries the drone toward it)
-    retreat: float = 1.5  # m behind the attack spot the attacker flies to after the spike
+    retreat: tuple[float, float, float] = (1.5, 0.0, 1.0)  # where the attacker flies after the spike, from the attack spot: back, and up (over the net's top)
     slack: float = 0.0  # m the ball is met off the racket's centre, on the net's side: the drone stays back
 
 
@@ -82,6 +82,11 @@ class SetAndSpikePlayer(_Player):
         t = time_to_height(bp[..., 2], vz, c.land_z, self.params.gravity).clamp_min(0.05)
         vh = aim / t.unsqueeze(-1)
         vh = vh * (c.max_vx / (-vh[..., :1]).clamp_min(1e-6)).clamp(max=1.0)
+        # the racket tilts along the change of velocity: past ``max_tilt`` the spike gives up range,
+        # not its way down
+        dv = vh - bv[..., :2]
+        cap = math.tan(c.max_tilt) * (vz - bv[..., 2]).clamp_min(0.0)
+        vh = bv[..., :2] + dv * (cap / dv.norm(dim=-1).clamp_min(1e-9)).clamp(max=1.0).unsqueeze(-1)
         return torch.cat((vh, vz.unsqueeze(-1)), -1)
 
     def spike_height(self, ball_p, ball_v):
@@ -163,7 +168,7 @@ class SetAndSpikePlayer(_Player):
         attack_ball = attack + torch.tensor((0.0, 0.0, self.planner.reach), dtype=attack.dtype, device=attack.device)
         # after the spike the attacker's throw carries it toward the net: it brakes straight away
         done = turn[..., 2:] > 0.5
-        retreat = attack + torch.tensor((c.retreat, 0.0, 0.0), dtype=attack.dtype, device=attack.device)
+        retreat = attack + torch.tensor(c.retreat, dtype=attack.dtype, device=attack.device)
         wait = torch.where(setter.unsqueeze(-1), anchor, torch.where(done, retreat, attack))
         idle = torch.where(done, self.recover_ctrl.act_thrust(drone, self.rush(drone, wait)), self.attack_ctrl.act_thrust(drone, self.rush(drone, wait)))
         spiking = (~setter & (turn[..., 1] > 0.5)).unsqueeze(-1)
