@@ -8,22 +8,30 @@ import torch
 
 from volleybots.scripted.ballistics import launch_for_apex
 from volleybots.scripted.control import Gains
-from volleybots.scripted.players import TouchConfig, _Player, is_drop, with_z
+from volleybots.scripted.players import DROP_SPEED, TouchConfig, _Player, apex_height, with_z
 from volleybots.scripted.policies import SCRIPTED_POLICIES
+
+FIRST_ANCHOR_XY = (4.5, -2.5)  # the ball is dropped from rest above drone 1's anchor
 
 
 # --------------------------------------------------------------------------- Bump and Pass
 @dataclass(frozen=True)
 class PassConfig:
-    inward: float = 1.0  # the drones play this much closer to each other than their anchors: less tilt
-    apex: float = 4.2  # a bump counts when it crosses the midline above 4 m; passes come out a little low
+    inward: float = 1.75  # the drones play this much closer to each other than their anchors: less tilt
+    apex: float = 4.1  # a bump counts when it crosses the midline above 4 m; passes peak about 0.1 m higher
     first_apex: float = 4.0  # from rest the drone cannot swing hard enough for more
-    first_to: float = 1.1  # |y| the opening pass is aimed at, and where the receiver waits during the drop
+    first_to: float = 1.1  # |y| where the receiver waits during the drop
+    first_aim: float = 1.1  # |y| the opening pass is aimed at
+    low_apex: float = 3.8  # a ball peaking below this (the opening pass, mostly) ...
+    low_z: float = 1.8  # ... is met with the drone this high, and waited for there: it comes down farther out
 
 
 # the receiver of a pass flies up to 2 m to the ball and must arrive still: it plans its braking with
 # 2.5 m/s^2, not the default 4, which it overshoots (then the ball meets its body, not the racket)
 PASS_GAINS = Gains(pos_accel_xy=2.5)
+# the higher the ball is met, the shorter a pass (the metric counts bumps in 16 s), but the less time
+# the receiver has to get under it: 2.2 m keeps nearly every episode going; CTBR, slower to tilt, 1.8 m
+PASS_TOUCH = {"prt": TouchConfig(contact_z=2.2), "ctbr": TouchConfig(contact_z=1.8)}
 
 
 class BumpAndPassPlayer(_Player):
@@ -36,28 +44,45 @@ class BumpAndPassPlayer(_Player):
     task = "bump_and_pass"
 
     def __init__(self, action_space="prt", params=None, gains=None, cfg: PassConfig = PassConfig(),
-                 touch: TouchConfig = TouchConfig(contact_z=1.8)):
-        # met low (1.8 m, not 2.6 m) the ball falls longer between passes: more time to get under it
-        super().__init__(action_space, params, gains or PASS_GAINS, touch)
+                 touch: TouchConfig | None = None):
+        super().__init__(action_space, params, gains or PASS_GAINS, touch or PASS_TOUCH.get(action_space, TouchConfig()))
         self.cfg = cfg
 
+    def opening(self, ball_p, ball_v, turn) -> torch.Tensor:
+        """[...] the ball is the opening drop: drone 1's turn, still falling straight down over its
+        anchor. (A slow pass alone is no drop: ``is_drop`` would take it for one.)"""
+        anchor = torch.tensor(FIRST_ANCHOR_XY, dtype=ball_p.dtype, device=ball_p.device)
+        still = ball_v[..., :2].norm(dim=-1) < DROP_SPEED
+        over = (ball_p[..., :2] - anchor).norm(dim=-1) < 0.3
+        return still & over & (ball_v[..., 2] <= 0.0) & (turn[..., 0] > 0.5)
+
     def act(self, drone, t):
-        c = self.cfg
+        c, tc = self.cfg, self.touch
         anchor = drone.pos - t[..., 0:3]
         ball_p, ball_v = self.ball(drone, t)
         my_turn = (t[..., 12:14] * t[..., 14:16]).sum(-1) > 0.5
         side = torch.sign(anchor[..., 1:2])  # -1 for drone 1, +1 for drone 2
-        drop = is_drop(ball_v).unsqueeze(-1)
-        spot_y = torch.where(drop, side * c.first_to, anchor[..., 1:2] - side * c.inward)
-        spot_xy = torch.cat((anchor[..., :1], spot_y), -1)
-        partner_xy = spot_xy * torch.tensor([1.0, -1.0], dtype=spot_xy.dtype, device=spot_xy.device)
-        apex = torch.where(drop.squeeze(-1), c.first_apex, c.apex)
-        land_z = self.touch.contact_z + self.planner.reach
+        drop = self.opening(ball_p, ball_v, t[..., 12:14])
+        d = drop.unsqueeze(-1)
+        spot_xy = torch.cat((anchor[..., :1], torch.where(d, side * c.first_to, anchor[..., 1:2] - side * c.inward)), -1)
+        partner_xy = torch.cat((anchor[..., :1], torch.where(d, -side * c.first_aim, side * c.inward - anchor[..., 1:2])), -1)
+        apex = torch.where(drop, c.first_apex, c.apex)
+        land_z = tc.contact_z + self.planner.reach
 
         def want_out(bp, bv):
             return launch_for_apex(bp, partner_xy, apex, land_z, self.params.gravity)
 
-        return self.play(drone, ball_p, ball_v, want_out, my_turn, with_z(spot_xy, self.touch.contact_z))
+        # as _Player.play, with the opening told apart by ``opening``, not by the ball's speed alone
+        ball_apex = apex_height(ball_p, ball_v, self.params.gravity)
+        drone_z = torch.where(drop, tc.first_contact_z, torch.where(ball_apex < c.low_apex, c.low_z, tc.contact_z))
+        contact_z = torch.minimum(drone_z + self.planner.reach, ball_apex - tc.apex_margin)
+        strike = self.planner.plan(ball_p, ball_v, contact_z, want_out, tc.max_tilt)
+        window = torch.where(drop, tc.first_window, tc.window)
+        lock = torch.where(drop, tc.first_lock, tc.lock)
+        wait = with_z(spot_xy, torch.where(drop | (ball_apex < c.low_apex), c.low_z, tc.contact_z).unsqueeze(-1))
+        hit = self.strike_action(drone, strike, wait, window, lock, early=tc.early)
+        idle = self.ctrl.act(drone, wait, torch.zeros_like(wait))
+        return torch.where(my_turn.unsqueeze(-1), hit, idle)
 
 
 SCRIPTED_POLICIES.update({cls.task: cls for cls in (BumpAndPassPlayer,)})
