@@ -17,7 +17,7 @@ from volleybots.tasks.match import OneVsOne, SixVsSix, ThreeVsThree
 @dataclass(frozen=True)
 class MatchConfig:
     net_clear: float = 1.5  # m the ball's apex must be above the net top
-    depth: float = 0.3  # attacks land at this fraction of the opponent's half length from the net
+    depth: float = 0.3  # attacks land at this fraction of the opponent's half length from the net (teams: aim at the opponent nearest that point)
     guard_x: float = 0.6  # a drone closer than this to the net drops everything and backs off (crossing loses the rally)
     reach_margin: float = 0.3  # ... and does not go for balls coming down closer than guard_x + this
     side_cost: float = 0.1  # m of depth one metre sideways counts for when choosing whom to pass to
@@ -28,7 +28,9 @@ class _MatchPlayer(_Player):
     x > 0, the net at x = 0).
 
     - Who plays the ball: in 1 vs 1 the drone whose turn it is; in teams, of the drones of the team
-      whose turn it is, the one nearest to where the ball comes down (if it may still touch it).
+      whose turn it is, the one nearest to where the ball comes down (if it may still touch it);
+      an opponents' ball on its way over the net is flown for before it crosses (when it becomes
+      the team's), or the receiver would be late.
     - Attack: over the net, with an apex ``net_clear`` above the net, landing ``depth`` of the way
       into the opponent's half (1 vs 1). Teams aim at an opponent instead: the ball comes down
       through the contact height right where the opponent's drone nearest that point waits (its
