@@ -46,7 +46,7 @@ class SpikeConfig:
     recover_att_accel: float = 25.0  # rad/s^2 the attacker plans its turn out of the throw with (the Iris can do about 35)
     min_x: float = 0.7  # m: the set is met no closer to the net than this (the spike's tilt carries the drone toward it)
     retreat: tuple[float, float, float] = (1.5, 0.0, 1.0)  # where the attacker flies after the spike, from the attack spot: back, and up (over the net's top)
-    slack: float = 0.0  # m the ball is met off the racket's centre, on the net's side: the drone stays back
+    offset: tuple[float, float] = (0.05, -0.1)  # m (x, y) the racket's centre is aimed off the ball: back from the net, and ahead of the attacker, which comes from +y and lags
 
 
 class SetAndSpikePlayer(_Player):
@@ -113,11 +113,10 @@ class SetAndSpikePlayer(_Player):
         s = self.planner.plan(ball_p, ball_v, self.spike_height(ball_p, ball_v), self.spike, c.max_tilt)
         n = s.normal
         nz = n[..., 2].clamp_min(0.3)
-        # meet the ball off the racket's centre away from the net: the drone stays further back
-        back = torch.zeros_like(n)
-        back[..., 0] = 1.0
-        back = back - (back * n).sum(-1, keepdim=True) * n
-        p_c = s.drone_pos + c.slack * back / back.norm(dim=-1, keepdim=True).clamp_min(1e-9)
+        # the racket's centre is aimed ``offset`` (in its plane) from the ball
+        off = torch.zeros_like(n)
+        off[..., :2] = torch.tensor(c.offset, dtype=n.dtype, device=n.device)
+        p_c = s.drone_pos + off - (off * n).sum(-1, keepdim=True) * n
         # a racket that must give way (negative normal speed: a soft touch) falls into the
         # contact, with at least ``min_thrust``: the throw then takes longer
         throw = torch.maximum(torch.full_like(s.speed, c.throw), s.speed / (c.soft_thrust - g * nz).clamp(max=-1.0))
