@@ -9,7 +9,7 @@ import torch
 
 from volleybots.scripted.ballistics import launch_for_apex, time_to_height
 from volleybots.scripted.control import DroneController, Gains
-from volleybots.scripted.plan import goto_accel
+from volleybots.scripted.plan import goto_accel, off_centre
 from volleybots.scripted.players import TouchConfig, _Player, apex_height
 from volleybots.scripted.policies import SCRIPTED_POLICIES
 
@@ -20,6 +20,7 @@ class SpikeConfig:
     # the set
     set_apex: float = 4.8  # the set's apex (the setter swings from rest in half a second: it cannot set much higher)
     set_touch: TouchConfig = TouchConfig(first_contact_z=2.7, first_window=0.4, first_lock=0.2, early=())
+    set_slack: float = 0.05  # m off the racket's centre the setter may meet the drop
     # the spike
     attack_spot: tuple[float, float, float] = (1.2, -1.0, 3.1)  # where the attacker meets the set (drone centre)
     target: tuple[float, float] = (-4.5, 0.0)  # where the spike should land
@@ -70,6 +71,17 @@ class SetAndSpikePlayer(_Player):
         self.attack_ctrl = DroneController(self.params, action_space, replace(self.ctrl.gains, max_tilt=cfg.rush_tilt))
         # ... and, after the spike, turns out of its throw as fast as the airframe can
         self.recover_ctrl = DroneController(self.params, action_space, replace(self.ctrl.gains, max_tilt=cfg.rush_tilt, att_accel=cfg.recover_att_accel))
+
+    # ------------------------------------------------------------------ the set
+    def set_action(self, drone, ball_p, ball_v, want_out, wait):
+        """The setter's touch of the dropped ball (``_Player.play`` for the drop), met up to
+        ``set_slack`` off the racket's centre on the drone's side: the drone starts up to 0.7 m
+        off the ball's line, and the less it has to fly sideways, the more level its racket is at
+        the contact, so the more accurate the set."""
+        t = self.touch
+        strike = self.planner.plan(ball_p, ball_v, self.contact_height(ball_p, ball_v), want_out, t.max_tilt)
+        strike = off_centre(strike, drone.pos, self.cfg.set_slack)
+        return self.strike_action(drone, strike, wait, t.first_window, t.first_lock, early=t.early)
 
     # ------------------------------------------------------------------ the spike
     def spike(self, bp, bv):
@@ -173,8 +185,9 @@ class SetAndSpikePlayer(_Player):
         def set_v(bp, bv):
             return launch_for_apex(bp, attack_ball[..., :2], c.set_apex, attack_ball[..., 2], self.params.gravity)
 
-        setting = self.play(drone, ball_p, ball_v, set_v, setter & (turn[..., 0] > 0.5), wait)
-        return torch.where(spiking, self.spike_action(drone, ball_p, ball_v, wait), torch.where(setter.unsqueeze(-1), setting, idle))
+        setting = self.set_action(drone, ball_p, ball_v, set_v, wait)
+        setting_turn = (setter & (turn[..., 0] > 0.5)).unsqueeze(-1)
+        return torch.where(spiking, self.spike_action(drone, ball_p, ball_v, wait), torch.where(setting_turn, setting, idle))
 
 
 class SetAndSpikeHardPlayer(SetAndSpikePlayer):
