@@ -35,8 +35,8 @@ def test_spikes_go_down_over_the_net():
     # success 0.62; Hard attacker_hit 0.81, downward 0.78, success 0.65 (the benchmark's 100
     # episodes: Easy 0.725, Hard 0.627)
     want = {
-        "set_and_spike_easy": dict(attacker_hit=0.64, downward_spike=0.55, in_target=0.15, success_rate=0.58),
-        "set_and_spike_hard": dict(attacker_hit=0.75, downward_spike=0.72, success_rate=0.6),
+        "set_and_spike_easy": {"attacker_hit": 0.64, "downward_spike": 0.55, "in_target": 0.15, "success_rate": 0.58},
+        "set_and_spike_hard": {"attacker_hit": 0.75, "downward_spike": 0.72, "success_rate": 0.6},
     }
     for task, floors in want.items():
         st, _, _ = first_episodes(task)

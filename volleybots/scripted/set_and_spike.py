@@ -1,4 +1,10 @@
-"""Scripted Set and Spike pair (Easy and Hard): the setter sets, the attacker spikes into the target."""
+"""Scripted Set and Spike pair (Easy and Hard): the setter sets, the attacker spikes into the target.
+
+The set is a ``_Player`` strike of the dropped ball, as high as a half-second swing from rest gives
+(apex ~4.8 m). The spike is a "throw" (``SetAndSpikePlayer.spike_action``): it needs ~50 deg of
+racket tilt, which a drone cannot hold still, so the attacker hovers where a constant thrust along
+the racket's normal carries it into the contact point and flies that throw, closed-loop along the
+normal (the racket's speed) and in the racket's plane (where the ball meets it)."""
 
 from __future__ import annotations
 
@@ -13,13 +19,15 @@ from volleybots.scripted.plan import goto_accel, off_centre
 from volleybots.scripted.players import TouchConfig, _Player, apex_height
 from volleybots.scripted.policies import SCRIPTED_POLICIES
 
-
 # --------------------------------------------------------------------------- Set and Spike
+# the setter meets the drop a little higher than the default, with a shorter lock: a truer set
+SET_TOUCH = TouchConfig(first_contact_z=2.7, first_window=0.4, first_lock=0.2, early=())
+
+
 @dataclass(frozen=True)
 class SpikeConfig:
     # the set
     set_apex: float = 4.8  # the set's apex (the setter swings from rest in half a second: it cannot set much higher)
-    set_touch: TouchConfig = TouchConfig(first_contact_z=2.7, first_window=0.4, first_lock=0.2, early=())
     set_slack: float = 0.05  # m off the racket's centre the setter may meet the drop
     # the spike
     attack_spot: tuple[float, float, float] = (1.2, -1.0, 3.1)  # where the attacker meets the set (drone centre)
@@ -49,8 +57,7 @@ class SpikeConfig:
 
 
 class SetAndSpikePlayer(_Player):
-    """Drone 1 (the setter) sets the dropped ball as high as it can swing (a plain ``_Player``
-    touch) to the attack spot; drone 2 (the attacker) flies there and meets the set as it comes
+    """Drone 1 (the setter) sets the dropped ball as high as it can swing to the attack spot; drone 2 (the attacker) flies there and meets the set as it comes
     down, sending it to the near side of the target barely downward.
 
     The racket's normal is along the ball's change of velocity, so its tilt is ``atan(horizontal
@@ -63,9 +70,9 @@ class SetAndSpikePlayer(_Player):
 
     task = "set_and_spike_easy"
 
-    def __init__(self, action_space="prt", params=None, gains=None, cfg: SpikeConfig = SpikeConfig()):
+    def __init__(self, action_space="prt", params=None, gains=None, cfg: SpikeConfig = SpikeConfig(), touch: TouchConfig = SET_TOUCH):
         # the setter's swing and the attacker's throw need the airframe's full thrust
-        super().__init__(action_space, params, gains or Gains(thrust_margin=1.0, max_climb=6.0), cfg.set_touch)
+        super().__init__(action_space, params, gains or Gains(thrust_margin=1.0, max_climb=6.0), touch)
         self.cfg = cfg
         # the attacker crosses the court to its spot and throws itself into the spike: steeper tilts
         self.attack_ctrl = DroneController(self.params, action_space, replace(self.ctrl.gains, max_tilt=cfg.rush_tilt))
@@ -179,15 +186,16 @@ class SetAndSpikePlayer(_Player):
         done = turn[..., 2:] > 0.5
         retreat = attack + torch.tensor(c.retreat, dtype=attack.dtype, device=attack.device)
         wait = torch.where(setter.unsqueeze(-1), anchor, torch.where(done, retreat, attack))
-        idle = torch.where(done, self.recover_ctrl.act_thrust(drone, self.rush(drone, wait)), self.attack_ctrl.act_thrust(drone, self.rush(drone, wait)))
-        spiking = (~setter & (turn[..., 1] > 0.5)).unsqueeze(-1)
+        go = self.rush(drone, wait)
+        idle = torch.where(done, self.recover_ctrl.act_thrust(drone, go), self.attack_ctrl.act_thrust(drone, go))
 
         def set_v(bp, bv):
             return launch_for_apex(bp, attack_ball[..., :2], c.set_apex, attack_ball[..., 2], self.params.gravity)
 
-        setting = self.set_action(drone, ball_p, ball_v, set_v, wait)
-        setting_turn = (setter & (turn[..., 0] > 0.5)).unsqueeze(-1)
-        return torch.where(spiking, self.spike_action(drone, ball_p, ball_v, wait), torch.where(setting_turn, setting, idle))
+        setting = (setter & (turn[..., 0] > 0.5)).unsqueeze(-1)
+        spiking = (~setter & (turn[..., 1] > 0.5)).unsqueeze(-1)
+        out = torch.where(setting, self.set_action(drone, ball_p, ball_v, set_v, wait), idle)
+        return torch.where(spiking, self.spike_action(drone, ball_p, ball_v, wait), out)
 
 
 class SetAndSpikeHardPlayer(SetAndSpikePlayer):
@@ -197,8 +205,8 @@ class SetAndSpikeHardPlayer(SetAndSpikePlayer):
 
     task = "set_and_spike_hard"
 
-    def __init__(self, action_space="prt", params=None, gains=None, cfg: SpikeConfig = SpikeConfig(attack_spot=(1.2, -1.0, 2.9), throw=0.3)):
-        super().__init__(action_space, params, gains, cfg)
+    def __init__(self, action_space="prt", params=None, gains=None, cfg: SpikeConfig = SpikeConfig(attack_spot=(1.2, -1.0, 2.9), throw=0.3), touch: TouchConfig = SET_TOUCH):
+        super().__init__(action_space, params, gains, cfg, touch)
 
 
 SCRIPTED_POLICIES.update({cls.task: cls for cls in (SetAndSpikePlayer, SetAndSpikeHardPlayer,)})
