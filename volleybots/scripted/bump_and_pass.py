@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import torch
 
-from volleybots.scripted.ballistics import launch_for_apex
+from volleybots.scripted.ballistics import crossing, launch_for_apex
 from volleybots.scripted.control import Gains
 from volleybots.scripted.players import DROP_SPEED, TouchConfig, _Player, apex_height, with_z
 from volleybots.scripted.policies import SCRIPTED_POLICIES
@@ -18,28 +18,34 @@ FIRST_ANCHOR_XY = (4.5, -2.5)  # the ball is dropped from rest above drone 1's a
 @dataclass(frozen=True)
 class PassConfig:
     inward: float = 1.75  # the drones play this much closer to each other than their anchors: less tilt
-    apex: float = 4.1  # a bump counts when it crosses the midline above 4 m; passes peak about 0.1 m higher
+    apex: float = 4.1  # a bump counts when it crosses the midline above 4 m; passes met high peak 0.15 m higher
     first_apex: float = 4.0  # from rest the drone cannot swing hard enough for more
     first_to: float = 1.1  # |y| where the receiver waits during the drop
     first_aim: float = 1.1  # |y| the opening pass is aimed at
     low_apex: float = 3.8  # a ball peaking below this (the opening pass, mostly) ...
-    low_z: float = 1.8  # ... is met with the drone this high, and waited for there: it comes down farther out
+    far: float = 0.4  # ... or coming down farther than this from the spot ...
+    low_z: float = 1.8  # ... is met with the drone this high: it falls longer, so there is time to get there
+    low_pass_apex: float = 4.3  # passes from that low come out about 0.2 m below the apex asked
+    idle_z: float = 1.8  # height of the drone waiting for its turn: low, out of the ball's and the partner's way
 
 
 # the receiver of a pass flies up to 2 m to the ball and must arrive still: it plans its braking with
 # 2.5 m/s^2, not the default 4, which it overshoots (then the ball meets its body, not the racket)
 PASS_GAINS = Gains(pos_accel_xy=2.5)
 # the higher the ball is met, the shorter a pass (the metric counts bumps in 16 s), but the less time
-# the receiver has to get under it: 2.2 m keeps nearly every episode going; CTBR, slower to tilt, 1.8 m
-PASS_TOUCH = {"prt": TouchConfig(contact_z=2.2), "ctbr": TouchConfig(contact_z=1.8)}
+# the receiver has to get under it: 2.6 m keeps nearly every episode going; CTBR, slower to tilt, 1.8 m
+PASS_TOUCH = {"prt": TouchConfig(contact_z=2.6), "ctbr": TouchConfig(contact_z=1.8)}
 
 
 class BumpAndPassPlayer(_Player):
     """Each drone bumps the ball over to its partner's spot when it is its turn, and otherwise waits
-    at its own spot (its anchor moved ``inward`` toward the partner, at the contact height).
+    at its own spot (its anchor moved ``inward`` toward the partner), low.
 
-    The opening pass (of the ball dropped from rest) comes out weaker and less precise than the
-    others: it is aimed short, near the midline, where the receiver waits for it during the drop."""
+    A pass is met high (``TouchConfig.contact_z``): the shorter the ball's fall, the more passes fit
+    in an episode. A ball that will come down away from the spot or peaks low is met low instead,
+    which leaves the receiver the time to get under it. The opening pass (of the ball dropped from
+    rest) comes out weaker and less precise than the others: it is aimed short, near the midline,
+    where the receiver waits for it during the drop."""
 
     task = "bump_and_pass"
 
@@ -57,7 +63,7 @@ class BumpAndPassPlayer(_Player):
         return still & over & (ball_v[..., 2] <= 0.0) & (turn[..., 0] > 0.5)
 
     def act(self, drone, t):
-        c, tc = self.cfg, self.touch
+        c, tc, g = self.cfg, self.touch, self.params.gravity
         anchor = drone.pos - t[..., 0:3]
         ball_p, ball_v = self.ball(drone, t)
         my_turn = (t[..., 12:14] * t[..., 14:16]).sum(-1) > 0.5
@@ -66,22 +72,25 @@ class BumpAndPassPlayer(_Player):
         d = drop.unsqueeze(-1)
         spot_xy = torch.cat((anchor[..., :1], torch.where(d, side * c.first_to, anchor[..., 1:2] - side * c.inward)), -1)
         partner_xy = torch.cat((anchor[..., :1], torch.where(d, -side * c.first_aim, side * c.inward - anchor[..., 1:2])), -1)
-        apex = torch.where(drop, c.first_apex, c.apex)
+        # a ball that comes down low or away from the spot is met low; the others high
+        ball_apex = apex_height(ball_p, ball_v, g)
+        landing, _ = crossing(ball_p, ball_v, tc.contact_z + self.planner.reach, g)
+        low = (ball_apex < c.low_apex) | ((landing[..., :2] - spot_xy).norm(dim=-1) > c.far)
+        apex = torch.where(drop, c.first_apex, torch.where(low, c.low_pass_apex, c.apex))
+        drone_z = torch.where(drop, tc.first_contact_z, torch.where(low, c.low_z, tc.contact_z))
         land_z = tc.contact_z + self.planner.reach
 
         def want_out(bp, bv):
-            return launch_for_apex(bp, partner_xy, apex, land_z, self.params.gravity)
+            return launch_for_apex(bp, partner_xy, apex, land_z, g)
 
         # as _Player.play, with the opening told apart by ``opening``, not by the ball's speed alone
-        ball_apex = apex_height(ball_p, ball_v, self.params.gravity)
-        drone_z = torch.where(drop, tc.first_contact_z, torch.where(ball_apex < c.low_apex, c.low_z, tc.contact_z))
         contact_z = torch.minimum(drone_z + self.planner.reach, ball_apex - tc.apex_margin)
         strike = self.planner.plan(ball_p, ball_v, contact_z, want_out, tc.max_tilt)
         window = torch.where(drop, tc.first_window, tc.window)
         lock = torch.where(drop, tc.first_lock, tc.lock)
-        wait = with_z(spot_xy, torch.where(drop | (ball_apex < c.low_apex), c.low_z, tc.contact_z).unsqueeze(-1))
-        hit = self.strike_action(drone, strike, wait, window, lock, early=tc.early)
-        idle = self.ctrl.act(drone, wait, torch.zeros_like(wait))
+        hit = self.strike_action(drone, strike, with_z(spot_xy, drone_z.unsqueeze(-1)), window, lock, early=tc.early)
+        rest = with_z(spot_xy, c.idle_z)
+        idle = self.ctrl.act(drone, rest, torch.zeros_like(rest))
         return torch.where(my_turn.unsqueeze(-1), hit, idle)
 
 
