@@ -8,7 +8,13 @@ import torch
 
 from volleybots.scripted.ballistics import crossing, launch_for_apex
 from volleybots.scripted.control import Gains
-from volleybots.scripted.players import DROP_SPEED, TouchConfig, _Player, apex_height, with_z
+from volleybots.scripted.players import (
+    DROP_SPEED,
+    TouchConfig,
+    _Player,
+    apex_height,
+    with_z,
+)
 from volleybots.scripted.policies import SCRIPTED_POLICIES
 
 FIRST_ANCHOR_XY = (4.5, -2.5)  # the ball is dropped from rest above drone 1's anchor
