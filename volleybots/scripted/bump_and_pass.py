@@ -89,15 +89,9 @@ class BumpAndPassPlayer(_Player):
         def want_out(bp, bv):
             return launch_for_apex(bp, partner_xy, apex, land_z, g)
 
-        # as _Player.play, with the opening told apart by ``opening``, not by the ball's speed alone
-        contact_z = torch.minimum(drone_z + self.planner.reach, ball_apex - tc.apex_margin)
-        strike = self.planner.plan(ball_p, ball_v, contact_z, want_out, tc.max_tilt)
-        window = torch.where(drop, tc.first_window, tc.window)
-        lock = torch.where(drop, tc.first_lock, tc.lock)
-        hit = self.strike_action(drone, strike, with_z(spot_xy, drone_z.unsqueeze(-1)), window, lock, early=tc.early)
-        rest = with_z(spot_xy, c.idle_z)
-        idle = self.ctrl.act(drone, rest, torch.zeros_like(rest))
-        return torch.where(my_turn.unsqueeze(-1), hit, idle)
+        # the opening is told apart by ``opening``, not by the ball's speed alone
+        return self.play(drone, ball_p, ball_v, want_out, my_turn, with_z(spot_xy, drone_z.unsqueeze(-1)),
+                         drop=drop, drone_z=drone_z, idle=with_z(spot_xy, c.idle_z))
 
 
 SCRIPTED_POLICIES.update({cls.task: cls for cls in (BumpAndPassPlayer,)})

@@ -66,21 +66,27 @@ class _Player(_BallPolicy):
         self.touch = touch
         self.planner = StrikePlanner(self.params)
 
-    def contact_height(self, ball_p, ball_v) -> torch.Tensor:
-        """Ball-centre height of the next contact: the opening drop is met low, a ball that will not
-        come up to the contact height under its apex."""
+    def contact_height(self, ball_p, ball_v, drop=None, drone_z=None) -> torch.Tensor:
+        """Ball-centre height of the next contact: the drone centre at ``drone_z`` [...] (default: the
+        opening drop is met low, any other ball at the contact height), lower for a ball that will not
+        come up that high under its apex. ``drop`` [...] marks the opening drop (default: ``is_drop``)."""
         t = self.touch
-        z = torch.where(is_drop(ball_v), t.first_contact_z, t.contact_z) + self.planner.reach
-        return torch.minimum(z, apex_height(ball_p, ball_v, self.params.gravity) - t.apex_margin)
+        if drone_z is None:
+            drone_z = torch.where(is_drop(ball_v) if drop is None else drop, t.first_contact_z, t.contact_z)
+        return torch.minimum(drone_z + self.planner.reach, apex_height(ball_p, ball_v, self.params.gravity) - t.apex_margin)
 
-    def play(self, drone: DroneObs, ball_p, ball_v, want_out, mine: torch.Tensor, wait: torch.Tensor, early=None) -> torch.Tensor:
+    def play(self, drone: DroneObs, ball_p, ball_v, want_out, mine: torch.Tensor, wait: torch.Tensor, early=None,
+             drop=None, drone_z=None, idle=None) -> torch.Tensor:
         """Fly the touch given by ``want_out(ball_at_contact, ball_velocity_in) -> v_out`` where
-        ``mine`` [...] is set; elsewhere hold still at ``wait`` [..., 3]."""
+        ``mine`` [...] is set, from ``wait`` [..., 3]; elsewhere hold still at ``idle`` (default
+        ``wait``). ``drop`` and ``drone_z`` as in ``contact_height``: a player that tells the opening
+        drop apart better than by the ball's speed, or meets balls at other heights, says so."""
         t = self.touch
-        drop = is_drop(ball_v)
-        strike = self.planner.plan(ball_p, ball_v, self.contact_height(ball_p, ball_v), want_out, t.max_tilt)
+        drop = is_drop(ball_v) if drop is None else drop
+        strike = self.planner.plan(ball_p, ball_v, self.contact_height(ball_p, ball_v, drop, drone_z), want_out, t.max_tilt)
         window = torch.where(drop, t.first_window, t.window)
         lock = torch.where(drop, t.first_lock, t.lock)
         hit = self.strike_action(drone, strike, wait, window, lock, early=t.early if early is None else early)
-        idle = self.ctrl.act(drone, wait, torch.zeros_like(wait))
+        idle = wait if idle is None else idle
+        idle = self.ctrl.act(drone, idle, torch.zeros_like(idle))
         return torch.where(mine.unsqueeze(-1), hit, idle)
