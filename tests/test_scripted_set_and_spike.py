@@ -1,5 +1,6 @@
 """Scripted Set and Spike pair (Easy, Hard): the setter always sets, the attacker spikes most sets
-down over the net, and on Easy a good share of them into the target."""
+down over the net, on Easy a good share of them into the target, on Hard a tip the defence racket
+never touches."""
 
 import torch
 
@@ -31,19 +32,25 @@ def test_setter_always_sets_and_stays_home():
 
 
 def test_spikes_go_down_over_the_net():
-    # measured on these 32 episodes: Easy attacker_hit 0.69, downward 0.59, in_target 0.19,
-    # success 0.62; Hard attacker_hit 0.81, downward 0.78, success 0.65 (the benchmark's 100
-    # episodes: Easy 0.725, Hard 0.627)
-    want = {
-        "set_and_spike_easy": {"attacker_hit": 0.64, "downward_spike": 0.55, "in_target": 0.15, "success_rate": 0.58},
-        "set_and_spike_hard": {"attacker_hit": 0.75, "downward_spike": 0.72, "success_rate": 0.6},
-    }
-    for task, floors in want.items():
-        st, _, _ = first_episodes(task)
-        got = {k: st[k].mean().item() for k in floors}
-        assert all(got[k] >= v for k, v in floors.items()), (task, got)
-        # a spike that counts nearly always goes down
-        assert st["downward_spike"].sum() >= 0.85 * st["attacker_hit"].sum()
+    # measured on these 32 episodes: Easy attacker_hit 0.69, downward 0.59, in_target 0.22,
+    # success 0.62 (the benchmark's 100 episodes: 0.735)
+    floors = {"attacker_hit": 0.64, "downward_spike": 0.55, "in_target": 0.15, "success_rate": 0.58}
+    st, _, _ = first_episodes("set_and_spike_easy")
+    got = {k: st[k].mean().item() for k in floors}
+    assert all(got[k] >= v for k, v in floors.items()), got
+    # a spike that counts nearly always goes down
+    assert st["downward_spike"].sum() >= 0.85 * st["attacker_hit"].sum()
+
+
+def test_hard_tip_is_never_defended():
+    # measured on these 32 episodes: attacker_hit 0.72, downward 0.50, success_spike 0.41,
+    # success 0.66 (the benchmark's 100 episodes: 0.632); the tip is slower than the defence
+    # racket's trigger, so it never touches the ball
+    floors = {"attacker_hit": 0.65, "downward_spike": 0.45, "success_spike": 0.35, "success_rate": 0.6}
+    st, _, _ = first_episodes("set_and_spike_hard")
+    got = {k: st[k].mean().item() for k in floors}
+    assert all(got[k] >= v for k, v in floors.items()), got
+    assert (st["intercepted"] == 0).all()
 
 
 def test_ctbr_pair_still_plays():

@@ -50,9 +50,10 @@ class SpikeConfig:
     rush_speed: float = 6.0  # m/s at most
     rush_lead: float = 0.3  # s: it plans the braking this early (turning the thrust around takes that long)
     rush_tilt: float = math.radians(45.0)  # the attacker's tilt limit when it flies
-    recover_att_accel: float = 25.0  # rad/s^2 the attacker plans its turn out of the throw with (the Iris can do about 35)
+    recover_att_accel: float = 35.0  # rad/s^2 the attacker plans its turn out of the throw with (the Iris can do about 35)
     min_x: float = 0.7  # m: the set is met no closer to the net than this (the spike's tilt carries the drone toward it)
     retreat: tuple[float, float, float] = (1.5, 0.0, 1.0)  # where the attacker flies after the spike, from the attack spot: back, and up (over the net's top)
+    wait_dz: float = 0.0  # m above the attack spot the attacker waits for the set
     offset: tuple[float, float] = (0.05, -0.1)  # m (x, y) the racket's centre is aimed off the ball: back from the net, and ahead of the attacker, which comes from +y and lags
 
 
@@ -185,7 +186,8 @@ class SetAndSpikePlayer(_Player):
         # after the spike the attacker's throw carries it toward the net: it brakes straight away
         done = turn[..., 2:] > 0.5
         retreat = attack + torch.tensor(c.retreat, dtype=attack.dtype, device=attack.device)
-        wait = torch.where(setter.unsqueeze(-1), anchor, torch.where(done, retreat, attack))
+        ready = attack + torch.tensor((0.0, 0.0, c.wait_dz), dtype=attack.dtype, device=attack.device)
+        wait = torch.where(setter.unsqueeze(-1), anchor, torch.where(done, retreat, ready))
         go = self.rush(drone, wait)
         idle = torch.where(done, self.recover_ctrl.act_thrust(drone, go), self.attack_ctrl.act_thrust(drone, go))
 
@@ -198,15 +200,109 @@ class SetAndSpikePlayer(_Player):
         return torch.where(spiking, self.spike_action(drone, ball_p, ball_v, wait), out)
 
 
+@dataclass(frozen=True)
+class TipConfig(SpikeConfig):
+    attack_spot: tuple[float, float, float] = (0.5, -0.5, 3.4)  # close to the net (the slow tip must clear it), high (the set falls slower there: a slower drop)
+    min_x: float = 0.4
+    max_tilt: float = math.radians(30.0)
+    tip_speed: float = 1.9  # m/s toward -x the tip leaves with: under the defence racket's 2 m/s trigger
+    tip_vz: float = -0.6  # m/s down (the spike counts as downward; it must still clear the net)
+    tip_y: float = 3.0  # m: the tip lands this close to the court's middle line at most
+    drop_accel: float = 7.5  # m/s^2 the attacker drops with into the contact
+    drop_lead: float = 0.08  # s: the drop starts this early (the rotors take that long to let go)
+    drop_tilt: float = math.radians(8.0)  # tilt at most while dropping
+    tip_lock: float = 0.3  # s before the contact the racket is left on its normal
+    nav_gain: float = 3.0  # guidance gain on the miss (3: the least-effort law)
+    wait_dz: float = 0.5  # the attacker waits above the attack spot (it drops into the tip)
+    net_x: float = 0.2  # m: the attacker turns back where it would be closer to the net than this ...
+    net_look: float = 0.25  # s ... this soon
+    net_top: float = 2.8  # m: below this height it does so whatever it is doing (a net fault is below 2.43 m)
+
+
 class SetAndSpikeHardPlayer(SetAndSpikePlayer):
-    """As Easy, toward the same spot: the defence racket reaches any spike this pair can make, so
-    what counts is the touch and its way down, and a lower attack with a longer throw is surer of
-    both (it lands in the target less often)."""
+    """Hard: a tip, not a spike. The defence racket (tasks/defence.py) only plans for a ball moving
+    toward -x faster than 2 m/s, and it reaches every fast spike this pair can make; a slow tip over
+    the net, taken close to it, is never defended and lands short in the -x half. That is a blind
+    spot of the paper's defence (a legitimate play against it, as a tip is in volleyball).
+
+    The set already carries the ball toward -x at ~1.2 m/s, so the tip needs an almost level
+    racket, moving down at ~2.5 m/s to send the ball on downward: the attacker waits above the
+    contact point and drops into it. Against this defence a fast spike scores nothing (the
+    previous player's spike: success_spike 0.00, Hard 0.627)."""
 
     task = "set_and_spike_hard"
 
-    def __init__(self, action_space="prt", params=None, gains=None, cfg: SpikeConfig = SpikeConfig(attack_spot=(1.2, -1.0, 2.9), throw=0.3), touch: TouchConfig = SET_TOUCH):
+    def __init__(self, action_space="prt", params=None, gains=None, cfg: TipConfig = TipConfig(), touch: TouchConfig = SET_TOUCH):
         super().__init__(action_space, params, gains, cfg, touch)
+        # the drop needs little thrust, and the racket is nearly level then: its direction holds
+        self.drop_ctrl = DroneController(self.params, action_space, replace(self.ctrl.gains, min_thrust_z=self.params.gravity - cfg.drop_accel - 1.0, max_tilt=cfg.drop_tilt))
+
+    def spike(self, bp, bv):
+        c = self.cfg
+        # the set's sideways speed is kept (the less the racket tilts, the surer the touch), as
+        # long as the tip lands within ``tip_y`` of the court's middle line
+        v = bv.clone()
+        v[..., 0] = -c.tip_speed
+        v[..., 2] = c.tip_vz
+        t = time_to_height(bp[..., 2], v[..., 2], c.land_z, self.params.gravity).clamp_min(0.1)
+        v[..., 1] = torch.maximum(torch.minimum(v[..., 1], (c.tip_y - bp[..., 1]) / t), (-c.tip_y - bp[..., 1]) / t)
+        return v
+
+    def spike_action(self, drone, ball_p, ball_v, wait):
+        """Sideways, the attacker steers so as to pass through the contact point at the contact
+        time with no sideways acceleration left, so with a level racket (a frictionless racket
+        does not care how fast it moves in its plane): ``3 miss / t_go^2``, the least-effort law,
+        on the miss distance of a coast; it need not arrive early and settle, which it has no time
+        for. Vertically it holds above the contact point, then drops into it at ``drop_accel``
+        from rest, arriving with the racket's planned speed down. In the last ``tip_lock`` seconds
+        the racket is left on its normal."""
+        c = self.cfg
+        s = self.planner.plan(ball_p, ball_v, self.spike_height(ball_p, ball_v), self.spike, c.max_tilt)
+        down = (-s.speed).clamp_min(0.0) * s.normal[..., 2]  # m/s down at the contact
+        tau = down / c.drop_accel
+        t = (s.t - c.drop_lead).clamp_min(0.0)
+        tt = torch.minimum(t, tau)
+        # the drop from rest, seen from its end: height above the contact and speed down
+        above = 0.5 * c.drop_accel * (tau * tau - (tau - tt) ** 2)
+        ez = torch.zeros_like(s.drone_pos)
+        ez[..., 2] = 1.0
+        p = s.drone_pos + above.unsqueeze(-1) * ez
+        v = -(c.drop_accel * (tau - tt)).unsqueeze(-1) * ez
+        a = torch.where((t < tau).unsqueeze(-1), -c.drop_accel * ez, torch.zeros_like(ez))
+        # a set that comes down too close to the net is let go rather than followed across it
+        goal = s.drone_pos[..., :2].clone()
+        goal[..., 0] = goal[..., 0].clamp_min(c.min_x)
+        t_go = s.t.clamp_min(c.tip_lock).unsqueeze(-1)
+        a_xy = c.nav_gain * (goal - drone.pos[..., :2] - drone.vel[..., :2] * t_go) / t_go**2
+        a_xy = a_xy * (c.rush_accel / a_xy.norm(dim=-1, keepdim=True).clamp_min(1e-9)).clamp(max=1.0)
+        # dropping, the attacker barely tilts (its thrust is low, so any sideways push is a big tilt)
+        drop = s.t < tau + c.drop_lead
+        ctrl = self.attack_ctrl
+        acc = torch.cat((a_xy, ctrl.position_accel(drone, p, v, a)[..., 2:]), -1)
+        f = torch.where(drop.unsqueeze(-1), self.drop_ctrl.thrust_vector(drone, acc), ctrl.thrust_vector(drone, acc))
+        n = s.normal
+        f = torch.where((s.t < c.tip_lock).unsqueeze(-1), f[..., 2:] / n[..., 2:].clamp_min(0.3) * n, f)
+        valid = s.valid & (s.t > 0)
+        f = torch.where(valid.unsqueeze(-1), f, self.rush(drone, wait))
+        # whatever the ball does, the attacker does not follow it across the net
+        return ctrl.act_thrust(drone, torch.where(self.near_net(drone).unsqueeze(-1), self.rush(drone, self.off_net(drone)), f))
+
+    def near_net(self, drone):
+        """[...] the drone will soon be closer to the net than ``net_x``."""
+        c = self.cfg
+        return drone.pos[..., 0] + c.net_look * drone.vel[..., 0] < c.net_x
+
+    def off_net(self, drone):
+        back = drone.pos.clone()
+        back[..., 0] = self.cfg.net_x + 0.4
+        return back
+
+    def act(self, drone, t):
+        # after the tip the attacker comes down close to the net: it backs off before it is level with the net's top
+        c = self.cfg
+        low = drone.pos[..., 2] < c.net_top
+        guard = self.recover_ctrl.act_thrust(drone, self.rush(drone, self.off_net(drone)))
+        return torch.where((self.near_net(drone) & low).unsqueeze(-1), guard, super().act(drone, t))
 
 
 SCRIPTED_POLICIES.update({cls.task: cls for cls in (SetAndSpikePlayer, SetAndSpikeHardPlayer,)})
