@@ -202,11 +202,14 @@ class SetAndSpikePlayer(_Player):
 
 @dataclass(frozen=True)
 class TipConfig(SpikeConfig):
-    attack_spot: tuple[float, float, float] = (0.5, -0.5, 3.4)  # close to the net (the slow tip must clear it), high (the set falls slower there: a slower drop)
+    attack_spot: tuple[float, float, float] = (0.55, -0.5, 3.6)  # close to the net (the slow tip must clear it), high (the set falls slower there: a slower drop)
     min_x: float = 0.4
     max_tilt: float = math.radians(30.0)
     tip_speed: float = 1.9  # m/s toward -x the tip leaves with: under the defence racket's 2 m/s trigger
     tip_vz: float = -0.6  # m/s down (the spike counts as downward; it must still clear the net)
+    tip_vz_min: float = -0.1  # m/s down at least
+    net_clear: float = 2.65  # m: the ball's centre stays this high at least ...
+    net_margin: float = 0.3  # m ... until this far past the net (the referee's ball-in-net zone is 0.3 m either side, below 2.43 m)
     tip_y: float = 3.0  # m: the tip lands this close to the court's middle line at most
     drop_accel: float = 7.5  # m/s^2 the attacker drops with into the contact
     drop_lead: float = 0.08  # s: the drop starts this early (the rotors take that long to let go)
@@ -243,7 +246,10 @@ class SetAndSpikeHardPlayer(SetAndSpikePlayer):
         # long as the tip lands within ``tip_y`` of the court's middle line
         v = bv.clone()
         v[..., 0] = -c.tip_speed
-        v[..., 2] = c.tip_vz
+        # down at ``tip_vz``, or less where the ball must go on higher to clear the net
+        t_net = (bp[..., 0] + c.net_margin).clamp_min(0.05) / c.tip_speed
+        clear = (c.net_clear - bp[..., 2] + 0.5 * self.params.gravity * t_net**2) / t_net
+        v[..., 2] = clear.clamp(min=c.tip_vz, max=c.tip_vz_min)
         t = time_to_height(bp[..., 2], v[..., 2], c.land_z, self.params.gravity).clamp_min(0.1)
         v[..., 1] = torch.maximum(torch.minimum(v[..., 1], (c.tip_y - bp[..., 1]) / t), (-c.tip_y - bp[..., 1]) / t)
         return v
