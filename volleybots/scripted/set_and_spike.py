@@ -299,14 +299,15 @@ class SetAndSpikeHardPlayer(SetAndSpikePlayer):
         return drone.pos[..., 0] + c.net_look * drone.vel[..., 0] < c.net_x
 
     def off_net(self, drone):
+        # far enough back that the flight there starts with a hard turn away from the net
         back = drone.pos.clone()
-        back[..., 0] = self.cfg.net_x + 0.4
+        back[..., 0] = self.cfg.net_x + 1.5
         return back
 
     def act(self, drone, t):
         # after the tip the attacker comes down close to the net: it backs off before it is level with the net's top
         c = self.cfg
-        low = drone.pos[..., 2] < c.net_top
+        low = (drone.pos[..., 2] < c.net_top) | (t[..., 14] > 0.5)  # ... or at any height once its touch is done
         guard = self.recover_ctrl.act_thrust(drone, self.rush(drone, self.off_net(drone)))
         return torch.where((self.near_net(drone) & low).unsqueeze(-1), guard, super().act(drone, t))
 
