@@ -30,7 +30,6 @@ def test_bump_and_pass_pair_keeps_passing_for_the_whole_episode():
     first = done.float().argmax(-1)  # the step each env's first episode ends
     envs = torch.arange(done.shape[0])
     bumps = td["next", "stats", "bumps"].squeeze(-1)[envs, first]
-    # seed 2 gives 12 or 13 bumps in every env (12.9 on average), each episode running the full 800
-    # steps (16 s)
-    assert (first == 799).float().mean() >= 0.75
-    assert bumps.mean() >= 12.0
+    # seed 2 gives 13 bumps in every env, each episode running the full 800 steps (16 s)
+    assert (first == 799).float().mean() >= 0.875
+    assert bumps.mean() >= 12.5

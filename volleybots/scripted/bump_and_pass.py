@@ -42,6 +42,8 @@ PASS_GAINS = Gains(pos_accel_xy=2.5)
 # the higher the ball is met, the shorter a pass (the metric counts bumps in 16 s), but the less time
 # the receiver has to get under it: 2.6 m keeps nearly every episode going; CTBR, slower to tilt, 1.8 m
 PASS_TOUCH = {"prt": TouchConfig(contact_z=2.6), "ctbr": TouchConfig(contact_z=1.8)}
+# CTBR meets the ball at 1.8 m: its waiting drone is already under its next contact
+PASS_CFG = {"prt": PassConfig(), "ctbr": PassConfig(high_idle_z=1.8)}
 
 
 class BumpAndPassPlayer(_Player):
@@ -56,10 +58,10 @@ class BumpAndPassPlayer(_Player):
 
     task = "bump_and_pass"
 
-    def __init__(self, action_space="prt", params=None, gains=None, cfg: PassConfig = PassConfig(),
+    def __init__(self, action_space="prt", params=None, gains=None, cfg: PassConfig | None = None,
                  touch: TouchConfig | None = None):
         super().__init__(action_space, params, gains or PASS_GAINS, touch or PASS_TOUCH.get(action_space, TouchConfig()))
-        self.cfg = cfg
+        self.cfg = cfg or PASS_CFG.get(action_space, PassConfig())
 
     def opening(self, ball_p, ball_v, turn) -> torch.Tensor:
         """[...] the ball is the opening drop: drone 1's turn, still falling straight down over its
