@@ -215,11 +215,11 @@ class TipConfig(SpikeConfig):
     net_margin: float = 0.3  # m ... until this far past the net (the referee's ball-in-net zone is 0.3 m either side, below 2.43 m)
     tip_y: float = 3.0  # m: the tip lands this close to the court's middle line at most
     drop_accel: float = 7.5  # m/s^2 the attacker drops with into the contact
-    drop_lead: float = 0.08  # s: the drop starts this early (the rotors take that long to let go)
+    drop_lead: float = 0.06  # s: the drop starts this early (the rotors take that long to let go)
     drop_tilt: float = math.radians(8.0)  # tilt at most while dropping
     tip_lock: float = 0.3  # s before the contact the racket is left on its normal
     nav_gain: float = 3.0  # guidance gain on the miss (3: the least-effort law)
-    wait_dz: float = 0.5  # the attacker waits above the attack spot (it drops into the tip)
+    wait_dz: float = 0.7  # the attacker waits above the attack spot (it drops into the tip; from higher it gets there in time to settle)
     net_x: float = 0.2  # m: the attacker turns back where it would be closer to the net than this ...
     net_look: float = 0.25  # s ... this soon
     net_top: float = 2.8  # m: below this height it does so whatever it is doing (a net fault is below 2.43 m)
