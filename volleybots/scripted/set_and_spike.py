@@ -205,7 +205,7 @@ class TipConfig(SpikeConfig):
     # close to the net (the slow tip must clear it), high (the set falls slower there: a slower drop);
     # the sets scatter ~0.5 m (sd) each way, so the spot is back from the net and on the setter's
     # side, where fewer of them come down over the net or past the waiting attacker (Hard 0.69 -> 0.75)
-    attack_spot: tuple[float, float, float] = (0.7, -0.9, 3.9)
+    attack_spot: tuple[float, float, float] = (0.7, -0.9, 4.0)
     min_x: float = 0.4
     max_tilt: float = math.radians(30.0)
     tip_speed: float = 1.9  # m/s toward -x the tip leaves with: under the defence racket's 2 m/s trigger
