@@ -48,7 +48,8 @@ PASS_CFG = {"prt": PassConfig(), "ctbr": PassConfig(high_idle_z=1.8)}
 
 class BumpAndPassPlayer(_Player):
     """Each drone bumps the ball over to its partner's spot when it is its turn, and otherwise waits
-    at its own spot (its anchor moved ``inward`` toward the partner), low.
+    at its own spot (its anchor moved ``inward`` toward the partner), low, or behind a good pass a
+    little below its next contact.
 
     A pass is met high (``TouchConfig.contact_z``): the shorter the ball's fall, the more passes fit
     in an episode. A ball that will come down away from the spot or peaks low is met low instead,
