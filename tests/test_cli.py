@@ -127,6 +127,15 @@ def test_eval_of_random_play(tmp_path):
     assert out["stats"]["episode_len"]["mean"] < 800  # random flight ends early
 
 
+def test_eval_of_the_scripted_pair_on_a_multi_drone_task():
+    # no algo named: the multi-drone task takes the multi-agent default, and a scripted policy needs none
+    res = runner.invoke(app, ["eval", "scripted", "task=bump_and_pass", "episodes=2", "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout)
+    assert out["task"] == "bump_and_pass" and out["config"]["algo"]["name"] == "mappo"
+    assert out["stats"]["hits"]["mean"] >= 5  # the pair keeps passing (about 14 hits in a full episode)
+
+
 def test_train_cfg_prints_the_config_without_training(tmp_path):
     res = _volleybots("train", "--cfg", "job", "task=solo_bump", "env.action_space=ctbr", cwd=tmp_path)
     assert res.returncode == 0, res.stderr[-2000:]

@@ -76,6 +76,15 @@ def test_task_options_reach_the_env():
     assert env.hit_reward == 1.0 and env.episode_len == 123 and env.reward_shaping is False
 
 
+def test_a_multi_drone_task_gets_a_multi_agent_algo_unless_one_is_named():
+    assert load(["task=hover"]).algo.name == "ppo"  # the config's default
+    for task in ("bump_and_pass", "3v3"):
+        cfg = load([f"task={task}"])
+        assert cfg.algo.name == "mappo" and ALGOS[cfg.algo.name].multi_agent
+    with pytest.raises(ConfigError, match="trains one drone"):
+        load(["task=3v3", "algo=ppo"])  # named: still an error, not silently replaced
+
+
 def test_integral_floats_are_accepted_for_counts():
     cfg = load(["total_frames=2e6", "env.num_envs=64.0"])
     assert cfg.total_frames == 2_000_000 and isinstance(cfg.total_frames, int)

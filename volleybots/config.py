@@ -260,7 +260,10 @@ def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = Fals
     _check_overrides(overrides)
     with initialize_config_dir(config_dir=str(conf_dir()), version_base="1.3"):
         try:
-            return algo_action_space(hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node), overrides)
+            cfg = hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node)
+            if _needs_multi_agent_default(cfg, overrides):
+                cfg = hydra_compose("config", overrides=[*overrides, f"algo={MULTI_AGENT_DEFAULT}"], return_hydra_config=hydra_node)
+            return algo_action_space(cfg, overrides)
         except HydraException as e:
             _explain_unknown_key(overrides, hydra_compose)
             raise ConfigError(f"bad override: {_one_line(e)}") from None
@@ -287,6 +290,24 @@ def _explain_unknown_key(overrides: list[str], hydra_compose) -> None:
 
 
 _ABSENT = object()
+
+
+MULTI_AGENT_DEFAULT = "mappo"  # the algorithm a multi-drone task gets when the command line names none
+
+
+def _needs_multi_agent_default(cfg: DictConfig, overrides) -> bool:
+    """The default algorithm (``ppo``) trains one drone: a multi-drone task whose command line names no
+    algo gets ``MULTI_AGENT_DEFAULT`` instead (``eval scripted task=3v3`` needs no algo at all, and
+    ``train task=3v3`` then does what one expects). A named single-drone algo is still an error."""
+    from volleybots.algos import ALGOS
+    from volleybots.algos.base import class_attr
+    from volleybots.tasks import TASKS
+
+    if any(o.split("=", 1)[0].lstrip("+~") == "algo" for o in overrides):
+        return False
+    task_cls = TASKS.get(OmegaConf.select(cfg, "task.name", default=None))
+    algo_cls = ALGOS.get(OmegaConf.select(cfg, "algo.name", default=None))
+    return task_cls is not None and algo_cls is not None and not algo_cls.multi_agent and class_attr(task_cls, "n_drones") > 1
 
 
 def algo_action_space(cfg: DictConfig, overrides) -> DictConfig:
