@@ -42,9 +42,15 @@ class _MatchPlayer(_Player):
     - Everyone else holds at its anchor (at the contact height).
     """
 
-    half_length: float = 0.0  # the task's court
-    team_size: int = 1
-    anchors: tuple[tuple[float, float, float], ...] = ()  # the team's anchors in its own frame (the task's team 0 anchors)
+    task_cls: type = type(None)  # the match task: court, team size and anchors come from it
+
+    def __init_subclass__(cls, **kw):
+        super().__init_subclass__(**kw)
+        t = cls.task_cls
+        cls.task = t.name
+        cls.half_length = COURTS[t.court].length / 2
+        cls.team_size = t.team_size
+        cls.anchors = t.anchors_xyz[: t.team_size]  # the team's anchors in its own frame (the task's team 0 anchors)
     default_cfg = MatchConfig()
     default_touch = TouchConfig(contact_z=2.6, first_contact_z=2.1, early=(1,))
 
@@ -135,10 +141,7 @@ class _MatchPlayer(_Player):
 
 
 class OneVsOnePlayer(_MatchPlayer):
-    task = "1v1"
-    half_length = COURTS["1v1"].length / 2
-    team_size = 1
-    anchors = OneVsOne.anchors_xyz[:1]
+    task_cls = OneVsOne
     # on the small court a shot 30 % deep comes down where the receiver must let it go (too close to
     # the net); deep shots are playable. The serve is met higher: from 2.1 m it goes into the net.
     default_cfg = MatchConfig(depth=0.8)
@@ -146,20 +149,14 @@ class OneVsOnePlayer(_MatchPlayer):
 
 
 class ThreeVsThreePlayer(_MatchPlayer):
-    task = "3v3"
-    half_length = COURTS["3v3"].length / 2
-    team_size = 3
-    anchors = ThreeVsThree.anchors_xyz[:3]
+    task_cls = ThreeVsThree
     # high, soft attacks (apex 5.4 m): they come down steeply onto the receiver waiting at its
     # anchor, so it meets them without running and with a racket tilt it can hold
     default_cfg = MatchConfig(net_clear=3.0)
 
 
 class SixVsSixPlayer(_MatchPlayer):
-    task = "6v6"
-    half_length = COURTS["full"].length / 2
-    team_size = 6
-    anchors = SixVsSix.anchors_xyz[:6]
+    task_cls = SixVsSix
     default_cfg = MatchConfig(net_clear=2.5)  # high attacks, as in 3 vs 3 (from 3.0 m more games end in collisions of teammates)
 
 
