@@ -43,10 +43,10 @@ def test_spikes_go_down_over_the_net():
 
 
 def test_hard_tip_is_never_defended():
-    # measured on these 32 episodes: attacker_hit 0.88, downward 0.66, success_spike 0.59,
-    # success 0.78 (the benchmark's 100 episodes: 0.788); the tip is slower than the defence
-    # racket's trigger, so it never touches the ball
-    floors = {"attacker_hit": 0.8, "downward_spike": 0.58, "success_spike": 0.55, "success_rate": 0.74}
+    # measured on these 32 episodes: attacker_hit 0.94, downward 0.81, success_spike 0.56,
+    # success 0.83 (the benchmark's 100 episodes: 0.798 seed 0, 0.810 seed 1); the tip is slower
+    # than the defence racket's trigger, so it never touches the ball
+    floors = {"attacker_hit": 0.85, "downward_spike": 0.72, "success_spike": 0.5, "success_rate": 0.78}
     st, _, _ = first_episodes("set_and_spike_hard")
     got = {k: st[k].mean().item() for k in floors}
     assert all(got[k] >= v for k, v in floors.items()), got
