@@ -9,10 +9,10 @@ import torch
 from volleybots.scripted.ballistics import crossing, launch_for_apex
 from volleybots.scripted.control import Gains
 from volleybots.scripted.players import (
-    DROP_SPEED,
     TouchConfig,
     _Player,
     apex_height,
+    is_drop,
     with_z,
 )
 from volleybots.scripted.policies import SCRIPTED_POLICIES
@@ -68,7 +68,7 @@ class BumpAndPassPlayer(_Player):
         """[...] the ball is the opening drop: drone 1's turn, still falling straight down over its
         anchor. (A slow pass alone is no drop: ``is_drop`` would take it for one.)"""
         anchor = torch.tensor(FIRST_ANCHOR_XY, dtype=ball_p.dtype, device=ball_p.device)
-        still = ball_v[..., :2].norm(dim=-1) < DROP_SPEED
+        still = is_drop(ball_v)  # ... and not enough: a slow pass is no drop
         over = (ball_p[..., :2] - anchor).norm(dim=-1) < 0.3
         return still & over & (ball_v[..., 2] <= 0.0) & (turn[..., 0] > 0.5)
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import torch
 
@@ -43,6 +43,10 @@ class _MatchPlayer(_Player):
     """
 
     task_cls: type = type(None)  # the match task: court, team size and anchors come from it
+    default_cfg = MatchConfig()
+    # along the early (sideways) axis the drone waits on the contact point and only the lock tilts it:
+    # fed forward the whole approach, the sideways acceleration left the ball on the racket's rim
+    default_touch = TouchConfig(contact_z=2.6, first_contact_z=2.1, early=(1,), early_feed=False)
 
     def __init_subclass__(cls, **kw):
         super().__init_subclass__(**kw)
@@ -51,26 +55,10 @@ class _MatchPlayer(_Player):
         cls.half_length = COURTS[t.court].length / 2
         cls.team_size = t.team_size
         cls.anchors = t.anchors_xyz[: t.team_size]  # the team's anchors in its own frame (the task's team 0 anchors)
-    default_cfg = MatchConfig()
-    default_touch = TouchConfig(contact_z=2.6, first_contact_z=2.1, early=(1,))
 
     def __init__(self, action_space="prt", params=None, gains=None, cfg: MatchConfig | None = None, touch: TouchConfig | None = None):
         super().__init__(action_space, params, gains, touch or self.default_touch)
         self.cfg = cfg or self.default_cfg
-
-    def strike_action(self, drone, strike, home, window, lock_time, hold=None, early=(0, 1)):
-        """As the base, but along the ``early`` axes the contact's velocity and acceleration are not
-        fed forward before the racket locks: held for the whole approach, a tilted racket's
-        sideways acceleration (g tan(tilt)) is balanced by a steady position error of
-        a / (k_v k_p), about 0.2 m for a 14 degree tilt, and the ball came down on the racket's rim
-        or the body. So the drone waits on the contact point and only the lock tilts it."""
-        axes = torch.zeros(3, dtype=torch.bool, device=strike.drone_pos.device)
-        axes[list(early)] = True
-        pre = (strike.t >= lock_time).unsqueeze(-1) & axes
-        vel = torch.where(pre, torch.zeros_like(strike.drone_vel), strike.drone_vel)
-        acc = torch.where(pre, torch.zeros_like(strike.drone_acc), strike.drone_acc)
-        strike = replace(strike, drone_vel=vel, drone_acc=acc)
-        return super().strike_action(drone, strike, home, window, lock_time, hold, early)
 
     def parse(self, drone, t):
         """(anchor, ball position, ball velocity, I may hit, my team's turn, my teammates' positions [..., k, 3])."""
@@ -145,7 +133,7 @@ class OneVsOnePlayer(_MatchPlayer):
     # on the small court a shot 30 % deep comes down where the receiver must let it go (too close to
     # the net); deep shots are playable. The serve is met higher: from 2.1 m it goes into the net.
     default_cfg = MatchConfig(depth=0.8)
-    default_touch = TouchConfig(contact_z=2.6, first_contact_z=2.4, early=(1,))
+    default_touch = TouchConfig(contact_z=2.6, first_contact_z=2.4, early=(1,), early_feed=False)
 
 
 class ThreeVsThreePlayer(_MatchPlayer):

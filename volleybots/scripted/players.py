@@ -55,6 +55,7 @@ class TouchConfig:
     lock: float = 0.25  # s before contact the racket is locked on the planned normal
     first_lock: float = 0.3
     early: tuple[int, ...] = (0,)  # world axes flown straight to the contact point (no racket speed along them)
+    early_feed: bool = True  # ... with the contact's velocity and acceleration fed forward the whole way (False: from the lock on)
     max_tilt: float = math.radians(40.0)
 
 
@@ -86,7 +87,7 @@ class _Player(_BallPolicy):
         strike = self.planner.plan(ball_p, ball_v, self.contact_height(ball_p, ball_v, drop, drone_z), want_out, t.max_tilt)
         window = torch.where(drop, t.first_window, t.window)
         lock = torch.where(drop, t.first_lock, t.lock)
-        hit = self.strike_action(drone, strike, wait, window, lock, early=t.early if early is None else early)
+        hit = self.strike_action(drone, strike, wait, window, lock, early=t.early if early is None else early, early_feed=t.early_feed)
         idle = wait if idle is None else idle
         idle = self.ctrl.act(drone, idle, torch.zeros_like(idle))
         return torch.where(mine.unsqueeze(-1), hit, idle)

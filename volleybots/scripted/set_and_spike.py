@@ -59,8 +59,9 @@ class SpikeConfig:
 
 
 class SetAndSpikePlayer(_Player):
-    """Drone 1 (the setter) sets the dropped ball as high as it can swing to the attack spot; drone 2 (the attacker) flies there and meets the set as it comes
-    down, sending it to the near side of the target barely downward.
+    """Drone 1 (the setter) sets the dropped ball as high as it can swing to the attack spot; drone 2
+    (the attacker) flies there and meets the set as it comes down, sending it to the near side of
+    the target barely downward.
 
     The racket's normal is along the ball's change of velocity, so its tilt is ``atan(horizontal
     change / vertical change)``: the spike needs ~7 m/s toward -x and leaves barely falling, so the
