@@ -8,6 +8,7 @@ import torch
 
 from volleybots.scripted.ballistics import crossing, launch_for_apex
 from volleybots.scripted.control import Gains
+from volleybots.scripted.plan import quintic
 from volleybots.scripted.players import (
     TouchConfig,
     _Player,
@@ -25,10 +26,12 @@ FIRST_ANCHOR_XY = (4.5, -2.5)  # the ball is dropped from rest above drone 1's a
 class PassConfig:
     inward: float = 1.75  # the drones play this much closer to each other than their anchors: less tilt
     apex: float = 4.1  # a bump counts when it crosses the midline above 4 m; passes met high peak 0.07 m higher (+- 0.06)
-    first_apex: float = 4.0  # from rest the drone cannot swing hard enough for more
-    first_to: float = 1.1  # |y| where the receiver waits during the drop
-    first_aim: float = 1.1  # |y| the opening pass is aimed at
-    low_apex: float = 4.0  # a ball peaking below this (the opening pass, mostly: met high, it came back wild) ...
+    first_apex: float = 4.6  # asked of the opening; it peaks ~0.5 m lower (the swing from rest falls short), above 4 m in ~70 %
+    first_to: float = 0.6  # |y| where the receiver waits during the drop
+    first_aim: float = 0.9  # |y| the opening pass is aimed at: just past the midline (less racket tilt)
+    first_slack: float = 0.1  # m the racket's centre may stay on the partner's side of the dropped ball (the racket is 0.2 m wide)
+    fast: float = 2.0  # m/s: a ball crossing faster than this (the opening; passes cross at ~1.4) is met low, as a low one
+    low_apex: float = 4.0  # a ball peaking below this (a weak opening, mostly: met high, it came back wild) ...
     far: float = 0.4  # ... or coming down farther than this from the spot ...
     low_z: float = 1.8  # ... is met with the drone this high: it falls longer, so there is time to get there
     low_pass_apex: float = 4.3  # passes from that low come out about 0.2 m below the apex asked
@@ -44,6 +47,51 @@ PASS_GAINS = Gains(pos_accel_xy=2.5)
 PASS_TOUCH = {"prt": TouchConfig(contact_z=2.6), "ctbr": TouchConfig(contact_z=1.8)}
 # CTBR meets the ball at 1.8 m: its waiting drone is already under its next contact
 PASS_CFG = {"prt": PassConfig(), "ctbr": PassConfig(high_idle_z=1.8)}
+# the opening: drone 1 starts at rest up to 0.7 m off the ball's line and has its 0.6 s fall to get under
+# it, so it flies there with the default 4 m/s^2 (the receivers' 2.5 is too slow) and swings up over
+# 0.4 s, the racket locked on its normal for the last 0.25 s (longer locks, or turns planned more
+# gently, left it turning at the contact; longer swings, more climb or full thrust cost the sideways
+# control: the opening scattered by 0.5 m along x and the receiver missed it)
+OPEN_GAINS = Gains()
+OPEN_TOUCH = TouchConfig(first_window=0.4, first_lock=0.25)
+
+
+class _Opener(_Player):
+    """Drone 1's touch of the dropped ball, swung up from the drone's own height.
+
+    A fixed contact height (a fixed hold point under it) made the swing depend on where the drone
+    starts (1.8 to 2.2 m): one starting high was still sinking to the hold point when the swing began,
+    and the opening peaked 0.5 m lower. Here the contact is wherever the swing takes the drone: the
+    hold point is its current height before the swing, and during it the height the quintic would
+    have started from given where the drone is now; the contact is that plus the swing's rise
+    (``contact_z``, a few fixed-point rounds with the plan's racket speed). Height errors therefore
+    move the contact, not the racket's speed."""
+
+    rounds = 3  # fixed-point rounds of contact height and racket speed
+    z_range = (1.9, 2.6)  # drone centre height the contact is kept within
+
+    def contact_z(self, drone, ball_p, ball_v, want_out):
+        t = self.touch
+        zc = drone.pos[..., 2] + 0.2
+        for _ in range(self.rounds):
+            strike = self.planner.plan(ball_p, ball_v, zc + self.planner.reach, want_out, t.max_tilt)
+            vz, az = strike.drone_vel[..., 2:], strike.drone_acc[..., 2:]
+            rise = vz * t.first_window / 2  # as ``hold_point``: a uniform acceleration from rest
+            zero = torch.zeros_like(rise)
+            window = torch.full_like(strike.t, t.first_window)
+            done, _, _ = quintic(zero, zero, zero, rise, vz, az, window, (window - strike.t).clamp(min=0.0).minimum(window))
+            zc = (drone.pos[..., 2:] - done + rise).squeeze(-1).clamp(*self.z_range)
+        return strike
+
+    def touch_drop(self, drone, ball_p, ball_v, want_out, wait, slack: float) -> torch.Tensor:
+        """The opening's action. A drone starting on the partner's side of the ball must first fly
+        back behind it and arrives late and tilted the wrong way; it may meet the ball up to
+        ``slack`` m behind its racket's centre (only there: the ball must land on the racket)."""
+        t = self.touch
+        strike = self.contact_z(drone, ball_p, ball_v, want_out)
+        ahead = (drone.pos[..., 1:2] - strike.drone_pos[..., 1:2]).clamp(0.0, slack)
+        strike.drone_pos = strike.drone_pos + torch.cat((torch.zeros_like(ahead), ahead, torch.zeros_like(ahead)), -1)
+        return self.strike_action(drone, strike, wait, t.first_window, t.first_lock, early=t.early, early_feed=t.early_feed)
 
 
 class BumpAndPassPlayer(_Player):
@@ -54,8 +102,10 @@ class BumpAndPassPlayer(_Player):
     A pass is met high (``TouchConfig.contact_z``): the shorter the ball's fall, the more passes fit
     in an episode. A ball that will come down away from the spot or peaks low is met low instead,
     which leaves the receiver the time to get under it. The opening pass (of the ball dropped from
-    rest) comes out weaker and less precise than the others: it is aimed short, near the midline,
-    where the receiver waits for it during the drop."""
+    rest, ``_Opener``) is aimed short, just past the midline, where the receiver waits for it during
+    the drop, and asked high: a drone starting behind the ball (away from its partner) swings hard
+    enough for it to count (above 4 m), one starting on its partner's side mostly not. The receiver
+    meets it low (it crosses fast: met high it came back wild)."""
 
     task = "bump_and_pass"
 
@@ -63,6 +113,7 @@ class BumpAndPassPlayer(_Player):
                  touch: TouchConfig | None = None):
         super().__init__(action_space, params, gains or PASS_GAINS, touch or PASS_TOUCH.get(action_space, TouchConfig()))
         self.cfg = cfg or PASS_CFG.get(action_space, PassConfig())
+        self.opener = _Opener(action_space, params, OPEN_GAINS, OPEN_TOUCH)
 
     def opening(self, ball_p, ball_v, turn) -> torch.Tensor:
         """[...] the ball is the opening drop: drone 1's turn, still falling straight down over its
@@ -85,7 +136,7 @@ class BumpAndPassPlayer(_Player):
         # a ball that comes down low or away from the spot is met low; the others high
         ball_apex = apex_height(ball_p, ball_v, g)
         landing, _ = crossing(ball_p, ball_v, tc.contact_z + self.planner.reach, g)
-        low = (ball_apex < c.low_apex) | ((landing[..., :2] - spot_xy).norm(dim=-1) > c.far)
+        low = (ball_apex < c.low_apex) | ((landing[..., :2] - spot_xy).norm(dim=-1) > c.far) | (ball_v[..., 1].abs() > c.fast)
         # behind a good pass the waiting drone stays high: its climb from 1.8 m to the next contact left it
         # still moving at the hold point (its passes peaked 4.25 +- 0.08 m; from 2.1 m, 4.16 +- 0.04, so
         # the asked apex is met and the cycle is 2 steps shorter); behind a bad one it keeps low, clear
@@ -98,9 +149,11 @@ class BumpAndPassPlayer(_Player):
         def want_out(bp, bv):
             return launch_for_apex(bp, partner_xy, apex, land_z, g)
 
+        wait = with_z(spot_xy, drone_z.unsqueeze(-1))
+        opening = self.opener.touch_drop(drone, ball_p, ball_v, want_out, wait, c.first_slack)
         # the opening is told apart by ``opening``, not by the ball's speed alone
-        return self.play(drone, ball_p, ball_v, want_out, my_turn, with_z(spot_xy, drone_z.unsqueeze(-1)),
-                         drop=drop, drone_z=drone_z, idle=with_z(spot_xy, torch.where(good, c.high_idle_z, c.idle_z).unsqueeze(-1)))
+        rest = self.play(drone, ball_p, ball_v, want_out, my_turn, wait, drop=drop, drone_z=drone_z, idle=with_z(spot_xy, torch.where(good, c.high_idle_z, c.idle_z).unsqueeze(-1)))
+        return torch.where((drop & my_turn).unsqueeze(-1), opening, rest)
 
 
 SCRIPTED_POLICIES.update({cls.task: cls for cls in (BumpAndPassPlayer,)})
