@@ -29,7 +29,7 @@ class PassConfig:
     first_apex: float = 4.6  # asked of the opening; it peaks ~0.5 m lower (the swing from rest falls short), above 4 m in ~70 %
     first_to: float = 0.6  # |y| where the receiver waits during the drop
     first_aim: float = 0.9  # |y| the opening pass is aimed at: just past the midline (less racket tilt)
-    first_slack: float = 0.1  # m the racket's centre may stay on the partner's side of the dropped ball (the racket is 0.2 m wide)
+    first_slack: tuple[float, float] = (0.05, 0.1)  # m the racket's centre may be off the dropped ball toward the drone: either way along x, toward the partner along y (racket radius 0.2; 0.08 along x or 0.15 along y gave body hits)
     fast: float = 2.0  # m/s: a ball crossing faster than this (the opening; passes cross at ~1.4) is met low, as a low one
     low_apex: float = 4.0  # a ball peaking below this (a weak opening, mostly: met high, it came back wild) ...
     far: float = 0.4  # ... or coming down farther than this from the spot ...
@@ -83,14 +83,17 @@ class _Opener(_Player):
             zc = (drone.pos[..., 2:] - done + rise).squeeze(-1).clamp(*self.z_range)
         return strike
 
-    def touch_drop(self, drone, ball_p, ball_v, want_out, wait, slack: float) -> torch.Tensor:
-        """The opening's action. A drone starting on the partner's side of the ball must first fly
-        back behind it and arrives late and tilted the wrong way; it may meet the ball up to
-        ``slack`` m behind its racket's centre (only there: the ball must land on the racket)."""
+    def touch_drop(self, drone, ball_p, ball_v, want_out, wait, slack: tuple[float, float]) -> torch.Tensor:
+        """The opening's action. The drone starts up to 0.7 m off the ball's line and has little
+        time to get under it; one starting on its partner's side must first fly back behind it and
+        arrives late and tilted the wrong way. Its racket's centre may stay up to ``slack`` (x, y) m
+        off the ball on the drone's side: along x either way, along y only toward the partner."""
         t = self.touch
         strike = self.contact_z(drone, ball_p, ball_v, want_out)
-        ahead = (drone.pos[..., 1:2] - strike.drone_pos[..., 1:2]).clamp(0.0, slack)
-        strike.drone_pos = strike.drone_pos + torch.cat((torch.zeros_like(ahead), ahead, torch.zeros_like(ahead)), -1)
+        off = drone.pos[..., :2] - strike.drone_pos[..., :2]
+        sx = off[..., :1].clamp(-slack[0], slack[0])
+        sy = off[..., 1:].clamp(0.0, slack[1])
+        strike.drone_pos = strike.drone_pos + torch.cat((sx, sy, torch.zeros_like(sy)), -1)
         return self.strike_action(drone, strike, wait, t.first_window, t.first_lock, early=t.early, early_feed=t.early_feed)
 
 
