@@ -15,6 +15,7 @@ import torch
 
 from volleybots.scripted.ballistics import launch_for_apex, time_to_height
 from volleybots.scripted.control import DroneController, Gains
+from volleybots.scripted.lookahead import Lookahead
 from volleybots.scripted.plan import goto_accel, off_centre
 from volleybots.scripted.players import TouchConfig, _Player, apex_height
 from volleybots.scripted.policies import SCRIPTED_POLICIES
@@ -54,8 +55,21 @@ class SpikeConfig:
     recover_att_accel: float = 35.0  # rad/s^2 the attacker plans its turn out of the throw with (the Iris can do about 35)
     min_x: float = 0.7  # m: the set is met no closer to the net than this (the spike's tilt carries the drone toward it)
     retreat: tuple[float, float, float] = (1.5, 0.0, 1.0)  # where the attacker flies after the spike, from the attack spot: back, and up (over the net's top)
+    net_x: float = 0.2  # m: after its touch the attacker turns hard away where it would be closer to the net than this ...
+    net_look: float = 0.25  # s ... this soon (a drone across the net, x < 0, is a fault at any height)
+    off_net_z: float = 3.0  # m: ... and climbs to this height at least (by the net and below its top is a fault too)
     wait_dz: float = 0.0  # m above the attack spot the attacker waits for the set
     offset: tuple[float, float] = (0.05, -0.1)  # m (x, y) the racket's centre is aimed off the ball: back from the net, and ahead of the attacker, which comes from +y and lags
+    # the lookahead (lookahead.py): the last moments of the throw are chosen among variants tried on the model
+    lookahead: bool = True  # off: the plain throw
+    look_time: float = 0.5  # s before the contact the choosing starts (the turn into the throw and the throw take 0.4 s)
+    look_aim: float = 0.3  # m between the aim variants (a 5 x 5 grid around the aim)
+    look_offset: float = 0.06  # m the racket-centre variants move in its plane
+    look_near: float = 1.0  # m: a ball this close with no plan left (met late) is still chosen on the model
+    look_inside: float = 0.6  # m from the target's centre a spike counts as surely in (the target's radius is 1 m)
+    look_after: int = 15  # control steps flown past the contact (the throw must not carry the drone into the net)
+    look_margin: float = 0.15  # m: the variant's drone must stay this far back from the net
+    net_height: float = 2.43  # m: the ball's centre must pass the net's zone above this
 
 
 class SetAndSpikePlayer(_Player):
@@ -82,6 +96,7 @@ class SetAndSpikePlayer(_Player):
         # ... and, after the spike, turns out of its throw as fast as the airframe can
         self.recover_ctrl = DroneController(self.params, action_space, replace(self.ctrl.gains, max_tilt=cfg.rush_tilt, att_accel=cfg.recover_att_accel))
         self.ctrl = DroneController(self.params, action_space, replace(self.ctrl.gains, att_accel=cfg.set_att_accel))
+        self.lookahead = Lookahead(self.params, action_space)
 
     # ------------------------------------------------------------------ the set
     def set_action(self, drone, ball_p, ball_v, want_out, wait):
@@ -95,10 +110,13 @@ class SetAndSpikePlayer(_Player):
         return self.strike_action(drone, strike, wait, t.first_window, t.first_lock, early=t.early)
 
     # ------------------------------------------------------------------ the spike
-    def spike(self, bp, bv):
-        """Outgoing velocity [..., 3]: down at ``spike_vz``, landing ``short`` of the target."""
+    def spike(self, bp, bv, aim=None):
+        """Outgoing velocity [..., 3]: down at ``spike_vz``, landing ``short`` of the target (moved
+        by ``aim`` [..., 2], a lookahead variant)."""
         c = self.cfg
         target = torch.tensor(c.target, dtype=bp.dtype, device=bp.device)
+        if aim is not None:
+            target = target + aim
         d = target - bp[..., :2]
         dist = d.norm(dim=-1, keepdim=True)
         aim = d * ((dist - c.short) / dist.clamp_min(1e-6))
@@ -125,20 +143,24 @@ class SetAndSpikePlayer(_Player):
         z = torch.where(late, torch.maximum(z, z_x), z)
         return torch.minimum(z, apex_height(ball_p, ball_v, g) - c.apex_margin)
 
-    def spike_action(self, drone, ball_p, ball_v, wait):
+    def spike_action(self, drone, ball_p, ball_v, wait, variant=None):
         """The attacker's touch, a throw: the drone hovers at the point from which a constant
         thrust along the racket's normal carries it into the contact point in ``throw`` seconds,
         then turns to that normal and holds it. A tilted racket cannot be held still (its thrust
         pushes the drone sideways), so the throw makes that push part of the plan. Along the
         normal the thrust is closed-loop: whatever the turn cost, it is the thrust that brings the
-        racket's normal speed to the planned one at the contact."""
+        racket's normal speed to the planned one at the contact. ``variant`` [..., 4] (a
+        lookahead's): the aim moved by its first two values, the racket's offset by the last two."""
         c, g = self.cfg, self.params.gravity
-        s = self.planner.plan(ball_p, ball_v, self.spike_height(ball_p, ball_v), self.spike, c.max_tilt)
+        aim = None if variant is None else variant[..., :2]
+        s = self.planner.plan(ball_p, ball_v, self.spike_height(ball_p, ball_v), lambda bp, bv: self.spike(bp, bv, aim), c.max_tilt)
         n = s.normal
         nz = n[..., 2].clamp_min(0.3)
         # the racket's centre is aimed ``offset`` (in its plane) from the ball
         off = torch.zeros_like(n)
         off[..., :2] = torch.tensor(c.offset, dtype=n.dtype, device=n.device)
+        if variant is not None:
+            off[..., :2] = off[..., :2] + variant[..., 2:4]
         p_c = s.drone_pos + off - (off * n).sum(-1, keepdim=True) * n
         # the throw's constant thrust gives the racket its normal speed from rest
         tau = c.throw
@@ -173,6 +195,27 @@ class SetAndSpikePlayer(_Player):
         f = torch.where((valid & (s.t < tau + c.lead)).unsqueeze(-1), throw_f, f)
         return ctrl.act_thrust(drone, f)
 
+    def after_touch(self, drone):
+        """The attacker once its touch is done: out of the throw as fast as the airframe turns, to
+        the retreat point, or straight back where it is about to reach the net."""
+        c = self.cfg
+        attack = torch.tensor(c.attack_spot, dtype=drone.pos.dtype, device=drone.pos.device)
+        retreat = (attack + torch.tensor(c.retreat, dtype=attack.dtype, device=attack.device)).expand_as(drone.pos)
+        go = torch.where(self.near_net(drone).unsqueeze(-1), self.off_net(drone), retreat)
+        return self.recover_ctrl.act_thrust(drone, self.rush(drone, go))
+
+    def near_net(self, drone):
+        """[...] the drone will soon be closer to the net than ``net_x``."""
+        c = self.cfg
+        return drone.pos[..., 0] + c.net_look * drone.vel[..., 0] < c.net_x
+
+    def off_net(self, drone):
+        # far enough back that the flight there starts with a hard turn away from the net
+        back = drone.pos.clone()
+        back[..., 0] = self.cfg.net_x + 1.5
+        back[..., 2] = back[..., 2].clamp_min(self.cfg.off_net_z)
+        return back
+
     def rush(self, drone, target):
         """Thrust [..., 3] that flies to ``target`` in about minimum time and stops there."""
         c = self.cfg
@@ -192,7 +235,7 @@ class SetAndSpikePlayer(_Player):
         ready = attack + torch.tensor((0.0, 0.0, c.wait_dz), dtype=attack.dtype, device=attack.device)
         wait = torch.where(setter.unsqueeze(-1), anchor, torch.where(done, retreat, ready))
         go = self.rush(drone, wait)
-        idle = torch.where(done, self.recover_ctrl.act_thrust(drone, go), self.attack_ctrl.act_thrust(drone, go))
+        idle = torch.where(done, self.after_touch(drone), self.attack_ctrl.act_thrust(drone, go))
 
         def set_v(bp, bv):
             return launch_for_apex(bp, attack_ball[..., :2], c.set_apex, attack_ball[..., 2], self.params.gravity)
@@ -200,7 +243,49 @@ class SetAndSpikePlayer(_Player):
         setting = (setter & (turn[..., 0] > 0.5)).unsqueeze(-1)
         spiking = (~setter & (turn[..., 1] > 0.5)).unsqueeze(-1)
         out = torch.where(setting, self.set_action(drone, ball_p, ball_v, set_v, wait), idle)
-        return torch.where(spiking, self.spike_action(drone, ball_p, ball_v, wait), out)
+        return torch.where(spiking, self.attack(drone, ball_p, ball_v, wait, spiking.squeeze(-1)), out)
+
+    # ------------------------------------------------------------------ the lookahead
+    def variants(self, ref: torch.Tensor) -> torch.Tensor:
+        """[K, 4] throw variants (aim dx, dy, racket offset dx, dy); the plain throw first."""
+        c = self.cfg
+        steps = torch.tensor((0.0, -1.0, 1.0, -2.0, 2.0), dtype=ref.dtype, device=ref.device)
+        aim = torch.cartesian_prod(steps, steps) * c.look_aim
+        off = torch.tensor(((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1)), dtype=ref.dtype, device=ref.device) * c.look_offset
+        return torch.cat((aim.repeat_interleave(len(off), 0), off.repeat(len(aim), 1)), -1)
+
+    def spike_cost(self, o) -> torch.Tensor:
+        """Lower is better: metres from the target where the spike lands, plus a large cost for
+        every way the touch can fail (no racket touch, not downward, into the net, the drone at the net)."""
+        c, g = self.cfg, self.params.gravity
+        p, v = o.ball_pos, o.ball_vel
+        t = time_to_height(p[..., 2], v[..., 2], c.land_z, g)
+        land = p[..., :2] + v[..., :2] * t.nan_to_num(posinf=10.0).unsqueeze(-1)
+        # anywhere well inside the target will do; among those, the variant that leaves the drone the most room before the net
+        off = (land - torch.tensor(c.target, dtype=p.dtype, device=p.device)).norm(dim=-1)
+        cost = (off - c.look_inside).clamp_min(0.0) - 0.1 * o.min_x.clamp(max=1.0)
+        # where the ball leaves the net's zone (the referee's: 0.3 m either side)
+        t_net = (p[..., 0] + 0.3) / (-v[..., 0]).clamp_min(1e-3)
+        z_net = p[..., 2] + v[..., 2] * t_net - 0.5 * g * t_net**2
+        drone_bad = (o.min_x < c.look_margin) | (o.min_x_low < 0.2 + c.look_margin) | (o.min_z < 0.5)
+        # each failure costs what it costs the success rate: a miss three of its four parts, the others one
+        lost = (v[..., 2] >= 0).float() + ((z_net < c.net_height + 0.05) | drone_bad | (off > 1.0)).float() + 3.0 * (~o.hit | o.body).float()
+        return cost + 10.0 * lost
+
+    def attack(self, drone, ball_p, ball_v, wait, mine):
+        """The attacker's action: the plain throw, or in its last ``look_time`` seconds the best
+        variant of it on the model (``mine`` [...]: the drones that attack now)."""
+        c = self.cfg
+        plain = self.spike_action(drone, ball_p, ball_v, wait)
+        if not c.lookahead:
+            return plain
+        s = self.planner.plan(ball_p, ball_v, self.spike_height(ball_p, ball_v), self.spike, c.max_tilt)
+        # a set met late (below the planned height: no plan left) is still chosen on the model
+        late = ~(s.valid & (s.t > 0)) & ((ball_p - drone.pos).norm(dim=-1) < c.look_near)
+        now = mine & ((s.valid & (s.t > 0) & (s.t < c.look_time)) | late)
+        return self.lookahead.refine(plain, now, s.t, drone, ball_p, ball_v, self.variants(ball_p), self.spike_action,
+                                     self.spike_cost, context=(wait,), after=lambda d, p, v: self.after_touch(d),
+                                     after_steps=c.look_after)
 
 
 @dataclass(frozen=True)
@@ -224,9 +309,9 @@ class TipConfig(SpikeConfig):
     tip_lock: float = 0.3  # s before the contact the racket is left on its normal
     nav_gain: float = 3.0  # guidance gain on the miss (3: the least-effort law)
     wait_dz: float = 0.7  # the attacker waits above the attack spot (it drops into the tip; from higher it gets there in time to settle)
-    net_x: float = 0.2  # m: the attacker turns back where it would be closer to the net than this ...
-    net_look: float = 0.25  # s ... this soon
     net_top: float = 2.8  # m: below this height it does so whatever it is doing (a net fault is below 2.43 m)
+    lookahead: bool = False  # the tip has its own flight (``spike_action``)
+    off_net_z: float = 0.0  # backing off the net, the attacker keeps its height
 
 
 class SetAndSpikeHardPlayer(SetAndSpikePlayer):
@@ -299,17 +384,6 @@ class SetAndSpikeHardPlayer(SetAndSpikePlayer):
         f = torch.where(valid.unsqueeze(-1), f, self.rush(drone, wait))
         # whatever the ball does, the attacker does not follow it across the net
         return ctrl.act_thrust(drone, torch.where(self.near_net(drone).unsqueeze(-1), self.rush(drone, self.off_net(drone)), f))
-
-    def near_net(self, drone):
-        """[...] the drone will soon be closer to the net than ``net_x``."""
-        c = self.cfg
-        return drone.pos[..., 0] + c.net_look * drone.vel[..., 0] < c.net_x
-
-    def off_net(self, drone):
-        # far enough back that the flight there starts with a hard turn away from the net
-        back = drone.pos.clone()
-        back[..., 0] = self.cfg.net_x + 1.5
-        return back
 
     def act(self, drone, t):
         # after the tip the attacker comes down close to the net: it backs off before it is level with the net's top
