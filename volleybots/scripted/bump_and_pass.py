@@ -8,6 +8,7 @@ import torch
 
 from volleybots.scripted.ballistics import crossing, launch_for_apex
 from volleybots.scripted.control import Gains
+from volleybots.scripted.lookahead import Lookahead
 from volleybots.scripted.plan import quintic
 from volleybots.scripted.players import (
     TouchConfig,
@@ -37,6 +38,15 @@ class PassConfig:
     low_pass_apex: float = 4.3  # passes from that low come out about 0.2 m below the apex asked
     idle_z: float = 1.8  # height of the drone waiting for its turn behind a low pass: out of the ball's and the partner's way
     high_idle_z: float = 2.1  # ... behind a good pass (peaking above low_apex, coming down near the partner's spot): close under its next contact
+    # the lookahead (lookahead.py): the opening's last moments are chosen among variants tried on the model
+    lookahead: bool = True  # off: the plain opening
+    look_time: float = 0.7  # s before the contact the choosing starts (the swing's window)
+    look_shift: tuple[tuple[float, ...], tuple[float, ...]] = ((0.0, -0.05, 0.05, -0.1, 0.1), (0.0, -0.05, 0.05, 0.1))  # m (x, y) the racket-centre variants move (a grid)
+    look_aim: float = 0.3  # m between the aim variants (a 3 x 3 grid around the aim)
+    look_apex: tuple[float, ...] = (0.3,)  # m: the other asked apexes tried, above first_apex
+    look_min_apex: float = 4.05  # m: an opening predicted to peak lower than this may not count
+    look_max_apex: float = 4.4  # m: ... one peaking higher takes longer than the episode leaves for 14 bumps
+    look_cross: float = 0.3  # m past the midline the opening must come down at least (it counts once across)
 
 
 # the receiver of a pass flies up to 2 m to the ball and must arrive still: it plans its braking with
@@ -84,17 +94,19 @@ class _Opener(_Player):
             zc = (drone.pos[..., 2:] - done + rise).squeeze(-1).clamp(*self.z_range)
         return strike
 
-    def touch_drop(self, drone, ball_p, ball_v, want_out, wait, slack: tuple[float, float]) -> torch.Tensor:
+    def touch_drop(self, drone, ball_p, ball_v, want_out, wait, slack: tuple[float, float], shift=None) -> torch.Tensor:
         """The opening's action. The drone starts up to 0.7 m off the ball's line and has little
         time to get under it; one starting on its partner's side must first fly back behind it and
         arrives late and tilted the wrong way. Its racket's centre may stay up to ``slack`` (x, y) m
         off the ball on the drone's side: along x either way, along y only toward the partner (+y:
-        the opener is drone 1)."""
+        the opener is drone 1). ``shift`` [..., 2] (a lookahead's variant) moves it further."""
         t = self.touch
         strike = self.contact_z(drone, ball_p, ball_v, want_out)
         off = drone.pos[..., :2] - strike.drone_pos[..., :2]
         sx = off[..., :1].clamp(-slack[0], slack[0])
         sy = off[..., 1:].clamp(0.0, slack[1])
+        if shift is not None:
+            sx, sy = sx + shift[..., :1], sy + shift[..., 1:]
         strike.drone_pos = strike.drone_pos + torch.cat((sx, sy, torch.zeros_like(sy)), -1)
         return self.strike_action(drone, strike, wait, t.first_window, t.first_lock, early=t.early, early_feed=t.early_feed)
 
@@ -119,6 +131,7 @@ class BumpAndPassPlayer(_Player):
         super().__init__(action_space, params, gains or PASS_GAINS, touch or PASS_TOUCH.get(action_space, TouchConfig()))
         self.cfg = cfg or PASS_CFG.get(action_space, PassConfig())
         self.opener = _Opener(action_space, params, OPEN_GAINS, OPEN_TOUCH)
+        self.lookahead = Lookahead(self.params, action_space)
 
     def opening(self, ball_p, ball_v, turn) -> torch.Tensor:
         """[...] the ball is the opening drop: drone 1's turn, still falling straight down over its
@@ -156,10 +169,51 @@ class BumpAndPassPlayer(_Player):
 
         wait = with_z(spot_xy, drone_z.unsqueeze(-1))
         opening = self.opener.touch_drop(drone, ball_p, ball_v, want_out, wait, c.first_slack)
+        if c.lookahead:
+            opening = self.look(opening, drop & my_turn, drone, ball_p, ball_v, want_out, wait, partner_xy, apex, land_z)
         # the opening is told apart by ``opening``, not by the ball's speed alone
         idle = with_z(spot_xy, torch.where(good, c.high_idle_z, c.idle_z).unsqueeze(-1))
         rest = self.play(drone, ball_p, ball_v, want_out, my_turn, wait, drop=drop, drone_z=drone_z, idle=idle)
         return torch.where((drop & my_turn).unsqueeze(-1), opening, rest)
+
+    # ------------------------------------------------------------------ the lookahead
+    def variants(self, ref: torch.Tensor) -> torch.Tensor:
+        """[K, 5] opening variants (racket shift dx, dy, aim dx, dy, apex asked above first_apex); the plain one first."""
+        c = self.cfg
+        kw = dict(dtype=ref.dtype, device=ref.device)
+        steps = torch.tensor((0.0, -1.0, 1.0), **kw)
+        aim = torch.cartesian_prod(steps, steps) * c.look_aim
+        shift = torch.cartesian_prod(torch.tensor(c.look_shift[0], **kw), torch.tensor(c.look_shift[1], **kw))
+        apex = torch.tensor((0.0, *c.look_apex), **kw)
+        grid = torch.cartesian_prod(torch.arange(len(apex)), torch.arange(len(aim)), torch.arange(len(shift))).to(ref.device)
+        return torch.cat((shift[grid[:, 2]], aim[grid[:, 1]], apex[grid[:, 0]].unsqueeze(-1)), -1)
+
+    def opening_cost(self, o) -> torch.Tensor:
+        """Lower is better: how far from the receiver's spot the opening comes down, plus what keeps
+        it from counting (no racket touch, too low, not across the midline)."""
+        c, g = self.cfg, self.params.gravity
+        p, v = o.ball_pos, o.ball_vel
+        top = apex_height(p, v, g)
+        down, _ = crossing(p, v, c.low_z + self.planner.reach, g)  # the receiver meets it low
+        spot = torch.tensor((FIRST_ANCHOR_XY[0], c.first_aim), dtype=p.dtype, device=p.device)
+        off = (down[..., :2] - spot).norm(dim=-1)
+        short = (c.look_min_apex - top).clamp_min(0.0) + (c.look_cross - down[..., 1]).clamp_min(0.0)
+        long = (top - c.look_max_apex).clamp_min(0.0)
+        return off + 20.0 * short + 5.0 * long + 100.0 * (~o.hit | o.body).float()
+
+    def look(self, plain, now, drone, ball_p, ball_v, want_out, wait, partner_xy, apex, land_z):
+        """The opening ``plain``, or in its last ``look_time`` seconds (where ``now``) its best variant on the model."""
+        c, g = self.cfg, self.params.gravity
+        strike = self.opener.contact_z(drone, ball_p, ball_v, want_out)
+        now = now & strike.valid & (strike.t > 0) & (strike.t < c.look_time)
+
+        def fly(d, bp, bv, wait, aim, apex, var):
+            def out(p, v):
+                return launch_for_apex(p, aim + var[..., 2:4], apex[..., 0] + var[..., 4], land_z, g)
+            return self.opener.touch_drop(d, bp, bv, out, wait, c.first_slack, var[..., :2])
+
+        return self.lookahead.refine(plain, now, strike.t, drone, ball_p, ball_v, self.variants(ball_p), fly,
+                                     self.opening_cost, context=(wait, partner_xy, apex.unsqueeze(-1)))
 
 
 SCRIPTED_POLICIES.update({cls.task: cls for cls in (BumpAndPassPlayer,)})
