@@ -63,6 +63,9 @@ class SpikeConfig:
     # the lookahead (lookahead.py): the last moments of the throw are chosen among variants tried on the model
     lookahead: bool = True  # off: the plain throw
     look_time: float = 0.5  # s before the contact the choosing starts (the turn into the throw and the throw take 0.4 s)
+    set_lookahead: bool = True  # the setter chooses its set on the model too (off: the plain set)
+    set_look_time: float = 0.5  # s before the set the setter starts choosing among sets aimed around the attack spot
+    set_look_aim: float = 0.15  # m between those aims (a 5 x 5 grid)
     look_aim: float = 0.3  # m between the aim variants (a 5 x 5 grid around the aim)
     look_offset: float = 0.06  # m the racket-centre variants move in its plane
     look_near: float = 1.0  # m: a ball this close with no plan left (met late) is still chosen on the model
@@ -108,6 +111,40 @@ class SetAndSpikePlayer(_Player):
         strike = self.planner.plan(ball_p, ball_v, self.contact_height(ball_p, ball_v), want_out, t.max_tilt)
         strike = off_centre(strike, drone.pos, self.cfg.set_slack)
         return self.strike_action(drone, strike, wait, t.first_window, t.first_lock, early=t.early)
+
+    def attack_ball(self, ref: torch.Tensor) -> torch.Tensor:
+        """[3] where the set should come down: the ball's centre at the attack spot."""
+        spot = torch.tensor(self.cfg.attack_spot, dtype=ref.dtype, device=ref.device)
+        return spot + torch.tensor((0.0, 0.0, self.planner.reach), dtype=ref.dtype, device=ref.device)
+
+    def set_velocity(self, bp, bv, variant=None):
+        """The set [..., 3]: through ``set_apex`` down onto the attack spot (moved by ``variant`` [..., 2])."""
+        a = self.attack_ball(bp)
+        target = a[:2] if variant is None else a[:2] + variant[..., :2]
+        return launch_for_apex(bp, target, self.cfg.set_apex, a[2], self.params.gravity)
+
+    def set_cost(self, o) -> torch.Tensor:
+        """Metres from the attack spot where the set comes down through the attack height; a miss
+        or a body touch costs far more."""
+        a = self.attack_ball(o.ball_pos)
+        t = time_to_height(o.ball_pos[..., 2], o.ball_vel[..., 2], a[2], self.params.gravity).nan_to_num(posinf=10.0)
+        where = o.ball_pos[..., :2] + o.ball_vel[..., :2] * t.unsqueeze(-1)
+        return (where - a[:2]).norm(dim=-1) + 100.0 * (~o.hit | o.body)
+
+    def setting(self, drone, ball_p, ball_v, wait, mine):
+        """The setter's action: the plain set, or in its last ``set_look_time`` seconds the best of
+        the sets aimed around the attack spot, tried on the model (``mine`` [...]: the setters)."""
+        c = self.cfg
+        plain = self.set_action(drone, ball_p, ball_v, self.set_velocity, wait)
+        if not c.set_lookahead:
+            return plain
+        s = self.planner.plan(ball_p, ball_v, self.contact_height(ball_p, ball_v), self.set_velocity, self.touch.max_tilt)
+        now = mine & s.valid & (s.t > 0) & (s.t < c.set_look_time)
+        steps = torch.tensor((0.0, -1.0, 1.0, -2.0, 2.0), dtype=ball_p.dtype, device=ball_p.device)
+        variants = torch.cartesian_prod(steps, steps) * c.set_look_aim
+        return self.lookahead.refine(plain, now, s.t, drone, ball_p, ball_v, variants,
+                                     lambda d, p, v, w, var: self.set_action(d, p, v, lambda bp, bv: self.set_velocity(bp, bv, var), w),
+                                     self.set_cost, context=(wait,))
 
     # ------------------------------------------------------------------ the spike
     def spike(self, bp, bv, aim=None):
@@ -228,7 +265,6 @@ class SetAndSpikePlayer(_Player):
         turn = t[..., 12:15]
         setter = t[..., 15] > 0.5
         attack = torch.tensor(c.attack_spot, dtype=ball_p.dtype, device=ball_p.device)
-        attack_ball = attack + torch.tensor((0.0, 0.0, self.planner.reach), dtype=attack.dtype, device=attack.device)
         # after the spike the attacker's throw carries it toward the net: it brakes straight away
         done = turn[..., 2:] > 0.5
         retreat = attack + torch.tensor(c.retreat, dtype=attack.dtype, device=attack.device)
@@ -237,12 +273,9 @@ class SetAndSpikePlayer(_Player):
         go = self.rush(drone, wait)
         idle = torch.where(done, self.after_touch(drone), self.attack_ctrl.act_thrust(drone, go))
 
-        def set_v(bp, bv):
-            return launch_for_apex(bp, attack_ball[..., :2], c.set_apex, attack_ball[..., 2], self.params.gravity)
-
         setting = (setter & (turn[..., 0] > 0.5)).unsqueeze(-1)
         spiking = (~setter & (turn[..., 1] > 0.5)).unsqueeze(-1)
-        out = torch.where(setting, self.set_action(drone, ball_p, ball_v, set_v, wait), idle)
+        out = torch.where(setting, self.setting(drone, ball_p, ball_v, wait, setting.squeeze(-1)), idle)
         return torch.where(spiking, self.attack(drone, ball_p, ball_v, wait, spiking.squeeze(-1)), out)
 
     # ------------------------------------------------------------------ the lookahead
@@ -310,7 +343,7 @@ class TipConfig(SpikeConfig):
     nav_gain: float = 3.0  # guidance gain on the miss (3: the least-effort law)
     wait_dz: float = 0.7  # the attacker waits above the attack spot (it drops into the tip; from higher it gets there in time to settle)
     net_top: float = 2.8  # m: below this height it does so whatever it is doing (a net fault is below 2.43 m)
-    lookahead: bool = False  # the tip has its own flight (``spike_action``)
+    lookahead: bool = False  # the tip has its own flight (``spike_action``): no lookahead for the attacker
     off_net_z: float = 0.0  # backing off the net, the attacker keeps its height
 
 
