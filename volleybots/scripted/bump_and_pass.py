@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import torch
@@ -41,9 +42,9 @@ class PassConfig:
     # the lookahead (lookahead.py): the opening's last moments are chosen among variants tried on the model
     lookahead: bool = True  # off: the plain opening
     look_time: float = 0.7  # s before the contact the choosing starts (the swing's window)
-    look_shift: tuple[tuple[float, ...], tuple[float, ...]] = ((0.0, -0.05, 0.05, -0.1, 0.1), (0.0, -0.05, 0.05, 0.1))  # m (x, y) the racket-centre variants move (a grid)
-    look_aim: float = 0.3  # m between the aim variants (a 3 x 3 grid around the aim)
-    look_apex: tuple[float, ...] = (0.3,)  # m: the other asked apexes tried, above first_apex
+    look_shift: tuple[tuple[float, ...], tuple[float, ...]] = ((0.0, -0.05, 0.05, -0.1, 0.1), (0.0, 0.05, 0.1))  # m (x, y) the racket-centre variants move (a grid)
+    look_aim: tuple[tuple[float, ...], tuple[float, ...]] = ((0.0, -0.3, 0.3), (0.0, 0.3))  # m (x, y) the aim variants move (a grid)
+    look_apex: tuple[float, ...] = (0.4,)  # m: the other asked apexes tried, above first_apex
     look_min_apex: float = 4.05  # m: an opening predicted to peak lower than this may not count
     look_max_apex: float = 4.4  # m: ... one peaking higher takes longer than the episode leaves for 14 bumps
     look_cross: float = 0.3  # m past the midline the opening must come down at least (it counts once across)
@@ -64,6 +65,8 @@ PASS_CFG = {"prt": PassConfig(), "ctbr": PassConfig(high_idle_z=1.8)}
 # with 9 rad/s^2 made the opening count more often (81 % against 72 %) but ended more episodes early,
 # and the receivers' gentler braking made no difference worth keeping
 OPEN_GAINS = Gains()
+# ... the lookahead may also fly it with steeper, quicker turns (a drone starting far from the ball's line arrives late)
+FAST_OPEN_GAINS = Gains(max_tilt=math.radians(40.0), att_accel=20.0, k_pos_xy=3.5, k_vel_xy=7.0, pos_accel_xy=6.0)
 OPEN_TOUCH = TouchConfig(first_window=0.4, first_lock=0.25)
 
 
@@ -131,6 +134,7 @@ class BumpAndPassPlayer(_Player):
         super().__init__(action_space, params, gains or PASS_GAINS, touch or PASS_TOUCH.get(action_space, TouchConfig()))
         self.cfg = cfg or PASS_CFG.get(action_space, PassConfig())
         self.opener = _Opener(action_space, params, OPEN_GAINS, OPEN_TOUCH)
+        self.fast_opener = _Opener(action_space, params, FAST_OPEN_GAINS, OPEN_TOUCH)
         self.lookahead = Lookahead(self.params, action_space)
 
     def opening(self, ball_p, ball_v, turn) -> torch.Tensor:
@@ -178,15 +182,15 @@ class BumpAndPassPlayer(_Player):
 
     # ------------------------------------------------------------------ the lookahead
     def variants(self, ref: torch.Tensor) -> torch.Tensor:
-        """[K, 5] opening variants (racket shift dx, dy, aim dx, dy, apex asked above first_apex); the plain one first."""
+        """[K, 6] opening variants (racket shift dx, dy, aim dx, dy, apex asked above first_apex, fast turns or not); the plain one first."""
         c = self.cfg
         kw = dict(dtype=ref.dtype, device=ref.device)
-        steps = torch.tensor((0.0, -1.0, 1.0), **kw)
-        aim = torch.cartesian_prod(steps, steps) * c.look_aim
+        aim = torch.cartesian_prod(torch.tensor(c.look_aim[0], **kw), torch.tensor(c.look_aim[1], **kw))
         shift = torch.cartesian_prod(torch.tensor(c.look_shift[0], **kw), torch.tensor(c.look_shift[1], **kw))
         apex = torch.tensor((0.0, *c.look_apex), **kw)
-        grid = torch.cartesian_prod(torch.arange(len(apex)), torch.arange(len(aim)), torch.arange(len(shift))).to(ref.device)
-        return torch.cat((shift[grid[:, 2]], aim[grid[:, 1]], apex[grid[:, 0]].unsqueeze(-1)), -1)
+        fast = torch.tensor((0.0, 1.0), **kw)
+        grid = torch.cartesian_prod(torch.arange(len(fast)), torch.arange(len(apex)), torch.arange(len(aim)), torch.arange(len(shift))).to(ref.device)
+        return torch.cat((shift[grid[:, 3]], aim[grid[:, 2]], apex[grid[:, 1]].unsqueeze(-1), fast[grid[:, 0]].unsqueeze(-1)), -1)
 
     def opening_cost(self, o) -> torch.Tensor:
         """Lower is better: how far from the receiver's spot the opening comes down, plus what keeps
@@ -199,7 +203,7 @@ class BumpAndPassPlayer(_Player):
         off = (down[..., :2] - spot).norm(dim=-1)
         short = (c.look_min_apex - top).clamp_min(0.0) + (c.look_cross - down[..., 1]).clamp_min(0.0)
         long = (top - c.look_max_apex).clamp_min(0.0)
-        return off + 20.0 * short + 5.0 * long + 100.0 * (~o.hit | o.body).float()
+        return off + 20.0 * short + 5.0 * long + 10.0 * (top < c.look_min_apex).float() + 100.0 * (~o.hit | o.body).float()
 
     def look(self, plain, now, drone, ball_p, ball_v, want_out, wait, partner_xy, apex, land_z):
         """The opening ``plain``, or in its last ``look_time`` seconds (where ``now``) its best variant on the model."""
@@ -210,7 +214,9 @@ class BumpAndPassPlayer(_Player):
         def fly(d, bp, bv, wait, aim, apex, var):
             def out(p, v):
                 return launch_for_apex(p, aim + var[..., 2:4], apex[..., 0] + var[..., 4], land_z, g)
-            return self.opener.touch_drop(d, bp, bv, out, wait, c.first_slack, var[..., :2])
+            plain = self.opener.touch_drop(d, bp, bv, out, wait, c.first_slack, var[..., :2])
+            fast = self.fast_opener.touch_drop(d, bp, bv, out, wait, c.first_slack, var[..., :2])
+            return torch.where(var[..., 5:] > 0.5, fast, plain)
 
         return self.lookahead.refine(plain, now, strike.t, drone, ball_p, ball_v, self.variants(ball_p), fly,
                                      self.opening_cost, context=(wait, partner_xy, apex.unsqueeze(-1)))
