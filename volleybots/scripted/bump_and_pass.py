@@ -48,6 +48,8 @@ class PassConfig:
     look_min_apex: float = 4.05  # m: an opening predicted to peak lower than this may not count
     look_max_apex: float = 4.4  # m: ... one peaking higher takes longer than the episode leaves for 14 bumps
     look_cross: float = 0.3  # m past the midline the opening must come down at least (it counts once across)
+    look_pass_time: float = 0.5  # s before the contact a pass met low (after the opening or a bad pass) is chosen on the model
+    look_pass_shift: tuple[float, ...] = (0.0, -0.1, 0.1)  # m the racket-centre variants of such a pass move along x and y (a grid)
 
 
 # the receiver of a pass flies up to 2 m to the ball and must arrive still: it plans its braking with
@@ -135,6 +137,7 @@ class BumpAndPassPlayer(_Player):
         self.cfg = cfg or PASS_CFG.get(action_space, PassConfig())
         self.opener = _Opener(action_space, params, OPEN_GAINS, OPEN_TOUCH)
         self.fast_opener = _Opener(action_space, params, FAST_OPEN_GAINS, OPEN_TOUCH)
+        self.fast = _Player(action_space, params, FAST_OPEN_GAINS, self.touch)
         self.lookahead = Lookahead(self.params, action_space)
 
     def opening(self, ball_p, ball_v, turn) -> torch.Tensor:
@@ -178,6 +181,8 @@ class BumpAndPassPlayer(_Player):
         # the opening is told apart by ``opening``, not by the ball's speed alone
         idle = with_z(spot_xy, torch.where(good, c.high_idle_z, c.idle_z).unsqueeze(-1))
         rest = self.play(drone, ball_p, ball_v, want_out, my_turn, wait, drop=drop, drone_z=drone_z, idle=idle)
+        if c.lookahead:
+            rest = self.look_pass(rest, my_turn & ~drop & low, drone, ball_p, ball_v, wait, drone_z, partner_xy, apex, land_z)
         return torch.where((drop & my_turn).unsqueeze(-1), opening, rest)
 
     # ------------------------------------------------------------------ the lookahead
@@ -220,6 +225,51 @@ class BumpAndPassPlayer(_Player):
 
         return self.lookahead.refine(plain, now, strike.t, drone, ball_p, ball_v, self.variants(ball_p), fly,
                                      self.opening_cost, context=(wait, partner_xy, apex.unsqueeze(-1)))
+
+
+    def pass_variants(self, ref: torch.Tensor) -> torch.Tensor:
+        """[K, 3] variants of a pass met low (racket shift dx, dy, fast turns or not); the plain one first."""
+        kw = dict(dtype=ref.dtype, device=ref.device)
+        shift = torch.tensor(self.cfg.look_pass_shift, **kw)
+        fast = torch.tensor((0.0, 1.0), **kw)
+        grid = torch.cartesian_prod(fast, shift, shift)
+        return grid[:, [2, 1, 0]]
+
+    def pass_cost(self, o, partner_xy: torch.Tensor, side: torch.Tensor) -> torch.Tensor:
+        """As ``opening_cost`` for a pass to ``partner_xy`` [M, 2], whose side of the midline is ``side`` [M] (+-1)."""
+        c, g = self.cfg, self.params.gravity
+        p, v = o.ball_pos, o.ball_vel
+        top = apex_height(p, v, g)
+        down, _ = crossing(p, v, self.touch.contact_z + self.planner.reach, g)
+        off = (down[..., :2] - partner_xy).norm(dim=-1)
+        short = (c.look_min_apex - top).clamp_min(0.0) + (c.look_cross - side * down[..., 1]).clamp_min(0.0)
+        return off + 20.0 * short + 10.0 * (top < c.look_min_apex).float() + 100.0 * (~o.hit | o.body).float()
+
+    def look_pass(self, plain, now, drone, ball_p, ball_v, wait, drone_z, partner_xy, apex, land_z):
+        """The pass ``plain``, or in its last ``look_pass_time`` seconds (where ``now``) its best
+        variant on the model: a ball met low comes from a bad touch, and its receiver has far to fly."""
+        c, t, g = self.cfg, self.touch, self.params.gravity
+        strike = self.planner.plan(ball_p, ball_v, self.contact_height(ball_p, ball_v, torch.zeros_like(now), drone_z), lambda p, v: v, t.max_tilt)
+        now = now & strike.valid & (strike.t > 0) & (strike.t < c.look_pass_time)
+        if not bool(now.any()):
+            return plain
+        variants = self.pass_variants(ball_p)
+        k = variants.shape[0]
+        idx = now.reshape(-1).nonzero().squeeze(-1)
+        to = partner_xy.reshape(-1, 2)[idx].repeat_interleave(k, 0)
+
+        def fly(d, bp, bv, wait, dz, aim, apex, var):
+            def out(p, v):
+                return launch_for_apex(p, aim, apex[..., 0], land_z, g)
+            s = self.planner.plan(bp, bv, self.contact_height(bp, bv, torch.zeros_like(dz[..., 0], dtype=torch.bool), dz[..., 0]), out, t.max_tilt)
+            s.drone_pos = s.drone_pos + torch.cat((var[..., :2], torch.zeros_like(var[..., :1])), -1)
+            args = (d, s, wait, t.window, t.lock)
+            kw = dict(early=t.early, early_feed=t.early_feed)
+            return torch.where(var[..., 2:] > 0.5, self.fast.strike_action(*args, **kw), self.strike_action(*args, **kw))
+
+        return self.lookahead.refine(plain, now, strike.t, drone, ball_p, ball_v, variants, fly,
+                                     lambda o: self.pass_cost(o, to, torch.sign(to[..., 1])),
+                                     context=(wait, drone_z.unsqueeze(-1), partner_xy, apex.unsqueeze(-1)))
 
 
 SCRIPTED_POLICIES.update({cls.task: cls for cls in (BumpAndPassPlayer,)})
