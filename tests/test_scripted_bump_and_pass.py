@@ -21,9 +21,9 @@ def test_bump_and_pass_pair_opens_with_a_counted_bump_and_stays_airborne():
     done = td["next", "done"].squeeze(-1)
     envs = torch.arange(hits.shape[0])
     end = torch.where(done.any(-1), done.float().argmax(-1), done.shape[-1] - 1)  # of each env's first episode
-    # seed 2: 7 of the 8 drones 1 make the opening touch (a legal racket hit); one, starting 0.48 m
-    # off the ball's line on its partner's side, meets it with its body
-    assert (hits[envs, end] >= 1).float().mean() >= 0.875
+    # seed 2: all 8 drones 1 make the opening touch (a legal racket hit; the lookahead keeps the one
+    # starting 0.48 m off the ball's line on its partner's side from meeting it with its body) ...
+    assert (hits[envs, end] >= 1).all()
     # ... and in 6 the opening counts (above 4 m and across the midline before the partner's touch)
     second = (hits >= 2).float().argmax(-1)
     counted = (second > 0) & (second <= end) & (passes[envs, (second - 1).clamp(min=0)] >= 1)
@@ -38,8 +38,8 @@ def test_bump_and_pass_pair_keeps_passing_for_the_whole_episode():
     first = done.float().argmax(-1)  # the step each env's first episode ends
     envs = torch.arange(done.shape[0])
     bumps = td["next", "stats", "bumps"].squeeze(-1)[envs, first]
-    # seed 2: 14 bumps in six envs, 13 in one (its drone 1 started 0.4 m on its partner's side: the
-    # opening did not count), every episode but the one whose opening failed running the full 16 s
-    assert (first == 799).float().mean() >= 0.875
-    assert bumps.mean() >= 12.0
-    assert (bumps >= 14).sum() >= 6
+    # seed 2: every episode runs the full 16 s; 14 bumps in five envs, 13 in the three others (two
+    # whose opening did not count, one with a pass that did not)
+    assert (first == 799).all()
+    assert bumps.mean() >= 13.5
+    assert (bumps >= 14).sum() >= 5
