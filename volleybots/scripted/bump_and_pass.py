@@ -28,10 +28,10 @@ FIRST_ANCHOR_XY = (4.5, -2.5)  # the ball is dropped from rest above drone 1's a
 class PassConfig:
     inward: float = 1.75  # the drones play this much closer to each other than their anchors: less tilt
     apex: float = 4.1  # a bump counts when it crosses the midline above 4 m; passes met high peak 0.07 m higher (+- 0.06)
-    first_apex: float = 4.6  # asked of the opening; it peaks ~0.5 m lower (the swing from rest falls short), above 4 m in ~72 %
+    first_apex: float = 4.6  # asked of the opening; it peaks ~0.5 m lower (the swing from rest falls short), above 4 m in ~72 % without the lookahead
     first_to: float = 0.6  # |y| where the receiver waits during the drop
     first_aim: float = 0.9  # |y| the opening pass is aimed at: just past the midline (less racket tilt)
-    first_slack: tuple[float, float] = (0.05, 0.1)  # m (x, y) the opener's racket may meet the ball off its centre (radius 0.2): 0.08 or 0.15 gave body hits
+    first_slack: tuple[float, float] = (0.05, 0.1)  # m (x, y) the opener's racket may meet the ball off its centre (radius 0.2): 0.08 or 0.15 gave body hits (the lookahead tries more where the model says it is safe)
     fast: float = 2.0  # m/s: a ball crossing faster than this (the opening; passes cross at ~1.4) is met low, as a low one
     low_apex: float = 4.0  # a ball peaking below this (a weak opening, mostly: met high, it came back wild) ...
     far: float = 0.4  # ... or coming down farther than this from the spot ...
@@ -39,15 +39,16 @@ class PassConfig:
     low_pass_apex: float = 4.3  # passes from that low come out about 0.2 m below the apex asked
     idle_z: float = 1.8  # height of the drone waiting for its turn behind a low pass: out of the ball's and the partner's way
     high_idle_z: float = 2.1  # ... behind a good pass (peaking above low_apex, coming down near the partner's spot): close under its next contact
-    # the lookahead (lookahead.py): the opening's last moments are chosen among variants tried on the model
-    lookahead: bool = True  # off: the plain opening
-    look_time: float = 0.7  # s before the contact the choosing starts (the swing's window)
+    # the lookahead (lookahead.py): the opening, and a pass met low, are chosen among variants tried on the model
+    lookahead: bool = True  # off: the plain touches
+    look_time: float = 0.7  # s before the contact the opening's choosing starts: the whole fall (from 0.4 s, the swing's window, a drone starting far off was already too late)
     look_shift: tuple[tuple[float, ...], tuple[float, ...]] = ((0.0, -0.05, 0.05, -0.1, 0.1), (0.0, 0.05, 0.1))  # m (x, y) the racket-centre variants move (a grid)
     look_aim: tuple[tuple[float, ...], tuple[float, ...]] = ((0.0, -0.3, 0.3), (0.0, 0.3))  # m (x, y) the aim variants move (a grid)
     look_apex: tuple[float, ...] = (0.4,)  # m: the other asked apexes tried, above first_apex
-    look_min_apex: float = 4.05  # m: an opening predicted to peak lower than this may not count
+    look_min_apex: float = 4.05  # m: a touch predicted to peak lower than this may not count
     look_max_apex: float = 4.4  # m: ... one peaking higher takes longer than the episode leaves for 14 bumps
-    look_cross: float = 0.3  # m past the midline the opening must come down at least (it counts once across)
+    look_cross: float = 0.3  # m past the midline a touch must come down at least (it counts once across)
+    look_passes: bool = True  # off: only the opening is chosen on the model
     look_pass_time: float = 0.5  # s before the contact a pass met low (after the opening or a bad pass) is chosen on the model
     look_pass_shift: tuple[float, ...] = (0.0, -0.1, 0.1)  # m the racket-centre variants of such a pass move along x and y (a grid)
 
@@ -58,8 +59,9 @@ PASS_GAINS = Gains(pos_accel_xy=2.5)
 # the higher the ball is met, the shorter a pass (the metric counts bumps in 16 s), but the less time
 # the receiver has to get under it: 2.6 m keeps nearly every episode going; CTBR, slower to tilt, 1.8 m
 PASS_TOUCH = {"prt": TouchConfig(contact_z=2.6), "ctbr": TouchConfig(contact_z=1.8)}
-# CTBR meets the ball at 1.8 m: its waiting drone is already under its next contact
-PASS_CFG = {"prt": PassConfig(), "ctbr": PassConfig(high_idle_z=1.8)}
+# CTBR meets the ball at 1.8 m: its waiting drone is already under its next contact; choosing its
+# passes met low on the model made it worse (8.5 bumps against 10.5 with the opening's lookahead only)
+PASS_CFG = {"prt": PassConfig(), "ctbr": PassConfig(high_idle_z=1.8, look_passes=False)}
 # the opening: drone 1 starts at rest up to 0.7 m off the ball's line and has the ball's 0.6 s fall to
 # get under it and swing: it swings up over 0.4 s, the racket locked on its normal for the last 0.25 s
 # (a 0.3 s lock made 7 % of the drones meet the ball with their body, against 1.5-4 %; a 0.5 s swing
@@ -67,7 +69,8 @@ PASS_CFG = {"prt": PassConfig(), "ctbr": PassConfig(high_idle_z=1.8)}
 # with 9 rad/s^2 made the opening count more often (81 % against 72 %) but ended more episodes early,
 # and the receivers' gentler braking made no difference worth keeping
 OPEN_GAINS = Gains()
-# ... the lookahead may also fly it with steeper, quicker turns (a drone starting far from the ball's line arrives late)
+# ... the lookahead may also fly it (and a pass met low) with steeper, quicker turns: a drone starting
+# far from the ball's line arrives late (with these choices too, the opening counts in 85-89 % of episodes)
 FAST_OPEN_GAINS = Gains(max_tilt=math.radians(40.0), att_accel=20.0, k_pos_xy=3.5, k_vel_xy=7.0, pos_accel_xy=6.0)
 OPEN_TOUCH = TouchConfig(first_window=0.4, first_lock=0.25)
 
@@ -126,8 +129,14 @@ class BumpAndPassPlayer(_Player):
     which leaves the receiver the time to get under it. The opening pass (of the ball dropped from
     rest, ``_Opener``) is aimed short, just past the midline, where the receiver waits for it during
     the drop, and asked high: a drone starting behind the ball (away from its partner) swings hard
-    enough for it to count (above 4 m), one starting more than 0.25 m on its partner's side almost
-    never. The receiver meets it low (it crosses fast: met high it came back wild)."""
+    enough for it to count (above 4 m), one starting more than 0.25 m on its partner's side rarely.
+    The receiver meets it low (it crosses fast: met high it came back wild).
+
+    Over the opening's whole fall the opener flies the best of ~360 variants of its touch (racket
+    shift, aim, asked apex, quicker turns) tried on the world's model (``Lookahead``), and a pass
+    met low (the opening's return, a bad pass's) the best of 18 in its last half second: those
+    touches were what ended episodes early (a drone starting far off the ball's line met it with
+    its body, or sent it where the receiver could not get)."""
 
     task = "bump_and_pass"
 
@@ -181,7 +190,7 @@ class BumpAndPassPlayer(_Player):
         # the opening is told apart by ``opening``, not by the ball's speed alone
         idle = with_z(spot_xy, torch.where(good, c.high_idle_z, c.idle_z).unsqueeze(-1))
         rest = self.play(drone, ball_p, ball_v, want_out, my_turn, wait, drop=drop, drone_z=drone_z, idle=idle)
-        if c.lookahead:
+        if c.lookahead and c.look_passes:
             rest = self.look_pass(rest, my_turn & ~drop & low, drone, ball_p, ball_v, wait, drone_z, partner_xy, apex, land_z)
         return torch.where((drop & my_turn).unsqueeze(-1), opening, rest)
 
@@ -189,7 +198,7 @@ class BumpAndPassPlayer(_Player):
     def variants(self, ref: torch.Tensor) -> torch.Tensor:
         """[K, 6] opening variants (racket shift dx, dy, aim dx, dy, apex asked above first_apex, fast turns or not); the plain one first."""
         c = self.cfg
-        kw = dict(dtype=ref.dtype, device=ref.device)
+        kw = {"dtype": ref.dtype, "device": ref.device}
         aim = torch.cartesian_prod(torch.tensor(c.look_aim[0], **kw), torch.tensor(c.look_aim[1], **kw))
         shift = torch.cartesian_prod(torch.tensor(c.look_shift[0], **kw), torch.tensor(c.look_shift[1], **kw))
         apex = torch.tensor((0.0, *c.look_apex), **kw)
@@ -226,10 +235,9 @@ class BumpAndPassPlayer(_Player):
         return self.lookahead.refine(plain, now, strike.t, drone, ball_p, ball_v, self.variants(ball_p), fly,
                                      self.opening_cost, context=(wait, partner_xy, apex.unsqueeze(-1)))
 
-
     def pass_variants(self, ref: torch.Tensor) -> torch.Tensor:
         """[K, 3] variants of a pass met low (racket shift dx, dy, fast turns or not); the plain one first."""
-        kw = dict(dtype=ref.dtype, device=ref.device)
+        kw = {"dtype": ref.dtype, "device": ref.device}
         shift = torch.tensor(self.cfg.look_pass_shift, **kw)
         fast = torch.tensor((0.0, 1.0), **kw)
         grid = torch.cartesian_prod(fast, shift, shift)
@@ -256,7 +264,7 @@ class BumpAndPassPlayer(_Player):
         variants = self.pass_variants(ball_p)
         k = variants.shape[0]
         idx = now.reshape(-1).nonzero().squeeze(-1)
-        to = partner_xy.reshape(-1, 2)[idx].repeat_interleave(k, 0)
+        to = partner_xy.reshape(-1, 2)[idx].repeat_interleave(k, 0)  # the rollouts' order in ``refine``: drone by drone, K variants each
 
         def fly(d, bp, bv, wait, dz, aim, apex, var):
             def out(p, v):
@@ -264,7 +272,7 @@ class BumpAndPassPlayer(_Player):
             s = self.planner.plan(bp, bv, self.contact_height(bp, bv, torch.zeros_like(dz[..., 0], dtype=torch.bool), dz[..., 0]), out, t.max_tilt)
             s.drone_pos = s.drone_pos + torch.cat((var[..., :2], torch.zeros_like(var[..., :1])), -1)
             args = (d, s, wait, t.window, t.lock)
-            kw = dict(early=t.early, early_feed=t.early_feed)
+            kw = {"early": t.early, "early_feed": t.early_feed}
             return torch.where(var[..., 2:] > 0.5, self.fast.strike_action(*args, **kw), self.strike_action(*args, **kw))
 
         return self.lookahead.refine(plain, now, strike.t, drone, ball_p, ball_v, variants, fly,
