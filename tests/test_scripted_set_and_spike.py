@@ -32,9 +32,9 @@ def test_setter_always_sets_and_stays_home():
 
 
 def test_spikes_go_down_over_the_net():
-    # measured on these 32 episodes: Easy attacker_hit 0.69, downward 0.59, in_target 0.22,
-    # success 0.62 (the benchmark's 100 episodes: 0.735)
-    floors = {"attacker_hit": 0.64, "downward_spike": 0.55, "in_target": 0.15, "success_rate": 0.58}
+    # measured on these 32 episodes: Easy attacker_hit 0.81, downward 0.78, in_target 0.66,
+    # success 0.81 (the benchmark's 100 episodes: 0.873; without the lookaheads 0.62 here)
+    floors = {"attacker_hit": 0.75, "downward_spike": 0.72, "in_target": 0.56, "success_rate": 0.76}
     st, _, _ = first_episodes("set_and_spike_easy")
     got = {k: st[k].mean().item() for k in floors}
     assert all(got[k] >= v for k, v in floors.items()), got
@@ -43,10 +43,10 @@ def test_spikes_go_down_over_the_net():
 
 
 def test_hard_tip_is_never_defended():
-    # measured on these 32 episodes: attacker_hit 0.94, downward 0.81, success_spike 0.56,
-    # success 0.83 (the benchmark's 100 episodes: 0.798 seed 0, 0.810 seed 1); the tip is slower
-    # than the defence racket's trigger, so it never touches the ball
-    floors = {"attacker_hit": 0.85, "downward_spike": 0.72, "success_spike": 0.5, "success_rate": 0.78}
+    # measured on these 32 episodes: attacker_hit 0.94, downward 0.88, success_spike 0.88,
+    # success 0.92 (the benchmark's 100 episodes: 0.822 seed 0); the tip is slower than the
+    # defence racket's trigger, so it never touches the ball
+    floors = {"attacker_hit": 0.87, "downward_spike": 0.8, "success_spike": 0.78, "success_rate": 0.87}
     st, _, _ = first_episodes("set_and_spike_hard")
     got = {k: st[k].mean().item() for k in floors}
     assert all(got[k] >= v for k, v in floors.items()), got
@@ -54,9 +54,9 @@ def test_hard_tip_is_never_defended():
 
 
 def test_ctbr_pair_still_plays():
-    # measured: setter_hit 1.0, attacker_hit 0.25, success 0.34 (as before the throw: CTBR's
-    # slower attitude loop does not fly it as well)
+    # measured: setter_hit 1.0, attacker_hit 0.38, success 0.48 (CTBR's slower attitude loop does
+    # not fly the throw as well; the lookaheads model its rate controller too)
     st, _, _ = first_episodes("set_and_spike_easy", n=16, action_space="ctbr")
     assert st["setter_hit"].mean() >= 0.9
-    assert st["attacker_hit"].mean() >= 0.2
-    assert torch.isfinite(st["success_rate"]).all() and st["success_rate"].mean() >= 0.3
+    assert st["attacker_hit"].mean() >= 0.3
+    assert torch.isfinite(st["success_rate"]).all() and st["success_rate"].mean() >= 0.42
