@@ -37,6 +37,8 @@ class PassConfig:
     far: float = 0.4  # ... or coming down farther than this from the spot ...
     low_z: float = 1.8  # ... is met with the drone this high: it falls longer, so there is time to get there
     low_pass_apex: float = 4.3  # passes from that low come out about 0.2 m below the apex asked
+    cross_y: float = 0.1  # m past the midline a ball is met at least, where it comes down that far across above ...
+    cross_floor: float = 1.0  # ... this drone height
     idle_z: float = 1.8  # height of the drone waiting for its turn behind a low pass: out of the ball's and the partner's way
     high_idle_z: float = 2.1  # ... behind a good pass (peaking above low_apex, coming down near the partner's spot): close under its next contact
     # the lookahead (lookahead.py): the opening, and a pass met low, are chosen among variants tried on the model
@@ -178,7 +180,15 @@ class BumpAndPassPlayer(_Player):
         good = (ball_apex >= c.low_apex) & ((landing[..., :2] - partner_xy).norm(dim=-1) < c.far)
         apex = torch.where(drop, c.first_apex, torch.where(low, c.low_pass_apex, c.apex))
         drone_z = torch.where(drop, tc.first_contact_z, torch.where(low, c.low_z, tc.contact_z))
-        land_z = tc.contact_z + self.planner.reach
+        # a ball that would be met before it is across the midline (a weak opening, mostly) is met
+        # lower, once across: met on the partner's side, neither it nor the return would count
+        sy, reach = side[..., 0], self.planner.reach
+        there, _ = crossing(ball_p, ball_v, drone_z + reach, g)
+        t_x = (c.cross_y - sy * ball_p[..., 1]) / (sy * ball_v[..., 1]).clamp_min(1e-3)
+        z_x = ball_p[..., 2] + ball_v[..., 2] * t_x - 0.5 * g * t_x**2 - reach
+        wait_x = ~drop & (sy * there[..., 1] < c.cross_y) & (sy * ball_v[..., 1] > 0) & (t_x > 0) & (z_x >= c.cross_floor)
+        drone_z = torch.where(wait_x, torch.minimum(drone_z, z_x), drone_z)
+        land_z = tc.contact_z + reach
 
         def want_out(bp, bv):
             return launch_for_apex(bp, partner_xy, apex, land_z, g)
@@ -217,7 +227,9 @@ class BumpAndPassPlayer(_Player):
         off = (down[..., :2] - spot).norm(dim=-1)
         short = (c.look_min_apex - top).clamp_min(0.0) + (c.look_cross - down[..., 1]).clamp_min(0.0)
         long = (top - c.look_max_apex).clamp_min(0.0)
-        return off + 20.0 * short + 5.0 * long + 10.0 * (top < c.look_min_apex).float() + 100.0 * (~o.hit | o.body).float()
+        # one that does not cross costs the return's bump too (met on the opener's side, the return cannot cross)
+        missed = 10.0 * (top < c.look_min_apex).float() + 20.0 * (down[..., 1] < c.look_cross).float()
+        return off + 20.0 * short + 5.0 * long + missed + 100.0 * (~o.hit | o.body).float()
 
     def look(self, plain, now, drone, ball_p, ball_v, want_out, wait, partner_xy, apex, land_z):
         """The opening ``plain``, or in its last ``look_time`` seconds (where ``now``) its best variant on the model."""
