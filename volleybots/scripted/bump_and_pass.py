@@ -132,7 +132,8 @@ class BumpAndPassPlayer(_Player):
     rest, ``_Opener``) is aimed short, just past the midline, where the receiver waits for it during
     the drop, and asked high: a drone starting behind the ball (away from its partner) swings hard
     enough for it to count (above 4 m), one starting more than 0.25 m on its partner's side rarely.
-    The receiver meets it low (it crosses fast: met high it came back wild).
+    The receiver meets it low (it crosses fast: met high it came back wild), and lower still where
+    it would otherwise meet it before it is across the midline (``cross_y``).
 
     Over the opening's whole fall the opener flies the best of ~360 variants of its touch (racket
     shift, aim, asked apex, quicker turns) tried on the world's model (``Lookahead``), and a pass
