@@ -217,7 +217,7 @@ class BumpAndPassPlayer(_Player):
         grid = torch.cartesian_prod(torch.arange(len(fast)), torch.arange(len(apex)), torch.arange(len(aim)), torch.arange(len(shift))).to(ref.device)
         return torch.cat((shift[grid[:, 3]], aim[grid[:, 2]], apex[grid[:, 1]].unsqueeze(-1), fast[grid[:, 0]].unsqueeze(-1)), -1)
 
-    def opening_cost(self, o) -> torch.Tensor:
+    def opening_cost(self, o, *_) -> torch.Tensor:
         """Lower is better: how far from the receiver's spot the opening comes down, plus what keeps
         it from counting (no racket touch, too low, not across the midline)."""
         c, g = self.cfg, self.params.gravity
@@ -272,12 +272,6 @@ class BumpAndPassPlayer(_Player):
         c, t, g = self.cfg, self.touch, self.params.gravity
         strike = self.planner.plan(ball_p, ball_v, self.contact_height(ball_p, ball_v, torch.zeros_like(now), drone_z), lambda p, v: v, t.max_tilt)
         now = now & strike.valid & (strike.t > 0) & (strike.t < c.look_pass_time)
-        if not bool(now.any()):
-            return plain
-        variants = self.pass_variants(ball_p)
-        k = variants.shape[0]
-        idx = now.reshape(-1).nonzero().squeeze(-1)
-        to = partner_xy.reshape(-1, 2)[idx].repeat_interleave(k, 0)  # the rollouts' order in ``refine``: drone by drone, K variants each
 
         def fly(d, bp, bv, wait, dz, aim, apex, var):
             def out(p, v):
@@ -288,8 +282,8 @@ class BumpAndPassPlayer(_Player):
             kw = {"early": t.early, "early_feed": t.early_feed}
             return torch.where(var[..., 2:] > 0.5, self.fast.strike_action(*args, **kw), self.strike_action(*args, **kw))
 
-        return self.lookahead.refine(plain, now, strike.t, drone, ball_p, ball_v, variants, fly,
-                                     lambda o: self.pass_cost(o, to, torch.sign(to[..., 1])),
+        return self.lookahead.refine(plain, now, strike.t, drone, ball_p, ball_v, self.pass_variants(ball_p), fly,
+                                     lambda o, wait, dz, aim, apex: self.pass_cost(o, aim, torch.sign(aim[..., 1])),
                                      context=(wait, drone_z.unsqueeze(-1), partner_xy, apex.unsqueeze(-1)))
 
 

@@ -135,14 +135,15 @@ class Lookahead:
         return out.action[idx], score.gather(-1, best.unsqueeze(-1)).squeeze(-1)
 
     def refine(self, plain: torch.Tensor, now: torch.Tensor, t_go: torch.Tensor, drone: DroneObs, ball_p: torch.Tensor,
-               ball_v: torch.Tensor, variants: torch.Tensor, fly, cost: Callable[[Outcome], torch.Tensor],
+               ball_v: torch.Tensor, variants: torch.Tensor, fly, cost: Callable[..., torch.Tensor],
                context: tuple[torch.Tensor, ...] = (), after: Fly | None = None, after_steps: int = 0,
                margin: int = 3) -> torch.Tensor:
         """``plain`` [..., 4] (a player's actions, any batch shape) with the drones where ``now``
         [...] is set flying their best variant instead (``choose``); the rollouts last ``t_go`` [...]
         seconds (the plan's time to the contact) plus ``margin`` steps. ``fly(drone, ball_p,
         ball_v, *context, variant)``: ``context`` holds per-drone tensors [..., n] the flight needs
-        besides the drone and the ball."""
+        besides the drone and the ball; ``cost(outcome, *context)`` gets them too, one row per
+        rollout."""
         if not bool(now.any()):
             return plain
         idx = now.reshape(-1).nonzero().squeeze(-1)
@@ -155,7 +156,7 @@ class Lookahead:
         d = DroneObs(pick(drone.pos), pick(drone.quat), pick(drone.vel), pick(drone.omega_world), pick(drone.throttle))
         steps = math.ceil(float(t_go.reshape(-1)[idx].clamp_min(0.0).max()) / self.params.dt) + margin
         action, _ = self.choose(d, pick(ball_p), pick(ball_v), variants, lambda dd, p, v, var: fly(dd, p, v, *ctx, var),
-                                cost, steps, after, after_steps)
+                                lambda o: cost(o, *ctx), steps, after, after_steps)
         out = plain.reshape(-1, plain.shape[-1]).clone()
         out[idx] = action
         return out.view_as(plain)

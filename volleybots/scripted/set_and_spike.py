@@ -123,7 +123,7 @@ class SetAndSpikePlayer(_Player):
         target = a[:2] if variant is None else a[:2] + variant[..., :2]
         return launch_for_apex(bp, target, self.cfg.set_apex, a[2], self.params.gravity)
 
-    def set_cost(self, o) -> torch.Tensor:
+    def set_cost(self, o, *_) -> torch.Tensor:
         """Metres from the attack spot where the set comes down through the attack height; a miss
         or a body touch costs far more."""
         a = self.attack_ball(o.ball_pos)
@@ -287,7 +287,7 @@ class SetAndSpikePlayer(_Player):
         off = torch.tensor(((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1)), dtype=ref.dtype, device=ref.device) * c.look_offset
         return torch.cat((aim.repeat_interleave(len(off), 0), off.repeat(len(aim), 1)), -1)
 
-    def spike_cost(self, o) -> torch.Tensor:
+    def spike_cost(self, o, *_) -> torch.Tensor:
         """Lower is better: metres from the target where the spike lands, plus a large cost for
         every way the touch can fail (no racket touch, not downward, into the net, the drone at the net)."""
         c, g = self.cfg, self.params.gravity
