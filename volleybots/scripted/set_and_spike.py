@@ -20,7 +20,14 @@ from volleybots.scripted.plan import goto_accel, off_centre
 from volleybots.scripted.players import TouchConfig, _Player, apex_height
 from volleybots.scripted.policies import SCRIPTED_POLICIES
 
+
 # --------------------------------------------------------------------------- Set and Spike
+def grid_5x5(ref: torch.Tensor) -> torch.Tensor:
+    """[25, 2] unit steps -2..2 in x and y, (0, 0) first (a lookahead's plain touch goes first)."""
+    steps = torch.tensor((0.0, -1.0, 1.0, -2.0, 2.0), dtype=ref.dtype, device=ref.device)
+    return torch.cartesian_prod(steps, steps)
+
+
 # the setter meets the drop a little higher than the default, with a shorter lock: a truer set
 SET_TOUCH = TouchConfig(first_contact_z=2.7, first_window=0.4, first_lock=0.2, early=())
 
@@ -140,9 +147,7 @@ class SetAndSpikePlayer(_Player):
             return plain
         s = self.planner.plan(ball_p, ball_v, self.contact_height(ball_p, ball_v), self.set_velocity, self.touch.max_tilt)
         now = mine & s.valid & (s.t > 0) & (s.t < c.set_look_time)
-        steps = torch.tensor((0.0, -1.0, 1.0, -2.0, 2.0), dtype=ball_p.dtype, device=ball_p.device)
-        variants = torch.cartesian_prod(steps, steps) * c.set_look_aim
-        return self.lookahead.refine(plain, now, s.t, drone, ball_p, ball_v, variants,
+        return self.lookahead.refine(plain, now, s.t, drone, ball_p, ball_v, grid_5x5(ball_p) * c.set_look_aim,
                                      lambda d, p, v, w, var: self.set_action(d, p, v, lambda bp, bv: self.set_velocity(bp, bv, var), w),
                                      self.set_cost, context=(wait,))
 
@@ -265,11 +270,10 @@ class SetAndSpikePlayer(_Player):
         turn = t[..., 12:15]
         setter = t[..., 15] > 0.5
         attack = torch.tensor(c.attack_spot, dtype=ball_p.dtype, device=ball_p.device)
-        # after the spike the attacker's throw carries it toward the net: it brakes straight away
+        # after the spike the attacker's throw carries it toward the net: it brakes straight away (``after_touch``)
         done = turn[..., 2:] > 0.5
-        retreat = attack + torch.tensor(c.retreat, dtype=attack.dtype, device=attack.device)
         ready = attack + torch.tensor((0.0, 0.0, c.wait_dz), dtype=attack.dtype, device=attack.device)
-        wait = torch.where(setter.unsqueeze(-1), anchor, torch.where(done, retreat, ready))
+        wait = torch.where(setter.unsqueeze(-1), anchor, ready)
         go = self.rush(drone, wait)
         idle = torch.where(done, self.after_touch(drone), self.attack_ctrl.act_thrust(drone, go))
 
@@ -282,8 +286,7 @@ class SetAndSpikePlayer(_Player):
     def variants(self, ref: torch.Tensor) -> torch.Tensor:
         """[K, 4] throw variants (aim dx, dy, racket offset dx, dy); the plain throw first."""
         c = self.cfg
-        steps = torch.tensor((0.0, -1.0, 1.0, -2.0, 2.0), dtype=ref.dtype, device=ref.device)
-        aim = torch.cartesian_prod(steps, steps) * c.look_aim
+        aim = grid_5x5(ref) * c.look_aim
         off = torch.tensor(((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1)), dtype=ref.dtype, device=ref.device) * c.look_offset
         return torch.cat((aim.repeat_interleave(len(off), 0), off.repeat(len(aim), 1)), -1)
 
