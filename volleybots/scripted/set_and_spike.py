@@ -36,8 +36,11 @@ SET_TOUCH = TouchConfig(first_contact_z=2.7, first_window=0.4, first_lock=0.2, e
 class SpikeConfig:
     # the set
     set_apex: float = 4.8  # the set's apex (the setter swings from rest in half a second: it cannot set much higher)
-    set_slack: float = 0.05  # m off the racket's centre the setter may meet the drop
+    set_slack: float = 0.1  # m off the racket's centre the setter may meet the drop
     set_att_accel: float = 12.0  # rad/s^2 the setter plans its turns with (the racket's tilt at the contact sets the set's direction)
+    set_glide: bool = True  # sideways the setter glides into the contact (least effort), not stops there (off: the plain strike)
+    set_nav: float = 3.0  # the glide's guidance gain on the miss (3: the least-effort law)
+    set_nav_min: float = 0.15  # s: the glide's time to go is taken as this at least (near the contact the law grows stiff)
     # the spike
     attack_spot: tuple[float, float, float] = (1.2, -1.0, 3.1)  # where the attacker meets the set (drone centre)
     target: tuple[float, float] = (-4.5, 0.0)  # where the spike should land
@@ -72,8 +75,10 @@ class SpikeConfig:
     look_time: float = 0.5  # s before the contact the choosing starts (the turn into the throw and the throw take 0.4 s)
     set_lookahead: bool = True  # the setter chooses its set on the model too (off: the plain set)
     set_look_time: float = 0.5  # s before the set the setter starts choosing among sets aimed around the attack spot
-    set_look_aim: float = 0.15  # m between those aims (a 5 x 5 grid)
+    set_low_cost: float = 2.0  # per metre the set peaks under ``set_apex`` (as against per metre off the spot)
+    set_look_aim: float = 0.5  # m between those aims (a 5 x 5 grid)
     look_aim: float = 0.3  # m between the aim variants (a 5 x 5 grid around the aim)
+    look_vz: tuple[float, ...] = (0.0, -0.6)  # m/s added to the spike's planned vz (the throw sinks: a spike planned steeper comes out downward)
     look_offset: float = 0.06  # m the racket-centre variants move in its plane
     look_near: float = 1.0  # m: a ball this close with no plan left (met late) is still chosen on the model
     look_inside: float = 0.6  # m from the target's centre a spike counts as surely in (the target's radius is 1 m)
@@ -109,15 +114,36 @@ class SetAndSpikePlayer(_Player):
         self.lookahead = Lookahead(self.params, action_space)
 
     # ------------------------------------------------------------------ the set
-    def set_action(self, drone, ball_p, ball_v, want_out, wait):
+    def set_action(self, drone, ball_p, ball_v, want_out, wait, glide=None):
         """The setter's touch of the dropped ball (``_Player.play`` for the drop), met up to
         ``set_slack`` off the racket's centre on the drone's side: the drone starts up to 0.7 m
         off the ball's line, and the less it has to fly sideways, the more level its racket is at
         the contact, so the more accurate the set."""
-        t = self.touch
+        t, c = self.touch, self.cfg
         strike = self.planner.plan(ball_p, ball_v, self.contact_height(ball_p, ball_v), want_out, t.max_tilt)
-        strike = off_centre(strike, drone.pos, self.cfg.set_slack)
-        return self.strike_action(drone, strike, wait, t.first_window, t.first_lock, early=t.early)
+        strike = off_centre(strike, drone.pos, c.set_slack)
+        plain = self.strike_action(drone, strike, wait, t.first_window, t.first_lock, early=t.early)
+        if glide is None:
+            return plain
+        # the racket is frictionless, so the drone may pass through the contact point moving in the
+        # racket's plane; what it must not do is still be braking there (braking tilts it off the
+        # racket's normal, and 1 degree of tilt moves the set ~0.25 m). Sideways it steers by the
+        # least-effort law onto the contact point, ending with the contact's own acceleration;
+        # vertically it follows the timed approach that gives the racket its speed.
+        p, v, a = self.planner.reference(strike, t.first_window)
+        ctrl = self.ctrl
+        up = ctrl.position_accel(drone, p, v, a)[..., 2:]
+        tg = strike.t.unsqueeze(-1)
+        a_end = strike.drone_acc[..., :2]
+        miss = strike.drone_pos[..., :2] - drone.pos[..., :2] - drone.vel[..., :2] * tg - 0.5 * a_end * tg * tg
+        # the steering is over by the lock (from then on the drone coasts on the contact's acceleration)
+        lock = t.first_lock
+        tp = (tg - lock).clamp_min(c.set_nav_min)
+        f = ctrl.thrust_vector(drone, torch.cat((a_end + c.set_nav * miss / (tp * tp + 2.0 * tp * lock), up), -1))
+        n = strike.normal
+        f = torch.where((strike.t < t.first_lock).unsqueeze(-1), f[..., 2:] / n[..., 2:].clamp_min(0.3) * n, f)
+        hold = ctrl.thrust_vector(drone, ctrl.position_accel(drone, wait.expand_as(drone.pos), torch.zeros_like(drone.vel)))
+        return torch.where(glide.unsqueeze(-1), ctrl.act_thrust(drone, torch.where(strike.valid.unsqueeze(-1), f, hold)), plain)
 
     def attack_ball(self, ref: torch.Tensor) -> torch.Tensor:
         """[3] where the set should come down: the ball's centre at the attack spot."""
@@ -136,7 +162,9 @@ class SetAndSpikePlayer(_Player):
         a = self.attack_ball(o.ball_pos)
         t = time_to_height(o.ball_pos[..., 2], o.ball_vel[..., 2], a[2], self.params.gravity).nan_to_num(posinf=10.0)
         where = o.ball_pos[..., :2] + o.ball_vel[..., :2] * t.unsqueeze(-1)
-        return (where - a[:2]).norm(dim=-1) + 100.0 * (~o.hit | o.body)
+        # a set under its apex falls slower at the attacker, and the spike then needs more tilt than it may take
+        low = (self.cfg.set_apex - apex_height(o.ball_pos, o.ball_vel, self.params.gravity)).clamp_min(0.0)
+        return (where - a[:2]).norm(dim=-1) + self.cfg.set_low_cost * low + 100.0 * (~o.hit | o.body)
 
     def setting(self, drone, ball_p, ball_v, wait, mine):
         """The setter's action: the plain set, or in its last ``set_look_time`` seconds the best of
@@ -147,12 +175,16 @@ class SetAndSpikePlayer(_Player):
             return plain
         s = self.planner.plan(ball_p, ball_v, self.contact_height(ball_p, ball_v), self.set_velocity, self.touch.max_tilt)
         now = mine & s.valid & (s.t > 0) & (s.t < c.set_look_time)
-        return self.lookahead.refine(plain, now, s.t, drone, ball_p, ball_v, grid_5x5(ball_p) * c.set_look_aim,
-                                     lambda d, p, v, w, var: self.set_action(d, p, v, lambda bp, bv: self.set_velocity(bp, bv, var), w),
+        aims = grid_5x5(ball_p) * c.set_look_aim
+        variants = torch.cat((aims, torch.zeros_like(aims[:, :1])), -1)
+        if c.set_glide:
+            variants = torch.cat((variants, torch.cat((aims, torch.ones_like(aims[:, :1])), -1)))
+        return self.lookahead.refine(plain, now, s.t, drone, ball_p, ball_v, variants,
+                                     lambda d, p, v, w, var: self.set_action(d, p, v, lambda bp, bv: self.set_velocity(bp, bv, var), w, var[..., 2] > 0.5),
                                      self.set_cost, context=(wait,))
 
     # ------------------------------------------------------------------ the spike
-    def spike(self, bp, bv, aim=None):
+    def spike(self, bp, bv, aim=None, dvz=None):
         """Outgoing velocity [..., 3]: down at ``spike_vz``, landing ``short`` of the target (moved
         by ``aim`` [..., 2], a lookahead variant)."""
         c = self.cfg
@@ -163,6 +195,8 @@ class SetAndSpikePlayer(_Player):
         dist = d.norm(dim=-1, keepdim=True)
         aim = d * ((dist - c.short) / dist.clamp_min(1e-6))
         vz = torch.full_like(bp[..., 2], c.spike_vz)
+        if dvz is not None:
+            vz = vz + dvz
         t = time_to_height(bp[..., 2], vz, c.land_z, self.params.gravity).clamp_min(0.05)
         vh = aim / t.unsqueeze(-1)
         # the racket tilts along the change of velocity: past ``max_tilt`` the spike gives up range,
@@ -195,7 +229,8 @@ class SetAndSpikePlayer(_Player):
         lookahead's): the aim moved by its first two values, the racket's offset by the last two."""
         c, g = self.cfg, self.params.gravity
         aim = None if variant is None else variant[..., :2]
-        s = self.planner.plan(ball_p, ball_v, self.spike_height(ball_p, ball_v), lambda bp, bv: self.spike(bp, bv, aim), c.max_tilt)
+        dvz = None if variant is None else variant[..., 4]
+        s = self.planner.plan(ball_p, ball_v, self.spike_height(ball_p, ball_v), lambda bp, bv: self.spike(bp, bv, aim, dvz), c.max_tilt)
         n = s.normal
         nz = n[..., 2].clamp_min(0.3)
         # the racket's centre is aimed ``offset`` (in its plane) from the ball
@@ -284,11 +319,13 @@ class SetAndSpikePlayer(_Player):
 
     # ------------------------------------------------------------------ the lookahead
     def variants(self, ref: torch.Tensor) -> torch.Tensor:
-        """[K, 4] throw variants (aim dx, dy, racket offset dx, dy); the plain throw first."""
+        """[K, 5] throw variants (aim dx, dy, racket offset dx, dy, spike vz change); the plain throw first."""
         c = self.cfg
         aim = grid_5x5(ref) * c.look_aim
         off = torch.tensor(((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1)), dtype=ref.dtype, device=ref.device) * c.look_offset
-        return torch.cat((aim.repeat_interleave(len(off), 0), off.repeat(len(aim), 1)), -1)
+        vz = torch.tensor(c.look_vz, dtype=ref.dtype, device=ref.device).unsqueeze(-1)
+        both = torch.cat((aim.repeat_interleave(len(off), 0), off.repeat(len(aim), 1)), -1)
+        return torch.cat((both.repeat_interleave(len(vz), 0), vz.repeat(len(both), 1)), -1)
 
     def spike_cost(self, o, *_) -> torch.Tensor:
         """Lower is better: metres from the target where the spike lands, plus a large cost for
