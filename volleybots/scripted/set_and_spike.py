@@ -42,12 +42,12 @@ class SpikeConfig:
     set_nav: float = 3.0  # the glide's guidance gain on the miss (3: the least-effort law)
     set_nav_min: float = 0.15  # s: the glide's time to go is taken as this at least (near the contact the law grows stiff)
     # the spike
-    attack_spot: tuple[float, float, float] = (1.2, -1.0, 3.1)  # where the attacker meets the set (drone centre)
+    attack_spot: tuple[float, float, float] = (1.2, -1.0, 3.3)  # where the attacker meets the set (drone centre)
     target: tuple[float, float] = (-4.5, 0.0)  # where the spike should land
     short: float = 0.5  # m short of the target the spike aims (the near side of the target circle)
     land_z: float = 0.2  # the ball lands when its centre is this low
     spike_vz: float = -0.6  # m/s the spike leaves with downward: barely (the fall time is the range)
-    max_tilt: float = math.radians(55.0)  # racket tilt at most
+    max_tilt: float = math.radians(60.0)  # racket tilt at most
     apex_margin: float = 0.3  # a set peaking below the attack height is met this far under its apex
     throw: float = 0.25  # s of the spike's throw: constant thrust along the racket's normal into the contact
     lead: float = 0.15  # s the turn to the normal starts before the throw (the attitude takes time)
@@ -75,10 +75,12 @@ class SpikeConfig:
     look_time: float = 0.5  # s before the contact the choosing starts (the turn into the throw and the throw take 0.4 s)
     set_lookahead: bool = True  # the setter chooses its set on the model too (off: the plain set)
     set_look_time: float = 0.5  # s before the set the setter starts choosing among sets aimed around the attack spot
+    set_look_dz: tuple[float, ...] = (0.0, -0.25)  # m the set's contact may move down (a setter that starts high has no room to swing up into it)
     set_low_cost: float = 2.0  # per metre the set peaks under ``set_apex`` (as against per metre off the spot)
     set_look_aim: float = 0.5  # m between those aims (a 5 x 5 grid)
     look_aim: float = 0.3  # m between the aim variants (a 5 x 5 grid around the aim)
     look_vz: tuple[float, ...] = (0.0, -0.6)  # m/s added to the spike's planned vz (the throw sinks: a spike planned steeper comes out downward)
+    look_dz: tuple[float, ...] = (0.0, -0.25)  # m the contact may move down (a set that peaks low falls slowly: met lower, it is faster)
     look_offset: float = 0.06  # m the racket-centre variants move in its plane
     look_near: float = 1.0  # m: a ball this close with no plan left (met late) is still chosen on the model
     look_inside: float = 0.6  # m from the target's centre a spike counts as surely in (the target's radius is 1 m)
@@ -114,13 +116,14 @@ class SetAndSpikePlayer(_Player):
         self.lookahead = Lookahead(self.params, action_space)
 
     # ------------------------------------------------------------------ the set
-    def set_action(self, drone, ball_p, ball_v, want_out, wait, glide=None):
+    def set_action(self, drone, ball_p, ball_v, want_out, wait, glide=None, dz=None):
         """The setter's touch of the dropped ball (``_Player.play`` for the drop), met up to
         ``set_slack`` off the racket's centre on the drone's side: the drone starts up to 0.7 m
         off the ball's line, and the less it has to fly sideways, the more level its racket is at
         the contact, so the more accurate the set."""
         t, c = self.touch, self.cfg
-        strike = self.planner.plan(ball_p, ball_v, self.contact_height(ball_p, ball_v), want_out, t.max_tilt)
+        z = self.contact_height(ball_p, ball_v) if dz is None else self.contact_height(ball_p, ball_v) + dz
+        strike = self.planner.plan(ball_p, ball_v, z, want_out, t.max_tilt)
         strike = off_centre(strike, drone.pos, c.set_slack)
         plain = self.strike_action(drone, strike, wait, t.first_window, t.first_lock, early=t.early)
         if glide is None:
@@ -175,12 +178,15 @@ class SetAndSpikePlayer(_Player):
             return plain
         s = self.planner.plan(ball_p, ball_v, self.contact_height(ball_p, ball_v), self.set_velocity, self.touch.max_tilt)
         now = mine & s.valid & (s.t > 0) & (s.t < c.set_look_time)
+        # variants: aim (dx, dy) x flight (plain, glide) x contact height
         aims = grid_5x5(ball_p) * c.set_look_aim
-        variants = torch.cat((aims, torch.zeros_like(aims[:, :1])), -1)
-        if c.set_glide:
-            variants = torch.cat((variants, torch.cat((aims, torch.ones_like(aims[:, :1])), -1)))
+        flights = torch.tensor((0.0, 1.0) if c.set_glide else (0.0,), dtype=aims.dtype, device=aims.device)
+        more = torch.tensor(c.set_look_dz, dtype=aims.dtype, device=aims.device)
+        k = len(flights) * len(more)
+        extra = torch.cartesian_prod(flights, more).view(k, 2)
+        variants = torch.cat((aims.repeat_interleave(k, 0), extra.repeat(len(aims), 1)), -1)
         return self.lookahead.refine(plain, now, s.t, drone, ball_p, ball_v, variants,
-                                     lambda d, p, v, w, var: self.set_action(d, p, v, lambda bp, bv: self.set_velocity(bp, bv, var), w, var[..., 2] > 0.5),
+                                     lambda d, p, v, w, var: self.set_action(d, p, v, lambda bp, bv: self.set_velocity(bp, bv, var), w, var[..., 2] > 0.5, var[..., 3]),
                                      self.set_cost, context=(wait,))
 
     # ------------------------------------------------------------------ the spike
@@ -230,7 +236,8 @@ class SetAndSpikePlayer(_Player):
         c, g = self.cfg, self.params.gravity
         aim = None if variant is None else variant[..., :2]
         dvz = None if variant is None else variant[..., 4]
-        s = self.planner.plan(ball_p, ball_v, self.spike_height(ball_p, ball_v), lambda bp, bv: self.spike(bp, bv, aim, dvz), c.max_tilt)
+        z = self.spike_height(ball_p, ball_v) if variant is None else self.spike_height(ball_p, ball_v) + variant[..., 5]
+        s = self.planner.plan(ball_p, ball_v, z, lambda bp, bv: self.spike(bp, bv, aim, dvz), c.max_tilt)
         n = s.normal
         nz = n[..., 2].clamp_min(0.3)
         # the racket's centre is aimed ``offset`` (in its plane) from the ball
@@ -319,13 +326,13 @@ class SetAndSpikePlayer(_Player):
 
     # ------------------------------------------------------------------ the lookahead
     def variants(self, ref: torch.Tensor) -> torch.Tensor:
-        """[K, 5] throw variants (aim dx, dy, racket offset dx, dy, spike vz change); the plain throw first."""
+        """[K, 6] throw variants (aim dx, dy, racket offset dx, dy, spike vz change, contact height change); the plain throw first."""
         c = self.cfg
         aim = grid_5x5(ref) * c.look_aim
         off = torch.tensor(((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1)), dtype=ref.dtype, device=ref.device) * c.look_offset
-        vz = torch.tensor(c.look_vz, dtype=ref.dtype, device=ref.device).unsqueeze(-1)
+        more = torch.cartesian_prod(*(torch.tensor(x, dtype=ref.dtype, device=ref.device) for x in (c.look_vz, c.look_dz))).view(-1, 2)
         both = torch.cat((aim.repeat_interleave(len(off), 0), off.repeat(len(aim), 1)), -1)
-        return torch.cat((both.repeat_interleave(len(vz), 0), vz.repeat(len(both), 1)), -1)
+        return torch.cat((both.repeat_interleave(len(more), 0), more.repeat(len(both), 1)), -1)
 
     def spike_cost(self, o, *_) -> torch.Tensor:
         """Lower is better: metres from the target where the spike lands, plus a large cost for
