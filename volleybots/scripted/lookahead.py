@@ -106,9 +106,13 @@ class Lookahead:
                 drone_pos = torch.where(new.unsqueeze(-1), s.pos[:, 0], drone_pos)
                 drone_vel = torch.where(new.unsqueeze(-1), s.vel[:, 0], drone_vel)
                 done = hit | body
-            min_x = torch.minimum(min_x, s.pos[:, 0, 0])
-            min_z = torch.minimum(min_z, s.pos[:, 0, 2])
-            min_x_low = torch.minimum(min_x_low, torch.where(s.pos[:, 0, 2] < net_z, s.pos[:, 0, 0], far))
+            # a rollout whose window is over keeps flying (the batch runs on) but no longer counts,
+            # so a variant's outcome does not depend on how long the others take
+            live = since <= after_steps
+            x, z = s.pos[:, 0, 0], s.pos[:, 0, 2]
+            min_x = torch.where(live, torch.minimum(min_x, x), min_x)
+            min_z = torch.where(live, torch.minimum(min_z, z), min_z)
+            min_x_low = torch.where(live, torch.minimum(min_x_low, torch.where(z < net_z, x, far)), min_x_low)
             since = since + done.long()
             if bool((since > after_steps).all()):
                 break
