@@ -1,6 +1,6 @@
 """Scripted players on the multi-drone tasks (not a test: it takes minutes).
 
-    python benchmarks/multi.py [--episodes 100] [--envs 50] [--tasks bump_and_pass,1v1,...] [--device cpu]
+    python benchmarks/multi.py [--episodes 100] [--envs 50] [--tasks bump_and_pass,1v1,...] [--device cpu] [--action-space prt|ctbr]
 
 For each cooperative task it runs the scripted pair for ``--episodes`` finished episodes and reports
 the task metric (mean, std). For 1 vs 1 and 3 vs 3 (6 vs 6 with ``--tasks``) it plays the scripted
@@ -54,8 +54,8 @@ def finished_episodes(env, policy, episodes: int, keys) -> dict[str, torch.Tenso
     return {k: v.reshape(-1)[:episodes] for k, v in got.items()}
 
 
-def coop(task: str, episodes: int, envs: int, device, seed: int) -> str:
-    env = volleybots.make_env(task, num_envs=envs, device=device, seed=seed)
+def coop(task: str, episodes: int, envs: int, device, seed: int, action_space: str = "prt") -> str:
+    env = volleybots.make_env(task, num_envs=envs, device=device, seed=seed, action_space=action_space)
     keys = (env.metric, *env.extra_stats, "r_dist_to_anchor", "episode_len")
     st = finished_episodes(env, make_scripted_policy(env), episodes, keys)
     m = st[env.metric]
@@ -66,14 +66,14 @@ def coop(task: str, episodes: int, envs: int, device, seed: int) -> str:
     return f"| {task} | {env.metric} | {m.mean():.3f} +- {m.std():.3f} | {parts} | {excess:.2f} m |"
 
 
-def match(task: str, episodes: int, envs: int, device, seed: int) -> list[str]:
+def match(task: str, episodes: int, envs: int, device, seed: int, action_space: str = "prt") -> list[str]:
     rows = []
     keys = ("win", "loss", "draw", "reason", "hits_team0", "hits_team1")
     for label, sides in (("scripted vs random", "random"), ("scripted vs itself", "self")):
         res = []
         for scripted_team in ((0, 1) if sides == "random" else (0,)):
             for serve in (0, 1):
-                env = volleybots.make_env(task, num_envs=envs, device=device, seed=seed + serve, serve=serve)
+                env = volleybots.make_env(task, num_envs=envs, device=device, seed=seed + serve, serve=serve, action_space=action_space)
                 player = make_scripted_policy(env)
                 pols = [player, player] if sides == "self" else [random_policy, random_policy]
                 pols[scripted_team] = player
@@ -98,6 +98,7 @@ def main() -> None:
     ap.add_argument("--tasks", default=",".join(COOP + MATCHES))
     ap.add_argument("--device", default="cpu")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--action-space", default="prt", choices=("prt", "ctbr"), help="the players' (and the random teams') action space")
     args = ap.parse_args()
     torch.manual_seed(args.seed)  # the random team draws from the global generator: one seed, one table
     tasks = args.tasks.split(",")
@@ -105,12 +106,12 @@ def main() -> None:
     print("| task | metric | mean +- std | components | beyond the 0.5 m anchor sphere (mean) |\n|---|---|---|---|---|")
     for task in tasks:
         if task in COOP:
-            print(coop(task, args.episodes, args.envs, args.device, args.seed), flush=True)
+            print(coop(task, args.episodes, args.envs, args.device, args.seed, args.action_space), flush=True)
     print("\n| task | games | n | scripted wins / losses / draws | win rate (decisive) | rally >= 3 touches | how games ended |")
     print("|---|---|---|---|---|---|---|")
     for task in tasks:
         if task not in COOP:
-            for row in match(task, args.episodes, args.envs, args.device, args.seed):
+            for row in match(task, args.episodes, args.envs, args.device, args.seed, args.action_space):
                 print(row, flush=True)
     print(f"\n{time.time() - t0:.0f} s on {args.device}")
 

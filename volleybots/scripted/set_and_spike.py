@@ -1,7 +1,8 @@
 """Scripted Set and Spike pair (Easy and Hard): the setter sets, the attacker spikes into the target.
 
-The set is a ``_Player`` strike of the dropped ball, as high as a half-second swing from rest gives
-(apex ~4.8 m). The spike is a "throw" (``SetAndSpikePlayer.spike_action``): it needs ~50 deg of
+The set is a ``_Player`` strike of the dropped ball, or a glide into it (``set_action``), as high as
+a half-second swing from rest gives (apex ~4.8 m); the setter picks among aims, flights and contact
+heights on the world's model (``setting``). The spike is a "throw" (``SetAndSpikePlayer.spike_action``): it needs 50-60 deg of
 racket tilt, which a drone cannot hold still, so the attacker hovers where a constant thrust along
 the racket's normal carries it into the contact point and flies that throw, closed-loop along the
 normal (the racket's speed) and in the racket's plane (where the ball meets it)."""
@@ -38,11 +39,11 @@ class SpikeConfig:
     set_apex: float = 4.8  # the set's apex (the setter swings from rest in half a second: it cannot set much higher)
     set_slack: float = 0.1  # m off the racket's centre the setter may meet the drop
     set_att_accel: float = 12.0  # rad/s^2 the setter plans its turns with (the racket's tilt at the contact sets the set's direction)
-    set_glide: bool = True  # sideways the setter glides into the contact (least effort), not stops there (off: the plain strike)
+    set_glide: bool = True  # the setter's lookahead may also glide sideways into the contact (least effort), not stop there (off: the plain strike only)
     set_nav: float = 3.0  # the glide's guidance gain on the miss (3: the least-effort law)
-    set_nav_min: float = 0.15  # s: the glide's time to go is taken as this at least (near the contact the law grows stiff)
+    set_nav_min: float = 0.15  # s: the glide's steering time (to the lock) is taken as this at least (near its end the law grows stiff)
     # the spike
-    attack_spot: tuple[float, float, float] = (1.2, -1.0, 3.3)  # where the attacker meets the set (drone centre)
+    attack_spot: tuple[float, float, float] = (1.2, -1.0, 3.3)  # where the attacker meets the set (drone centre; above the net's top, so beside the net is no fault)
     target: tuple[float, float] = (-4.5, 0.0)  # where the spike should land
     short: float = 0.5  # m short of the target the spike aims (the near side of the target circle)
     land_z: float = 0.2  # the ball lands when its centre is this low
@@ -120,7 +121,8 @@ class SetAndSpikePlayer(_Player):
         """The setter's touch of the dropped ball (``_Player.play`` for the drop), met up to
         ``set_slack`` off the racket's centre on the drone's side: the drone starts up to 0.7 m
         off the ball's line, and the less it has to fly sideways, the more level its racket is at
-        the contact, so the more accurate the set."""
+        the contact, so the more accurate the set. ``glide`` [...] (a lookahead variant's): glide
+        into the contact instead of the plain strike; ``dz`` [...]: meet the drop that much higher."""
         t, c = self.touch, self.cfg
         z = self.contact_height(ball_p, ball_v) if dz is None else self.contact_height(ball_p, ball_v) + dz
         strike = self.planner.plan(ball_p, ball_v, z, want_out, t.max_tilt)
