@@ -156,7 +156,7 @@ class SetAndSpikePlayer(_Player):
         return spot + torch.tensor((0.0, 0.0, self.planner.reach), dtype=ref.dtype, device=ref.device)
 
     def set_velocity(self, bp, bv, variant=None):
-        """The set [..., 3]: through ``set_apex`` down onto the attack spot (moved by ``variant`` [..., 2])."""
+        """The set [..., 3]: through ``set_apex`` down onto the attack spot, moved by the first two values of ``variant`` (a lookahead's)."""
         a = self.attack_ball(bp)
         target = a[:2] if variant is None else a[:2] + variant[..., :2]
         return launch_for_apex(bp, target, self.cfg.set_apex, a[2], self.params.gravity)
@@ -193,8 +193,8 @@ class SetAndSpikePlayer(_Player):
 
     # ------------------------------------------------------------------ the spike
     def spike(self, bp, bv, aim=None, dvz=None):
-        """Outgoing velocity [..., 3]: down at ``spike_vz``, landing ``short`` of the target (moved
-        by ``aim`` [..., 2], a lookahead variant)."""
+        """Outgoing velocity [..., 3]: down at ``spike_vz`` (plus ``dvz`` [...]), landing ``short`` of
+        the target (moved by ``aim`` [..., 2]); ``aim`` and ``dvz`` come from a lookahead variant."""
         c = self.cfg
         target = torch.tensor(c.target, dtype=bp.dtype, device=bp.device)
         if aim is not None:
@@ -233,8 +233,9 @@ class SetAndSpikePlayer(_Player):
         then turns to that normal and holds it. A tilted racket cannot be held still (its thrust
         pushes the drone sideways), so the throw makes that push part of the plan. Along the
         normal the thrust is closed-loop: whatever the turn cost, it is the thrust that brings the
-        racket's normal speed to the planned one at the contact. ``variant`` [..., 4] (a
-        lookahead's): the aim moved by its first two values, the racket's offset by the last two."""
+        racket's normal speed to the planned one at the contact. ``variant`` [..., 6] (a
+        lookahead's, ``variants``): the aim moved by its values 0-1, the racket's offset by 2-3, the
+        spike's planned vz by 4 and the contact's height by 5."""
         c, g = self.cfg, self.params.gravity
         aim = None if variant is None else variant[..., :2]
         dvz = None if variant is None else variant[..., 4]
