@@ -107,7 +107,7 @@ class _BallPolicy(ScriptedPolicy):
         return drone.pos - task_obs[..., 3:6], task_obs[..., 6:9]
 
     def strike_action(self, drone: DroneObs, strike, home: torch.Tensor, window, lock_time: float, hold=None, early=(0, 1),
-                      early_feed: bool = True) -> torch.Tensor:
+                      early_feed: bool = True, lateral: torch.Tensor | None = None) -> torch.Tensor:
         """Fly the strike along the planned approach (hold, then the quintic into the contact state,
         ``window`` s long), which times the racket's speed. Along the world axes in ``early`` the
         drone goes to the contact point as soon as it can instead (arriving early leaves time to
@@ -117,7 +117,8 @@ class _BallPolicy(ScriptedPolicy):
         steady position error (about 0.2 m for a 14 degree tilt: the ball lands on the rim). In the
         last ``lock_time`` s the thrust, so the racket, points along the planned normal whatever the
         position error: the tilt at contact, not where on the racket the ball lands, decides where
-        the ball goes."""
+        the ball goes. ``lateral`` [..., 2]: a sideways acceleration to fly instead of the
+        approach's (until the lock), e.g. a glide through the contact point."""
         p, v, a = self.planner.reference(strike, window, hold)
         mask = torch.zeros(3, dtype=torch.bool, device=p.device)
         mask[list(early)] = True
@@ -125,7 +126,10 @@ class _BallPolicy(ScriptedPolicy):
         p = torch.where(mask, strike.drone_pos, p)
         v = torch.where(mask, torch.where(feed, strike.drone_vel, 0.0), v)
         a = torch.where(mask, torch.where(feed, strike.drone_acc, 0.0), a)
-        f = self.ctrl.thrust_vector(drone, self.ctrl.position_accel(drone, p, v, a))
+        acc = self.ctrl.position_accel(drone, p, v, a)
+        if lateral is not None:
+            acc = torch.cat((lateral, acc[..., 2:]), -1)
+        f = self.ctrl.thrust_vector(drone, acc)
         n = strike.normal
         locked = f[..., 2:] / n[..., 2:].clamp_min(0.3) * n
         f = torch.where((strike.t < lock_time).unsqueeze(-1), locked, f)

@@ -132,23 +132,17 @@ class SetAndSpikePlayer(_Player):
             return plain
         # the racket is frictionless, so the drone may pass through the contact point moving in the
         # racket's plane; what it must not do is still be braking there (braking tilts it off the
-        # racket's normal, and 1 degree of tilt moves the set ~0.25 m). Sideways it steers by the
-        # least-effort law onto the contact point, ending with the contact's own acceleration;
-        # vertically it follows the timed approach that gives the racket its speed.
-        p, v, a = self.planner.reference(strike, t.first_window)
-        ctrl = self.ctrl
-        up = ctrl.position_accel(drone, p, v, a)[..., 2:]
+        # racket's normal, and 1 degree of tilt moves the set ~0.25 m). Gliding, it steers sideways
+        # by the least-effort law onto the contact point, done by the lock, and ends with the
+        # contact's own acceleration; vertically it keeps the timed approach (the racket's speed).
         tg = strike.t.unsqueeze(-1)
         a_end = strike.drone_acc[..., :2]
         miss = strike.drone_pos[..., :2] - drone.pos[..., :2] - drone.vel[..., :2] * tg - 0.5 * a_end * tg * tg
-        # the steering is over by the lock (from then on the drone coasts on the contact's acceleration)
         lock = t.first_lock
         tp = (tg - lock).clamp_min(c.set_nav_min)
-        f = ctrl.thrust_vector(drone, torch.cat((a_end + c.set_nav * miss / (tp * tp + 2.0 * tp * lock), up), -1))
-        n = strike.normal
-        f = torch.where((strike.t < t.first_lock).unsqueeze(-1), f[..., 2:] / n[..., 2:].clamp_min(0.3) * n, f)
-        hold = ctrl.thrust_vector(drone, ctrl.position_accel(drone, wait.expand_as(drone.pos), torch.zeros_like(drone.vel)))
-        return torch.where(glide.unsqueeze(-1), ctrl.act_thrust(drone, torch.where(strike.valid.unsqueeze(-1), f, hold)), plain)
+        lateral = a_end + c.set_nav * miss / (tp * tp + 2.0 * tp * lock)
+        glider = self.strike_action(drone, strike, wait, t.first_window, lock, early=t.early, lateral=lateral)
+        return torch.where(glide.unsqueeze(-1), glider, plain)
 
     def attack_ball(self, ref: torch.Tensor) -> torch.Tensor:
         """[3] where the set should come down: the ball's centre at the attack spot."""
