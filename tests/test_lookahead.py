@@ -77,3 +77,15 @@ def test_choose_flies_the_cheapest_variant():
     assert torch.allclose(action, first[torch.arange(3), best], atol=1e-5)
     # the plain set (variant 0) is never better than the one chosen, and every set is a racket touch
     assert (cost <= each[:, 0] + 1e-6).all() and (each < 100).all()
+
+
+def test_variant_rows_lists_every_combination_plain_first():
+    from volleybots.scripted.lookahead import variant_rows
+
+    aims = torch.tensor(((0.0, 0.0), (1.0, 0.0), (0.0, -1.0)))
+    table = variant_rows(aims, torch.tensor((0.0, 1.0)), torch.tensor((0.0, -0.25)))
+    assert table.shape == (12, 4)
+    assert torch.equal(table[0], torch.zeros(4))  # every table's plain value first
+    # the first table varies slowest: its row repeats over the 4 combinations of the others
+    assert torch.equal(table[:4, :2], aims[:1].expand(4, 2)) and torch.equal(table[4:8, :2], aims[1:2].expand(4, 2))
+    assert len({tuple(r.tolist()) for r in table}) == 12

@@ -48,6 +48,15 @@ class Outcome:
     action: torch.Tensor  # [M, 4] the first action: what the player does now if it picks this variant
 
 
+def variant_rows(*tables: torch.Tensor) -> torch.Tensor:
+    """Every combination of the tables' rows [K_i, P_i] (a 1-D table is one column), as one variant
+    table [prod K_i, sum P_i]; the first table varies slowest, so the combination of first rows
+    (each table's plain value) comes first."""
+    tables = tuple(t.unsqueeze(-1) if t.dim() == 1 else t for t in tables)
+    idx = torch.cartesian_prod(*(torch.arange(len(t), device=t.device) for t in tables)).view(-1, len(tables))
+    return torch.cat([t[idx[:, i]] for i, t in enumerate(tables)], -1)
+
+
 class Lookahead:
     """Rolls a single drone and the ball forward on the world's model under a scripted flight."""
 

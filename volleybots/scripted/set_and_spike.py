@@ -16,7 +16,7 @@ import torch
 
 from volleybots.scripted.ballistics import launch_for_apex, time_to_height
 from volleybots.scripted.control import DroneController, Gains
-from volleybots.scripted.lookahead import Lookahead
+from volleybots.scripted.lookahead import Lookahead, variant_rows
 from volleybots.scripted.plan import goto_accel, off_centre
 from volleybots.scripted.players import TouchConfig, _Player, apex_height
 from volleybots.scripted.policies import SCRIPTED_POLICIES
@@ -124,7 +124,9 @@ class SetAndSpikePlayer(_Player):
         the contact, so the more accurate the set. ``glide`` [...] (a lookahead variant's): glide
         into the contact instead of the plain strike; ``dz`` [...]: meet the drop that much higher."""
         t, c = self.touch, self.cfg
-        z = self.contact_height(ball_p, ball_v) if dz is None else self.contact_height(ball_p, ball_v) + dz
+        z = self.contact_height(ball_p, ball_v)
+        if dz is not None:
+            z = z + dz
         strike = self.planner.plan(ball_p, ball_v, z, want_out, t.max_tilt)
         strike = off_centre(strike, drone.pos, c.set_slack)
         plain = self.strike_action(drone, strike, wait, t.first_window, t.first_lock, early=t.early)
@@ -175,12 +177,9 @@ class SetAndSpikePlayer(_Player):
         s = self.planner.plan(ball_p, ball_v, self.contact_height(ball_p, ball_v), self.set_velocity, self.touch.max_tilt)
         now = mine & s.valid & (s.t > 0) & (s.t < c.set_look_time)
         # variants: aim (dx, dy) x flight (plain, glide) x contact height
-        aims = grid_5x5(ball_p) * c.set_look_aim
-        flights = torch.tensor((0.0, 1.0) if c.set_glide else (0.0,), dtype=aims.dtype, device=aims.device)
-        more = torch.tensor(c.set_look_dz, dtype=aims.dtype, device=aims.device)
-        k = len(flights) * len(more)
-        extra = torch.cartesian_prod(flights, more).view(k, 2)
-        variants = torch.cat((aims.repeat_interleave(k, 0), extra.repeat(len(aims), 1)), -1)
+        kw = {"dtype": ball_p.dtype, "device": ball_p.device}
+        variants = variant_rows(grid_5x5(ball_p) * c.set_look_aim, torch.tensor((0.0, 1.0) if c.set_glide else (0.0,), **kw),
+                                torch.tensor(c.set_look_dz, **kw))
         return self.lookahead.refine(plain, now, s.t, drone, ball_p, ball_v, variants,
                                      lambda d, p, v, w, var: self.set_action(d, p, v, lambda bp, bv: self.set_velocity(bp, bv, var), w, var[..., 2] > 0.5, var[..., 3]),
                                      self.set_cost, context=(wait,))
@@ -233,7 +232,9 @@ class SetAndSpikePlayer(_Player):
         c, g = self.cfg, self.params.gravity
         aim = None if variant is None else variant[..., :2]
         dvz = None if variant is None else variant[..., 4]
-        z = self.spike_height(ball_p, ball_v) if variant is None else self.spike_height(ball_p, ball_v) + variant[..., 5]
+        z = self.spike_height(ball_p, ball_v)
+        if variant is not None:
+            z = z + variant[..., 5]
         s = self.planner.plan(ball_p, ball_v, z, lambda bp, bv: self.spike(bp, bv, aim, dvz), c.max_tilt)
         n = s.normal
         nz = n[..., 2].clamp_min(0.3)
@@ -327,9 +328,8 @@ class SetAndSpikePlayer(_Player):
         c = self.cfg
         aim = grid_5x5(ref) * c.look_aim
         off = torch.tensor(((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1)), dtype=ref.dtype, device=ref.device) * c.look_offset
-        more = torch.cartesian_prod(*(torch.tensor(x, dtype=ref.dtype, device=ref.device) for x in (c.look_vz, c.look_dz))).view(-1, 2)
-        both = torch.cat((aim.repeat_interleave(len(off), 0), off.repeat(len(aim), 1)), -1)
-        return torch.cat((both.repeat_interleave(len(more), 0), more.repeat(len(both), 1)), -1)
+        kw = {"dtype": ref.dtype, "device": ref.device}
+        return variant_rows(aim, off, torch.tensor(c.look_vz, **kw), torch.tensor(c.look_dz, **kw))
 
     def spike_cost(self, o, *_) -> torch.Tensor:
         """Lower is better: metres from the target where the spike lands, plus a large cost for
