@@ -68,7 +68,7 @@ class SpikeConfig:
     retreat: tuple[float, float, float] = (1.5, 0.0, 1.0)  # where the attacker flies after the spike, from the attack spot: back, and up (over the net's top)
     net_x: float = 0.2  # m: after its touch the attacker turns hard away where it would be closer to the net than this ...
     net_look: float = 0.25  # s ... this soon (a drone across the net, x < 0, is a fault at any height)
-    off_net_z: float = 3.0  # m: ... and climbs to this height at least (by the net and below its top is a fault too)
+    off_net_z: float = 3.5  # m: ... and climbs to this height at least (by the net and below its top is a fault too; 3.0 left it sinking onto the net)
     wait_dz: float = 0.0  # m above the attack spot the attacker waits for the set
     offset: tuple[float, float] = (0.05, -0.1)  # m (x, y) the racket's centre is aimed off the ball: back from the net, and ahead of the attacker, which comes from +y and lags
     # the lookahead (lookahead.py): the last moments of the throw are chosen among variants tried on the model
@@ -78,6 +78,7 @@ class SpikeConfig:
     set_look_time: float = 0.5  # s before the set the setter starts choosing among sets aimed around the attack spot
     set_look_dz: tuple[float, ...] = (0.0, -0.25)  # m the set's contact may move down (a setter that starts high has no room to swing up into it)
     set_low_cost: float = 2.0  # per metre the set peaks under ``set_apex`` (as against per metre off the spot)
+    set_low_near: float = 0.6  # m nearer the net a set should come down per metre it peaks under ``set_apex`` (it falls slowly, so is spiked slower: from nearer the net it still reaches the target)
     set_look_aim: float = 0.5  # m between those aims (a 5 x 5 grid)
     look_aim: float = 0.3  # m between the aim variants (a 5 x 5 grid around the aim)
     look_vz: tuple[float, ...] = (0.0, -0.6)  # m/s added to the spike's planned vz (the throw sinks: a spike planned steeper comes out downward)
@@ -158,14 +159,16 @@ class SetAndSpikePlayer(_Player):
         return launch_for_apex(bp, target, self.cfg.set_apex, a[2], self.params.gravity)
 
     def set_cost(self, o, *_) -> torch.Tensor:
-        """Metres from the attack spot where the set comes down through the attack height; a miss
-        or a body touch costs far more."""
+        """Metres from the attack spot where the set comes down through the attack height (the spot
+        moved toward the net for a set that peaks low, ``set_low_near``); a miss or a body touch
+        costs far more."""
         a = self.attack_ball(o.ball_pos)
         t = time_to_height(o.ball_pos[..., 2], o.ball_vel[..., 2], a[2], self.params.gravity).nan_to_num(posinf=10.0)
         where = o.ball_pos[..., :2] + o.ball_vel[..., :2] * t.unsqueeze(-1)
         # a set under its apex falls slower at the attacker, and the spike then needs more tilt than it may take
         low = (self.cfg.set_apex - apex_height(o.ball_pos, o.ball_vel, self.params.gravity)).clamp_min(0.0)
-        return (where - a[:2]).norm(dim=-1) + self.cfg.set_low_cost * low + 100.0 * (~o.hit | o.body)
+        spot = a[:2] - torch.stack((self.cfg.set_low_near * low, torch.zeros_like(low)), -1)
+        return (where - spot).norm(dim=-1) + self.cfg.set_low_cost * low + 100.0 * (~o.hit | o.body)
 
     def setting(self, drone, ball_p, ball_v, wait, mine):
         """The setter's action: the plain set, or in its last ``set_look_time`` seconds the best of
@@ -373,6 +376,7 @@ class TipConfig(SpikeConfig):
     attack_spot: tuple[float, float, float] = (0.7, -0.9, 4.0)
     min_x: float = 0.4
     max_tilt: float = math.radians(30.0)
+    set_low_near: float = 0.0  # the tip is taken near the net already
     set_att_accel: float = 9.0  # the tip needs a truer set than the spike: gentler turns overshoot less at the contact (Hard 0.78 -> 0.82 over seeds 0-3)
     tip_speed: float = 1.9  # m/s toward -x the tip leaves with: under the defence racket's 2 m/s trigger
     tip_vz: float = -0.6  # m/s down (the spike counts as downward; it must still clear the net)
