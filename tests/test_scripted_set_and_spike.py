@@ -63,3 +63,27 @@ def test_ctbr_pair_still_plays():
     assert st["setter_hit"].mean() >= 0.9
     assert st["attacker_hit"].mean() >= 0.55
     assert torch.isfinite(st["success_rate"]).all() and st["success_rate"].mean() >= 0.55
+
+
+def test_low_set_is_wanted_nearer_the_net():
+    # a set that peaks low falls slowly and is spiked slower, so the setter's cost wants it to come
+    # down nearer the net (``set_low_near`` m per metre under ``set_apex``); a full-height set is
+    # wanted on the attack spot itself
+    from types import SimpleNamespace
+
+    from volleybots.scripted.ballistics import launch_for_apex
+    from volleybots.scripted.set_and_spike import SetAndSpikePlayer
+
+    pol = SetAndSpikePlayer()
+    c = pol.cfg
+    a = pol.attack_ball(torch.zeros(3))
+    start = torch.tensor([2.0, -2.5, 2.9])
+    for apex, near in ((c.set_apex - 0.3, c.set_low_near * 0.3), (c.set_apex, 0.0)):
+        targets = torch.stack((a[:2], a[:2] - torch.tensor([c.set_low_near * 0.3, 0.0])))
+        vel = launch_for_apex(start.expand(2, 3), targets, apex, a[2], pol.params.gravity)
+        o = SimpleNamespace(ball_pos=start.expand(2, 3), ball_vel=vel, hit=torch.ones(2, dtype=torch.bool), body=torch.zeros(2, dtype=torch.bool))
+        cost = pol.set_cost(o)
+        best = int(cost.argmin())
+        assert best == (1 if near > 0 else 0), (apex, cost)
+        # what it costs beyond the landing is the apex's shortfall, at ``set_low_cost`` per metre
+        assert torch.allclose(cost.min(), torch.tensor(c.set_low_cost * (c.set_apex - apex)), atol=1e-4), cost
