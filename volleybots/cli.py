@@ -164,6 +164,11 @@ def train(
 
     jobs = _jobs(overrides, multirun)
     cfgs = [validate(compose(job)) for job in jobs]
+    if show is None:
+        from volleybots.train import check_init
+
+        for c in cfgs:
+            check_init(c)  # init= fits, before Hydra writes the run dir
     if not any(o.split("=", 1)[0].lstrip("+~") == "algo" for o in overrides):
         # the task's own default (MAPPO for cooperative tasks, SP for matches) when no algo is named
         algos = sorted({c.algo.name for c in cfgs})

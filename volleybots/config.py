@@ -77,6 +77,7 @@ class Config:
     total_frames: int = 1_000_000
     time_limit: float = 0.0
     resume: Optional[str] = None
+    init: Optional[str] = None
     opponent: Optional[str] = None
     opponent_deterministic: bool = False
     progress: bool = True

@@ -14,7 +14,9 @@ def start(cfg, run_dir) -> dict:
     """Start a new run of the validated config ``cfg`` in ``run_dir``."""
     if is_population(cfg):
         from volleybots.population.loop import start as start_population
+        from volleybots.train import check_init
 
+        check_init(cfg)
         return start_population(cfg, run_dir)
     from volleybots.train import train
 

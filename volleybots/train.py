@@ -16,6 +16,9 @@ actor for both teams and a critic over all drones, whose ``win`` is team 0's and
 views) a separate slice of the batch it learns from. ``Versus``: the learner plays team 0 against a
 frozen competitor on team 1 (a checkpoint, a population's mixture drawn per episode, scripted or
 random) and learns from its own team only; ``win`` is then the learner's.
+
+``init=RUN_OR_CHECKPOINT`` starts a new run from another run's networks (``apply_init``): the actor,
+and the critic where it fits, with a fresh optimiser; a resumed run restores its own checkpoint instead.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ import torch
 
 import volleybots
 from volleybots.algos.base import AgentSpec
-from volleybots.config import ConfigError, apply_overrides, make_env, to_dict
+from volleybots.config import ConfigError, apply_overrides, make_env, to_dict, validate
 from volleybots.eval import run_episodes, summarize
 from volleybots.runs import CKPT_FORMAT, MetricsLog, RunDir, WandbLogger, load_algo_state, read_checkpoint, write_curves
 
@@ -149,6 +152,112 @@ def default_seat(cfg):
     return Versus(resolve_competitor(cfg.opponent), cfg.opponent_deterministic, cfg.seed)
 
 
+# ------------------------------------------------------------------------------------------ init=
+def init_checkpoint(spec: str) -> Path:
+    """The checkpoint ``init=`` names: a checkpoint file, or a run dir's final (else latest) one."""
+    from volleybots.runs import RunDir
+
+    path = Path(spec)
+    if path.is_file():
+        return path
+    run = RunDir(path)
+    if not run.is_run():
+        raise ConfigError(f"init={spec!r} is neither a run directory (with config.yaml) nor a checkpoint file")
+    ckpt = run.final_path if run.final_path.is_file() else run.latest_checkpoint()
+    if ckpt is None:
+        raise ConfigError(f"init={spec!r} has no checkpoint yet (checkpoints/ is empty)")
+    return ckpt
+
+
+def _side(algo: str, task: str, n_drones: int, action_space: str, obs_dim: int) -> str:
+    return f"algo {algo}, task {task}, {n_drones} drone(s), env.action_space={action_space}, observation {obs_dim}"
+
+
+def _shapes(module) -> dict[str, tuple]:
+    return {k: tuple(v.shape) for k, v in module.state_dict().items()}
+
+
+def _first_difference(there: dict, here: dict) -> str | None:
+    """The first parameter whose name or shape differs between two parts (None: they fit)."""
+    only_there, only_here = sorted(there.keys() - here.keys()), sorted(here.keys() - there.keys())
+    if only_there and only_here:
+        return f"other networks: {only_there[0]!r} only there, {only_here[0]!r} only here"
+    for k in sorted(there.keys() | here.keys()):
+        if there.get(k) != here.get(k):
+            return f"{k} is {list(there[k]) if k in there else 'absent'} there, {list(here[k]) if k in here else 'absent'} here"
+    return None
+
+
+def apply_init(algo, cfg, spec: AgentSpec) -> dict:
+    """Load ``cfg.init``'s actor, and its critic where it fits, into ``algo`` (built for ``spec``); the
+    optimiser, counters and random streams stay the new run's. Raises ``ConfigError`` naming both
+    sides when the task, drone count, action space, observation or the actor's shapes differ.
+    Returns what was loaded (for summary.json)."""
+    from volleybots.algos import ALGOS
+    from volleybots.algos.base import class_attr
+    from volleybots.runs import load_algo_state, read_checkpoint
+    from volleybots.tasks import TASKS
+
+    path = init_checkpoint(cfg.init)
+    state = read_checkpoint(path, device=algo.device)
+    if "algo" not in state:
+        raise ConfigError(f"init={cfg.init!r} is a built-in player ({state.get('builtin')}), not a trained policy")
+    src = validate(state["config"])
+    here_drones = class_attr(TASKS[cfg.task.name], "n_drones")
+    there_drones = class_attr(TASKS[src.task.name], "n_drones")
+    here = _side(cfg.algo.name, cfg.task.name, here_drones, cfg.env.action_space, spec.obs_dim)
+    there = _side(src.algo.name, src.task.name, there_drones, src.env.action_space, int(state["obs_dim"]))
+    what = f"init={cfg.init!r} ({there}) does not fit this run ({here})"
+    for name, a, b in (("task", src.task.name, cfg.task.name), ("drone count", there_drones, here_drones),
+                       ("action space", src.env.action_space, cfg.env.action_space), ("observation size", int(state["obs_dim"]), spec.obs_dim)):
+        if a != b:
+            raise ConfigError(f"{what}: the {name} differs")
+    src_cls = ALGOS[src.algo.name]
+    src_cls = getattr(src_cls, "learner_cls", src_cls)  # a population method's learner
+    # the source's random initial weights are overwritten at once: they must not move this run's stream
+    with torch.random.fork_rng(devices=[]):
+        source = src_cls(src.algo, AgentSpec(spec.device, int(state["n_agents"]), int(state["obs_dim"]), spec.actions), seed=src.seed)
+    load_algo_state(source, state, f"init={cfg.init!r}", src)
+    parts, src_parts = algo.init_parts(), source.init_parts()
+    if "actor" not in parts:
+        raise ConfigError(f"algo {cfg.algo.name!r} cannot start from another run (init=)")
+    loaded, skipped = [], []
+    for role, module in parts.items():
+        diff = _first_difference(_shapes(src_parts[role]), _shapes(module)) if role in src_parts else f"algo {src.algo.name} has no {role}"
+        if diff is None:
+            module.load_state_dict(src_parts[role].state_dict())
+            loaded.append(role)
+        elif role == "actor":
+            raise ConfigError(f"{what}: the actor's networks differ ({diff})")
+        else:
+            skipped.append(f"{role} ({diff})")
+    algo.after_init()
+    from volleybots.competitors import sha256
+
+    return {"source": str(path), "sha256": sha256(path), "algo": src.algo.name, "frames": int(state["frames"]), "loaded": loaded, "skipped": skipped}
+
+
+def learner_spec(cfg, env) -> AgentSpec:
+    """What the learner of ``cfg`` is built for (a population method's learner plays one team)."""
+    from volleybots.algos import ALGOS
+
+    return SelfPlay().spec(env) if getattr(ALGOS[cfg.algo.name], "population", False) else default_seat(cfg).spec(env)
+
+
+def check_init(cfg) -> None:
+    """Raise ``ConfigError`` now, before any run dir is written, when ``cfg.init`` does not fit."""
+    if cfg.get("init") is None:
+        return
+    from volleybots.algos import ALGOS
+
+    env = make_env(cfg, num_envs=1)
+    spec = learner_spec(cfg, env)
+    algo_cls = ALGOS[cfg.algo.name]
+    with torch.random.fork_rng(devices=[]):
+        algo = getattr(algo_cls, "learner_cls", algo_cls)(cfg.algo, spec, seed=cfg.seed)
+    apply_init(algo, cfg, spec)
+
+
 # ------------------------------------------------------------------------------------------ trainer
 class Trainer:
     """The run loop over one learner. ``seat`` says whom it plays for (default: every drone);
@@ -164,14 +273,20 @@ class Trainer:
         self.extra_state = extra_state or (lambda: {})
         self.env = make_env(cfg)
         algo_cls = learner_cls or ALGOS[cfg.algo.name]
-        self.algo = algo_cls(cfg.algo, self.seat.spec(self.env), seed=cfg.seed)
+        spec = self.seat.spec(self.env)
+        self.algo = algo_cls(cfg.algo, spec, seed=cfg.seed)
+        if hasattr(self.algo, "attach"):
+            self.algo.attach(self.env)  # an algorithm that acts with the env itself (bc's scripted teacher)
         self.frames = self.iteration = 0
         self.wall_offset = 0.0
         self.evals: list[dict] = []
         self.checkpoint_state: dict = {}
+        self.init_info: dict | None = None
         if checkpoint is not None:
             self.checkpoint_state = read_checkpoint(checkpoint, device=self.env.device)
             self._restore(self.checkpoint_state)
+        elif cfg.get("init") is not None:
+            self.init_info = apply_init(self.algo, cfg, spec)
         self.frames_per_batch = self.env.num_envs * self.algo.steps_per_batch
         self.metric = self.env.metric
         self._eval_env = None
@@ -201,6 +316,7 @@ class Trainer:
             "algo": self.algo.state_dict(),
             "rng": self._rng_state(),
             "seat": self.seat.state_dict(),
+            "init": self.init_info,
             **self.extra_state(),
         }
 
@@ -209,6 +325,7 @@ class Trainer:
         self.frames, self.iteration = int(state["frames"]), int(state["iteration"])
         self.wall_offset = float(state["wall_time"])
         self.evals = list(state.get("evals", []))
+        self.init_info = state.get("init")
         rng = state["rng"]
         torch.set_rng_state(rng["torch"])
         if "env" in rng:
@@ -321,6 +438,7 @@ class Trainer:
             "last_train_episodes": last,
             "checkpoints": [str(p.relative_to(run.path)) for p in [*run.periodic_checkpoints(), final]],
             "version": volleybots.__version__,
+            **({"init": self.init_info} if self.init_info else {}),
             **(summary_extra or {}),
         }
         run.write_summary(summary)
@@ -380,6 +498,7 @@ class _progress:
 
 def train(cfg, run_dir) -> dict:
     """Start a new run of the validated config ``cfg`` in ``run_dir``."""
+    check_init(cfg)
     run = RunDir(run_dir)
     run.create(cfg)
     return Trainer(cfg, run).fit()

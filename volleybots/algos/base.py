@@ -92,6 +92,15 @@ class Algorithm(ABC):
     def load_state_dict(self, state: dict) -> None:
         ...
 
+    def init_parts(self) -> dict[str, nn.Module]:
+        """The networks another run may start this one from (``init=``), by role: ``actor`` (what acts,
+        required) and ``critic`` (loaded where it fits); a part loads from the source's part of the
+        same role when every parameter has the same name and shape."""
+        return {}
+
+    def after_init(self) -> None:
+        """Called once ``init=`` has loaded parts (an off-policy method copies them to its targets)."""
+
 
 def check_at_least(cfg, keys, low=1) -> None:
     """Raise ``ConfigError`` naming the first ``algo.<key>`` below ``low``."""

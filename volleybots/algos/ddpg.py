@@ -24,6 +24,7 @@ class DDPGConfig(OffPolicyConfig):
 class DDPG(OffPolicy):
     name = "ddpg"
     config_cls = DDPGConfig
+    actor_attr = "actor_net"
     info_keys = ("q_pred", "q_target")
     limits: ClassVar[dict] = {**OffPolicy.limits, "exploration_noise": (0, None)}
 

@@ -28,6 +28,7 @@ class DQNConfig(OffPolicyConfig):
 class DQN(OffPolicy):
     name = "dqn"
     config_cls = DQNConfig
+    actor_attr = "qnet"
     action_spaces = ("discrete",)
     info_keys = ("q_max",)
     limits: ClassVar[dict] = {**OffPolicy.limits, "eps_start": (0, 1), "eps_end": (0, 1), "eps_anneal_frames": (0, None)}

@@ -119,6 +119,7 @@ class OffPolicy(Algorithm):
     loss: LossModule
     optims: dict[str, tuple[torch.optim.Optimizer, list[nn.Parameter]]]
     info_keys: tuple[str, ...] = ()  # the diagnostics ``losses`` returns besides the losses
+    actor_attr: ClassVar[str]  # the attribute holding the network that acts (init= loads it as the actor)
 
     # the numeric config keys' allowed ranges, (low, high) with None for no bound; a method adds its own
     limits: ClassVar[dict[str, tuple[float | None, float | None]]] = {
@@ -184,6 +185,13 @@ class OffPolicy(Algorithm):
         """The collection action (with exploration) for observations [..., obs]."""
 
     # ------------------------------------------------------------------ shared
+    def init_parts(self) -> dict[str, nn.Module]:
+        # the critic role is the whole loss module (critics, targets, temperature): it fits a run of the same method
+        return {"actor": getattr(self, self.actor_attr), "critic": self.loss}
+
+    def after_init(self) -> None:
+        self.target_updater.init_()  # the targets start from the loaded networks, not the random ones
+
     def adam(self, params, lr: float | None = None) -> tuple[torch.optim.Optimizer, list]:
         params = list(params)
         return torch.optim.Adam(params, lr=self.cfg.lr if lr is None else lr), params

@@ -55,6 +55,7 @@ class PPOConfig:
     activation: str = "elu"
     init_log_std: float = 0.0
     centralised_critic: bool = False
+    actor_freeze_updates: int = 0
 
 
 @dataclass
@@ -114,6 +115,7 @@ class PPO(Algorithm):
     def check(cls, cfg, task_cls, env_cfg):
         super().check(cfg, task_cls, env_cfg)
         check_at_least(cfg, ("steps_per_batch", "epochs", "minibatches"))
+        check_at_least(cfg, ("actor_freeze_updates",), low=0)
         frames = env_cfg.num_envs * cfg.steps_per_batch
         if frames < cfg.minibatches:
             raise ConfigError(
@@ -165,6 +167,7 @@ class PPO(Algorithm):
         )
         self.gen = torch.Generator(device=dev)  # minibatch shuffling, checkpointed with the rest
         self.gen.manual_seed(seed)
+        self.updates = 0  # batches learned from (the actor stays frozen for the first actor_freeze_updates)
         self._policy = TensorDictSequential(self.obs_norm, self.actor) if self.obs_norm is not None else self.actor
 
     def policy(self, deterministic: bool = False):
@@ -190,11 +193,14 @@ class PPO(Algorithm):
         sums: dict[str, float] = {}
         actor_params = list(self.actor.parameters())
         critic_params = list(self.critic.parameters())
+        # a critic warm-up: an actor started from another run (init=) keeps what it knows until the
+        # critic's advantages mean something
+        frozen = self.updates < cfg.actor_freeze_updates
         for _ in range(cfg.epochs):
             perm = torch.randperm(n, generator=self.gen, device=self.gen.device).to(flat.device)
             for i in range(cfg.minibatches):
                 out = self.loss(flat[perm[i * size : (i + 1) * size]])
-                loss = out["loss_objective"] + out["loss_critic"] + out.get("loss_entropy", 0.0)
+                loss = out["loss_critic"] if frozen else out["loss_objective"] + out["loss_critic"] + out.get("loss_entropy", 0.0)
                 self.optim.zero_grad(set_to_none=True)
                 loss.backward()
                 gn_a = nn.utils.clip_grad_norm_(actor_params, cfg.max_grad_norm)
@@ -206,8 +212,10 @@ class PPO(Algorithm):
                     sums[k] = sums.get(k, 0.0) + float(v.detach().mean())
         if self.obs_norm is not None:
             self.obs_norm.module.stats.update(batch["next"][OBS])
+        self.updates += 1
         steps = cfg.epochs * cfg.minibatches
         logs = {k: v / steps for k, v in sums.items()}
+        logs["actor_frozen"] = float(frozen)
         if self._std is not None:
             logs["action_std"] = float(self._std.state_independent_scale.detach().exp().mean())
         return logs
@@ -219,9 +227,16 @@ class PPO(Algorithm):
             "obs_norm": self.obs_norm.state_dict() if self.obs_norm is not None else {},
             "optim": self.optim.state_dict(),
             "gen": self.gen.get_state(),
+            "updates": torch.tensor(self.updates),
         }
 
+    def init_parts(self) -> dict[str, nn.Module]:
+        # the observation normaliser belongs to the actor: its weights expect normalised inputs
+        actor = nn.ModuleDict({"actor": self.actor, **({"obs_norm": self.obs_norm} if self.obs_norm is not None else {})})
+        return {"actor": actor, "critic": self.critic}
+
     def load_state_dict(self, state: dict) -> None:
+        self.updates = int(state.get("updates", 0))
         self.actor.load_state_dict(state["actor"])
         self.critic.load_state_dict(state["critic"])
         if self.obs_norm is not None:

@@ -27,6 +27,7 @@ class SACConfig(OffPolicyConfig):
 class SAC(OffPolicy):
     name = "sac"
     config_cls = SACConfig
+    actor_attr = "head"
     info_keys = ("alpha", "entropy")
     limits: ClassVar[dict] = {**OffPolicy.limits, "alpha_init": (0, None), "alpha_lr": (0, None)}
     positive: ClassVar[tuple] = (*OffPolicy.positive, "alpha_init", "alpha_lr")
