@@ -1,0 +1,238 @@
+"""Behaviour cloning of the task's scripted player, with DAgger relabelling (``algo=bc``).
+
+The teacher is ``volleybots.scripted.make_scripted_policy(env)``: it reads observations and writes
+actions for the whole batch of envs, so it is queried once per env step for every env, whoever
+drives. Collection (the run loop's, through ``policy()``):
+
+* for the first ``expert_frames`` frames the teacher drives every env;
+* after that a fixed share of the envs (``learner_envs``) is driven by the learner's mean action, the
+  rest by the teacher (DAgger: the learner visits its own states, the teacher says what it would do);
+* Gaussian noise (``action_noise``) is added to every executed action, so that even the teacher's
+  envs leave its path and show the states a learner's small errors lead to.
+
+The dataset keeps the TEACHER's action for every visited state (never the executed, noisy or learner
+action): a ring buffer of the last ``buffer_size`` per-drone samples, checkpointed with the run.
+Each batch is followed by ``replay_ratio x samples / batch_size`` gradient steps, each fitting the
+actor by maximum likelihood on a uniform sample of the dataset (mean and the state-independent
+standard deviation of PPO's Gaussian) and the critic on the batch's own returns (TorchRL's GAE
+targets, truncation bootstrapped, with PPO's value normalisation and Huber loss).
+
+The networks are PPO's (this class is PPO's with another update), so ``init=`` from a bc run starts
+``ppo`` / ``mappo`` with the cloned actor and the fitted critic (docs/imitation.md).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass, field
+
+import torch
+from tensordict import TensorDict, TensorDictBase
+from torch import nn
+
+from volleybots.algos.base import check_at_least
+from volleybots.algos.ppo import ACTION, OBS, PPO, PPOConfig
+from volleybots.config import ConfigError
+
+TEACHER = ("agents", "teacher_action")  # the scripted player's action, next to the executed one
+
+
+@dataclass
+class BCConfig:
+    name: str = "bc"
+    steps_per_batch: int = 64
+    expert_frames: int = 200_000
+    learner_envs: float = 0.5
+    action_noise: float = 0.1
+    buffer_size: int = 500_000
+    batch_size: int = 4096
+    replay_ratio: float = 4.0
+    actor_lr: float = 1e-3
+    critic_lr: float = 5e-4
+    max_grad_norm: float = 10.0
+    gamma: float = 0.995
+    gae_lambda: float = 0.95
+    huber_delta: float = 10.0
+    value_norm: bool = True
+    obs_norm: bool = False
+    hidden: list[int] = field(default_factory=lambda: [256, 128, 128])
+    activation: str = "elu"
+    init_log_std: float = 0.0
+    centralised_critic: bool = True
+
+
+def ppo_config(cfg) -> PPOConfig:
+    """PPO's config with bc's network and critic keys: the networks PPO would build for them."""
+    keys = {f.name for f in dataclasses.fields(PPOConfig)} - {"name"}
+    return PPOConfig(**{k: getattr(cfg, k) for k in keys if hasattr(cfg, k)})
+
+
+class BC(PPO):
+    name = "bc"
+    config_cls = BCConfig
+    action_spaces = ("prt", "ctbr")  # the scripted players fly continuous actions only
+    multi_agent = True
+
+    @classmethod
+    def check(cls, cfg, task_cls, env_cfg):
+        from volleybots.algos.base import class_attr
+        from volleybots.scripted import SCRIPTED_POLICIES
+
+        super(PPO, cls).check(cfg, task_cls, env_cfg)  # the shared checks; PPO's own are about minibatches
+        if class_attr(task_cls, "competitive"):
+            raise ConfigError(f"algo 'bc' imitates a player of every drone; task {task_cls.name!r} is a match, whose scripted player plays one team")
+        if task_cls.name not in SCRIPTED_POLICIES:
+            allowed = sorted(t for t in SCRIPTED_POLICIES if t in _single_and_coop())
+            raise ConfigError(f"algo 'bc' needs a scripted player; task {task_cls.name!r} has none; allowed: {', '.join(allowed)}")
+        check_at_least(cfg, ("steps_per_batch", "buffer_size", "batch_size"))
+        check_at_least(cfg, ("expert_frames",), low=0)
+        for key, value, ok, rule in (
+            ("learner_envs", cfg.learner_envs, 0 <= cfg.learner_envs <= 1, "in [0, 1]"),
+            ("action_noise", cfg.action_noise, cfg.action_noise >= 0, ">= 0"),
+            ("replay_ratio", cfg.replay_ratio, cfg.replay_ratio > 0, "> 0"),
+        ):
+            if not ok:
+                raise ConfigError(f"bad value for 'algo.{key}': {value} (must be {rule})")
+
+    def __init__(self, cfg, env, seed: int = 0):
+        super().__init__(ppo_config(cfg), env, seed)
+        self.cfg = cfg
+        dev = self.device
+        # the dataset: observations and the teacher's actions, one row per drone and step
+        self.data_obs = torch.zeros(cfg.buffer_size, self.obs_dim, device=dev)
+        self.data_act = torch.zeros(cfg.buffer_size, self.action_dim, device=dev)
+        self.size = self.cursor = self.frames = 0
+        self.teacher = None  # attached by the run loop (``attach``); evaluation needs none
+        self.teacher_s = 0.0  # seconds in the teacher since the last update
+
+    # ---------------------------------------------------------------------------- collection
+    def attach(self, env) -> None:
+        """The run loop hands over its env: the teacher is built for its task, action space and physics."""
+        from volleybots.scripted import make_scripted_policy
+
+        self.teacher = make_scripted_policy(env, env.action_space_name)
+        n = env.num_envs
+        self.learner_mask = (torch.arange(n, device=self.device) < round(self.cfg.learner_envs * n)).view(n, 1, 1)
+
+    @property
+    def dagger(self) -> bool:
+        return self.frames >= self.cfg.expert_frames
+
+    def teach(self, td: TensorDictBase) -> torch.Tensor:
+        """The teacher's action for the states of ``td`` (left as it was), timed."""
+        t0 = time.perf_counter()
+        view = td.clone(recurse=False).set("agents", td.get("agents").clone(recurse=False))
+        out = self.teacher(view)
+        action = out if isinstance(out, torch.Tensor) else out.get(ACTION)
+        self.teacher_s += time.perf_counter() - t0
+        return action.clamp(-1.0, 1.0)
+
+    def policy(self, deterministic: bool = False):
+        """Evaluation (and any use without the run loop's env): the learner, as PPO's. Collection:
+        the teacher or, in DAgger's envs, the learner's mean, plus noise; the teacher labels all."""
+        if deterministic or self.teacher is None:
+            return super().policy(deterministic)
+        learner = super().policy(deterministic=True)
+
+        def act(td: TensorDictBase) -> TensorDictBase:
+            teacher = self.teach(td)
+            drive = teacher
+            if self.dagger and self.cfg.learner_envs > 0:
+                own = learner(td.clone(recurse=False).set("agents", td.get("agents").clone(recurse=False))).get(ACTION)
+                drive = torch.where(self.learner_mask, own, teacher)
+            noise = torch.randn(drive.shape, generator=self.gen, device=self.gen.device).to(drive.device) * self.cfg.action_noise
+            td.set(TEACHER, teacher)
+            td.set(ACTION, (drive + noise).clamp(-1.0, 1.0))
+            return td
+
+        return act
+
+    # ---------------------------------------------------------------------------- learning
+    def store(self, obs: torch.Tensor, action: torch.Tensor) -> None:
+        """Append rows to the ring buffer (the oldest go when it is full)."""
+        cap = self.cfg.buffer_size
+        obs, action = obs[-cap:], action[-cap:]
+        idx = (self.cursor + torch.arange(len(obs), device=self.device)) % cap
+        self.data_obs[idx], self.data_act[idx] = obs, action
+        self.cursor = (self.cursor + len(obs)) % cap
+        self.size = min(cap, self.size + len(obs))
+
+    def update(self, batch: TensorDictBase) -> dict[str, float]:
+        cfg = self.cfg
+        batch = batch.exclude("stats", ("next", "stats"))
+        if TEACHER not in batch.keys(True):
+            raise RuntimeError("bc learns from batches its own collection policy labelled (attach the env first)")
+        self.store(batch.get(OBS).reshape(-1, self.obs_dim), batch.get(TEACHER).reshape(-1, self.action_dim))
+        self.frames += batch.numel()
+        with torch.no_grad():
+            if self.obs_norm is not None:  # the teacher's collection did not run it
+                self.obs_norm.module.stats.update(batch.get(OBS))
+                self.obs_norm(batch)
+                self.obs_norm(batch["next"])
+            self.loss.value_estimator(batch)
+        flat = batch.select(self._obs_in, "value_target").reshape(-1)
+        steps = max(1, round(cfg.replay_ratio * batch.numel() * self.n_agents / cfg.batch_size))
+        critic_batch = max(1, cfg.batch_size // self.n_agents)
+        sums: dict[str, float] = {}
+        for _ in range(steps):
+            for k, v in self.gradient_step(flat, critic_batch).items():
+                sums[k] = sums.get(k, 0.0) + v
+        logs = {k: v / steps for k, v in sums.items()}
+        logs.update(
+            dataset=float(self.size),
+            dagger=float(self.dagger),
+            action_std=float(self._std.state_independent_scale.detach().exp().mean()),
+            teacher_s=self.teacher_s,
+            teacher_steps_per_s=batch.numel() / max(self.teacher_s, 1e-9),
+        )
+        self.teacher_s = 0.0
+        return logs
+
+    def gradient_step(self, flat: TensorDictBase, critic_batch: int) -> dict[str, float]:
+        """One Adam step: the actor's negative log-likelihood of the teacher's actions on a dataset
+        sample, plus the critic's loss on a sample of the batch's steps."""
+        cfg = self.cfg
+        idx = torch.randint(self.size, (min(cfg.batch_size, self.size),), generator=self.gen, device=self.gen.device).to(self.device)
+        td = TensorDict({"agents": TensorDict({"observation": self.data_obs[idx]}, batch_size=[len(idx)])}, batch_size=[len(idx)])
+        if self.obs_norm is not None:
+            self.obs_norm(td)
+        target = self.data_act[idx]
+        dist = self.actor.get_dist(td)
+        nll = -dist.log_prob(target).mean()
+        cidx = torch.randint(flat.numel(), (critic_batch,), generator=self.gen, device=self.gen.device).to(flat.device)
+        loss_critic, _, explained = self.loss.loss_critic(flat[cidx])
+        loss_critic = loss_critic.mean()  # per sample: the loss's forward would reduce it
+        self.optim.zero_grad(set_to_none=True)
+        (nll + loss_critic).backward()
+        gn_a = nn.utils.clip_grad_norm_(list(self.actor.parameters()), cfg.max_grad_norm)
+        gn_c = nn.utils.clip_grad_norm_(list(self.critic.parameters()), cfg.max_grad_norm)
+        self.optim.step()
+        with torch.no_grad():
+            mse = (dist.mean - target).pow(2).mean()
+        return {
+            "loss_bc": float(nll.detach()), "action_mse": float(mse), "loss_critic": float(loss_critic.detach()),
+            "explained_variance": float(explained.mean()) if explained is not None else float("nan"),
+            "grad_norm_actor": float(gn_a), "grad_norm_critic": float(gn_c),
+        }
+
+    # ---------------------------------------------------------------------------- checkpoints
+    def state_dict(self) -> dict:
+        return {
+            **super().state_dict(),
+            "data": {"obs": self.data_obs[: self.size].clone(), "action": self.data_act[: self.size].clone()},
+            "counters": torch.tensor([self.frames, self.size, self.cursor]),
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        super().load_state_dict(state)
+        self.frames, self.size, self.cursor = (int(x) for x in state["counters"])
+        self.data_obs[: self.size] = state["data"]["obs"]
+        self.data_act[: self.size] = state["data"]["action"]
+
+
+def _single_and_coop() -> list[str]:
+    from volleybots.algos.base import class_attr
+    from volleybots.tasks import TASKS
+
+    return [n for n, t in TASKS.items() if not class_attr(t, "competitive")]
