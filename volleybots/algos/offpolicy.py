@@ -19,6 +19,7 @@ gradient step (``losses``), and how it acts (``greedy`` for evaluation, ``explor
 from __future__ import annotations
 
 import math
+import warnings
 from abc import abstractmethod
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -190,7 +191,9 @@ class OffPolicy(Algorithm):
         return {"actor": getattr(self, self.actor_attr), "critic": self.loss}
 
     def after_init(self) -> None:
-        self.target_updater.init_()  # the targets start from the loaded networks, not the random ones
+        with warnings.catch_warnings():  # init_ says it ran already (at construction): this copy is the point
+            warnings.simplefilter("ignore", UserWarning)
+            self.target_updater.init_()  # the targets start from the loaded networks, not the random ones
 
     def adam(self, params, lr: float | None = None) -> tuple[torch.optim.Optimizer, list]:
         params = list(params)

@@ -1,0 +1,104 @@
+"""`init=RUN_OR_CHECKPOINT`: a new run starts from exactly the saved actor (and critic where it fits),
+with a fresh optimiser; a run that does not fit is refused with one line naming both sides, exit 2,
+before anything is written."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+import torch
+
+from volleybots.config import ConfigError, load
+from volleybots.runs import RunDir
+from volleybots.train import Trainer, train
+
+TINY = ["env.num_envs=8", "threads=1", "progress=false", "evaluation.episodes=2", "evaluation.record=false", "seed=3"]
+PPO_TINY = [*TINY, "algo.steps_per_batch=8", "algo.minibatches=2", "total_frames=128"]
+
+
+@pytest.fixture(scope="module")
+def hover_run(tmp_path_factory):
+    torch.set_num_threads(1)
+    path = tmp_path_factory.mktemp("init") / "source"
+    train(load(["task=hover", *PPO_TINY]), path)
+    return path
+
+
+def _equal(a: dict, b: dict) -> None:
+    assert a.keys() == b.keys()
+    for k in a:
+        assert torch.equal(a[k], b[k]), k
+
+
+def _trainer(tmp_path, overrides):
+    cfg = load(overrides)
+    run = RunDir(tmp_path / "new")
+    run.create(cfg)
+    return Trainer(cfg, run)
+
+
+def test_init_loads_exactly_the_saved_actor_and_critic(hover_run, tmp_path):
+    saved = torch.load(hover_run / "checkpoints" / "final.pt", weights_only=True)["algo"]
+    # another seed: its own random weights would differ from the saved ones
+    tr = _trainer(tmp_path, ["task=hover", *PPO_TINY, "seed=11", f"init={hover_run}"])
+    _equal(tr.algo.actor.state_dict(), saved["actor"])
+    _equal(tr.algo.critic.state_dict(), saved["critic"])
+    assert tr.init_info["loaded"] == ["actor", "critic"] and tr.init_info["frames"] == 128
+    assert not tr.algo.optim.state  # a fresh optimiser: nothing of the source's Adam moments
+    fresh = _trainer(tmp_path / "b", ["task=hover", *PPO_TINY, "seed=11"])
+    assert not torch.equal(fresh.algo.actor.state_dict()["module.0.module.0.0.weight"], saved["actor"]["module.0.module.0.0.weight"])
+
+
+def test_init_of_mappo_from_ppo_and_off_policy_targets(hover_run, tmp_path):
+    saved = torch.load(hover_run / "checkpoints" / "final.pt", weights_only=True)["algo"]
+    tr = _trainer(tmp_path, ["task=hover", "algo=mappo", *PPO_TINY, f"init={hover_run}"])
+    _equal(tr.algo.actor.state_dict(), saved["actor"])
+    # an off-policy run started from another: its targets start from the loaded critics
+    sac = tmp_path / "sac"
+    train(load(["task=hover", "algo=sac", *TINY, "total_frames=64", "algo.steps_per_batch=8", "algo.batch_size=16"]), sac)
+    tr = _trainer(tmp_path / "s", ["task=hover", "algo=sac", *TINY, "total_frames=64", "algo.steps_per_batch=8", "algo.batch_size=16", f"init={sac}"])
+    src = torch.load(sac / "checkpoints" / "final.pt", weights_only=True)["algo"]["loss"]
+    here = tr.algo.loss.state_dict()
+    assert here.keys() == src.keys() and any(k.startswith("target_") for k in here)
+    for k, v in here.items():
+        assert torch.equal(v, here[k.removeprefix("target_")] if k.startswith("target_") else src[k]), k
+
+
+@pytest.mark.parametrize(
+    "overrides, words",
+    [
+        (["task=solo_bump"], ["task hover", "task solo_bump", "the task differs"]),
+        (["task=hover", "env.action_space=ctbr"], ["env.action_space=prt", "env.action_space=ctbr", "action space differs"]),
+        (["task=hover", "algo.hidden=[64]"], ["actor's networks differ", "[256] there, [64] here"]),
+        (["task=hover", "algo=sac"], ["algo ppo", "algo sac", "actor's networks differ"]),
+    ],
+)
+def test_a_run_that_does_not_fit_is_refused_naming_both_sides(hover_run, overrides, words):
+    with pytest.raises(ConfigError) as e:
+        from volleybots.train import check_init
+
+        check_init(load([*overrides, *TINY, f"init={hover_run}"]))
+    msg = str(e.value)
+    assert "\n" not in msg and f"init={str(hover_run)!r}" in msg
+    for w in words:
+        assert w in msg, (w, msg)
+
+
+def test_cli_refuses_a_mismatched_init_with_exit_2_and_writes_nothing(hover_run, tmp_path):
+    out = tmp_path / "refused"
+    res = subprocess.run(
+        [sys.executable, "-m", "volleybots.cli", "train", "task=solo_bump", *PPO_TINY, f"init={hover_run}", f"hydra.run.dir={out}"],
+        capture_output=True, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"}, timeout=300,
+    )
+    assert res.returncode == 2, res.stderr[-2000:]
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "task hover" in lines[0] and "task solo_bump" in lines[0]
+    assert not out.exists()
+    res = subprocess.run(
+        [sys.executable, "-m", "volleybots.cli", "train", "task=hover", *PPO_TINY, f"init={tmp_path / 'nowhere'}", f"hydra.run.dir={out}"],
+        capture_output=True, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"}, timeout=300,
+    )
+    assert res.returncode == 2 and "nowhere" in res.stderr and not out.exists()
