@@ -24,6 +24,7 @@ The networks are PPO's (this class is PPO's with another update), so ``init=`` f
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -59,6 +60,7 @@ class BCConfig:
     hidden: list[int] = field(default_factory=lambda: [256, 128, 128])
     activation: str = "elu"
     init_log_std: float = 0.0
+    min_std: float = 0.02
     centralised_critic: bool = True
 
 
@@ -105,6 +107,7 @@ class BC(PPO):
         self.size = self.cursor = self.frames = 0
         self.teacher = None  # attached by the run loop (``attach``); evaluation needs none
         self.teacher_s = 0.0  # seconds in the teacher since the last update
+        self._residual: torch.Tensor | None = None  # squared errors of the mean over an update's steps
 
     # ---------------------------------------------------------------------------- collection
     def attach(self, env) -> None:
@@ -175,9 +178,12 @@ class BC(PPO):
         steps = max(1, round(cfg.replay_ratio * batch.numel() * self.n_agents / cfg.batch_size))
         critic_batch = max(1, cfg.batch_size // self.n_agents)
         sums: dict[str, float] = {}
+        self._residual = None
         for _ in range(steps):
             for k, v in self.gradient_step(flat, critic_batch).items():
                 sums[k] = sums.get(k, 0.0) + v
+        with torch.no_grad():  # the maximum-likelihood deviation of the fitted mean: its RMS error per dimension
+            self._std.state_independent_scale.copy_((self._residual / steps).sqrt().clamp_min(cfg.min_std).log())
         logs = {k: v / steps for k, v in sums.items()}
         logs.update(
             dataset=float(self.size),
@@ -198,8 +204,12 @@ class BC(PPO):
         if self.obs_norm is not None:
             self.obs_norm(td)
         target = self.data_act[idx]
-        dist = self.actor.get_dist(td)
-        nll = -dist.log_prob(target).mean()
+        loc = self.actor.get_dist(td).mean
+        # the Gaussian's negative log-likelihood with its standard deviation held: the mean's fit,
+        # each action dimension weighted by its residual; the deviation's own maximum is set in closed form
+        log_std = self._std.state_independent_scale.detach()
+        err = target - loc
+        nll = (0.5 * (err / log_std.exp()).pow(2) + log_std).sum(-1).mean() + 0.5 * self.action_dim * math.log(2 * math.pi)
         cidx = torch.randint(flat.numel(), (critic_batch,), generator=self.gen, device=self.gen.device).to(flat.device)
         loss_critic, _, explained = self.loss.loss_critic(flat[cidx])
         loss_critic = loss_critic.mean()  # per sample: the loss's forward would reduce it
@@ -208,10 +218,10 @@ class BC(PPO):
         gn_a = nn.utils.clip_grad_norm_(list(self.actor.parameters()), cfg.max_grad_norm)
         gn_c = nn.utils.clip_grad_norm_(list(self.critic.parameters()), cfg.max_grad_norm)
         self.optim.step()
-        with torch.no_grad():
-            mse = (dist.mean - target).pow(2).mean()
+        sq = err.detach().pow(2).mean(0)
+        self._residual = sq if self._residual is None else self._residual + sq
         return {
-            "loss_bc": float(nll.detach()), "action_mse": float(mse), "loss_critic": float(loss_critic.detach()),
+            "loss_bc": float(nll.detach()), "action_mse": float(sq.mean()), "loss_critic": float(loss_critic.detach()),
             "explained_variance": float(explained.mean()) if explained is not None else float("nan"),
             "grad_norm_actor": float(gn_a), "grad_norm_critic": float(gn_c),
         }
