@@ -219,9 +219,7 @@ def resolve_competitor(spec: str) -> Competitor:
     if members and metas and len(metas[-1]) == len(members):
         ms = [checkpoint_member(p, f"{path.name}/{p.stem}") for p in members]
         return Competitor(label or path.name, ms, metas[-1])
-    ckpt = run.final_path if run.final_path.is_file() else run.latest_checkpoint()
-    if ckpt is None:
-        raise ConfigError(f"run {target!r} has no checkpoint yet (checkpoints/ is empty)")
+    ckpt = run.policy_checkpoint(f"run {target!r}")
     return Competitor(label or path.name, [checkpoint_member(ckpt, path.name)])
 
 

@@ -75,6 +75,14 @@ class RunDir:
             return None
         return max(cands, key=lambda p: read_checkpoint(p)["frames"])
 
+    def policy_checkpoint(self, what: str) -> Path:
+        """The checkpoint that stands for the run's policy: final.pt, else the latest; ``what`` names
+        the run in the error when there is none."""
+        ckpt = self.final_path if self.final_path.is_file() else self.latest_checkpoint()
+        if ckpt is None:
+            raise ConfigError(f"{what} has no checkpoint yet (checkpoints/ is empty)")
+        return ckpt
+
     def save_checkpoint(self, state: dict, final: bool = False, keep: int = 3) -> Path:
         self.ckpt_dir.mkdir(parents=True, exist_ok=True)
         path = self.final_path if final else self.ckpt_dir / f"ckpt_{state['frames']:012d}.pt"

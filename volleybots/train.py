@@ -163,10 +163,7 @@ def init_checkpoint(spec: str) -> Path:
     run = RunDir(path)
     if not run.is_run():
         raise ConfigError(f"init={spec!r} is neither a run directory (with config.yaml) nor a checkpoint file")
-    ckpt = run.final_path if run.final_path.is_file() else run.latest_checkpoint()
-    if ckpt is None:
-        raise ConfigError(f"init={spec!r} has no checkpoint yet (checkpoints/ is empty)")
-    return ckpt
+    return run.policy_checkpoint(f"init={spec!r}")
 
 
 def _side(algo: str, task: str, n_drones: int, action_space: str, obs_dim: int) -> str:

@@ -26,48 +26,36 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import torch
 from tensordict import TensorDict, TensorDictBase
 from torch import nn
 
 from volleybots.algos.base import check_at_least
-from volleybots.algos.ppo import ACTION, OBS, PPO, PPOConfig
+from volleybots.algos.ppo import ACTION, OBS, PPO, PPOConfig, PPONetConfig
 from volleybots.config import ConfigError
 
 TEACHER = ("agents", "teacher_action")  # the scripted player's action, next to the executed one
 
 
 @dataclass
-class BCConfig:
+class BCConfig(PPONetConfig):
     name: str = "bc"
-    steps_per_batch: int = 64
     expert_frames: int = 200_000
     learner_envs: float = 0.5
     action_noise: float = 0.1
     buffer_size: int = 500_000
     batch_size: int = 4096
     replay_ratio: float = 4.0
-    actor_lr: float = 1e-3
-    critic_lr: float = 5e-4
-    max_grad_norm: float = 10.0
-    gamma: float = 0.995
-    gae_lambda: float = 0.95
-    huber_delta: float = 10.0
-    value_norm: bool = True
-    obs_norm: bool = False
-    hidden: list[int] = field(default_factory=lambda: [256, 128, 128])
-    activation: str = "elu"
-    init_log_std: float = 0.0
     min_std: float = 0.02
+    actor_lr: float = 1e-3
     centralised_critic: bool = True
 
 
 def ppo_config(cfg) -> PPOConfig:
     """PPO's config with bc's network and critic keys: the networks PPO would build for them."""
-    keys = {f.name for f in dataclasses.fields(PPOConfig)} - {"name"}
-    return PPOConfig(**{k: getattr(cfg, k) for k in keys if hasattr(cfg, k)})
+    return PPOConfig(**{f.name: getattr(cfg, f.name) for f in dataclasses.fields(PPONetConfig)})
 
 
 class BC(PPO):

@@ -34,27 +34,34 @@ VALUE = ("agents", "state_value")
 
 
 @dataclass
-class PPOConfig:
-    name: str = "ppo"
+class PPONetConfig:
+    """The keys that shape PPO's networks and fit its critic, shared with ``bc`` (algos/bc.py): a
+    clone is PPO's network, so a PPO run can start from it (``init=``)."""
+
     steps_per_batch: int = 64
-    epochs: int = 4
-    minibatches: int = 16
     actor_lr: float = 5e-4
     critic_lr: float = 5e-4
     max_grad_norm: float = 10.0
-    clip_epsilon: float = 0.1
-    entropy_coeff: float = 0.001
-    critic_coeff: float = 1.0
     huber_delta: float = 10.0
     gamma: float = 0.995
     gae_lambda: float = 0.95
-    normalize_advantage: bool = True
     value_norm: bool = True
     obs_norm: bool = False
     hidden: list[int] = field(default_factory=lambda: [256, 128, 128])
     activation: str = "elu"
     init_log_std: float = 0.0
     centralised_critic: bool = False
+
+
+@dataclass
+class PPOConfig(PPONetConfig):
+    name: str = "ppo"
+    epochs: int = 4
+    minibatches: int = 16
+    clip_epsilon: float = 0.1
+    entropy_coeff: float = 0.001
+    critic_coeff: float = 1.0
+    normalize_advantage: bool = True
     actor_freeze_updates: int = 0
 
 

@@ -85,9 +85,7 @@ def resolve_target(target: str, overrides=()) -> Target:
         run = RunDir(path)
         if not run.is_run():
             raise ConfigError(f"{target!r} is not a run directory (no config.yaml) nor a checkpoint file")
-        ckpt = run.final_path if run.final_path.is_file() else run.latest_checkpoint()
-        if ckpt is None:
-            raise ConfigError(f"run {target!r} has no checkpoint yet (checkpoints/ is empty)")
+        ckpt = run.policy_checkpoint(f"run {target!r}")
     elif path.is_file():
         ckpt = path
     else:

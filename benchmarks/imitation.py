@@ -1,0 +1,143 @@
+"""Imitation then RL fine-tuning, per task, on a wall-clock budget (issue 18; docs/imitation.md).
+
+For each task: ``algo=bc`` clones the scripted player for ``--bc-minutes``, then PPO (MAPPO on the
+cooperative tasks) starts from the bc run (``init=``) with the fine-tuning recipe of docs/imitation.md
+for ``--ft-minutes``. The teacher, the clone and the fine-tuned policy then play the same
+``--episodes`` episodes on a held-out seed (``--eval-seed``, never used by training, whose own
+periodic evaluations use seed + 10000). Writes a JSON of the figures and curves, a PNG of the
+fine-tuning curves, and prints a Markdown table:
+
+    python benchmarks/imitation.py --tasks solo_bump --bc-minutes 6 --ft-minutes 15
+    python benchmarks/imitation.py --tasks solo_bump hit_the_ball bump_and_pass set_and_spike_easy \\
+        --bc-minutes 20 --ft-minutes 40                        # the issue's 60 minutes per task
+
+Needs matplotlib (``pip install 'volleybots[plot]'``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+# the fine-tuning recipe (docs/imitation.md): a critic warm-up, then a slow, tightly clipped actor
+FINE_TUNE = ["algo.actor_freeze_updates=10", "algo.actor_lr=5e-5", "algo.clip_epsilon=0.1", "algo.entropy_coeff=0.0"]
+
+
+def learner(task: str) -> str:
+    from volleybots.algos.base import class_attr
+    from volleybots.tasks import TASKS
+
+    return "ppo" if class_attr(TASKS[task], "n_drones") == 1 else "mappo"
+
+
+def common(args, task: str, minutes: float) -> list[str]:
+    return [
+        f"task={task}", f"env.action_space={args.action_space}", f"env.num_envs={args.num_envs}", f"seed={args.seed}",
+        f"threads={args.threads}", f"time_limit={minutes * 60}", "total_frames=1e12", f"evaluation.every={args.eval_every}",
+        f"evaluation.episodes={args.eval_episodes}", "evaluation.record=false", "checkpoint.every=0", "progress=false",
+    ]
+
+
+def curve(run: Path, metric: str) -> list[dict]:
+    from volleybots.runs import read_metrics
+
+    return [{"minutes": r["wall_time"] / 60, "frames": r["frames"], metric: r[f"eval_{metric}"]} for r in read_metrics(run / "metrics.csv") if r["phase"] == "eval"]
+
+
+def held_out(target: str, args, task: str, metric: str) -> dict:
+    from volleybots.eval import evaluate
+
+    extra = [f"task={task}", f"env.action_space={args.action_space}"] if target == "scripted" else []
+    res = evaluate(target, [*extra, f"seed={args.eval_seed}", f"threads={args.threads}"], episodes=args.episodes)
+    return {"mean": res["stats"][metric]["mean"], "std": res["stats"][metric]["std"], "return": res["stats"]["return"]["mean"]}
+
+
+def run_task(task: str, args, root: Path) -> dict:
+    from volleybots.config import load
+    from volleybots.tasks import TASKS
+    from volleybots.train import train
+
+    metric = TASKS[task].metric
+    bc_dir, ft_dir = root / f"{task}_bc", root / f"{task}_{learner(task)}"
+    t0 = time.perf_counter()
+    bc = train(load([*common(args, task, args.bc_minutes), "algo=bc", *args.bc_overrides]), bc_dir)
+    ft = train(load([*common(args, task, args.ft_minutes), f"algo={learner(task)}", f"init={bc_dir}", *FINE_TUNE, *args.ft_overrides]), ft_dir)
+    return {
+        "task": task,
+        "metric": metric,
+        "wall_s": time.perf_counter() - t0,
+        "bc": {"run_dir": str(bc_dir), "frames": bc["frames"], "wall_s": bc["wall_time_s"], "curve": curve(bc_dir, metric)},
+        "fine_tune": {"run_dir": str(ft_dir), "algo": learner(task), "frames": ft["frames"], "wall_s": ft["wall_time_s"], "curve": curve(ft_dir, metric)},
+        "held_out": {
+            "seed": args.eval_seed, "episodes": args.episodes,
+            "scripted": held_out("scripted", args, task, metric),
+            "random": held_out("random", args, task, metric),
+            "bc": held_out(str(bc_dir), args, task, metric),
+            "fine_tuned": held_out(str(ft_dir), args, task, metric),
+        },
+    }
+
+
+def plot(results: list[dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(results), figsize=(5.5 * len(results), 4), squeeze=False)
+    for ax, res in zip(axes[0], results):
+        m, bc_end = res["metric"], res["bc"]["wall_s"] / 60
+        ax.plot([p["minutes"] for p in res["bc"]["curve"]], [p[m] for p in res["bc"]["curve"]], marker="o", label="bc")
+        ax.plot([bc_end + p["minutes"] for p in res["fine_tune"]["curve"]], [p[m] for p in res["fine_tune"]["curve"]], marker="o",
+                label=f"{res['fine_tune']['algo']} from bc")
+        ax.axhline(res["held_out"]["scripted"]["mean"], color="grey", ls="--", label="scripted (held-out seed)")
+        ax.set(title=res["task"], xlabel="minutes (2 shared CPU cores)", ylabel=f"{m} (periodic evaluation)")
+        ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+
+
+def table(results: list[dict]) -> str:
+    lines = ["| task | metric | random | scripted (teacher) | bc | fine-tuned | bc / fine-tune frames | minutes |", "|---|---|---|---|---|---|---|---|"]
+    for r in results:
+        h = r["held_out"]
+        cell = lambda k: f"{h[k]['mean']:.3g} +- {h[k]['std']:.2g}"  # noqa: E731
+        lines.append(
+            f"| {r['task']} | {r['metric']} | {cell('random')} | {cell('scripted')} | {cell('bc')} | {cell('fine_tuned')} | "
+            f"{r['bc']['frames']:,} / {r['fine_tune']['frames']:,} | {r['wall_s'] / 60:.0f} |"
+        )
+    return "\n".join(lines)
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--tasks", nargs="+", default=["solo_bump"])
+    p.add_argument("--action-space", default="prt")
+    p.add_argument("--bc-minutes", type=float, default=20.0)
+    p.add_argument("--ft-minutes", type=float, default=40.0)
+    p.add_argument("--num-envs", type=int, default=256)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--threads", type=int, default=1)
+    p.add_argument("--eval-every", type=int, default=200_000)
+    p.add_argument("--eval-episodes", type=int, default=32)
+    p.add_argument("--eval-seed", type=int, default=1000, help="held-out seed of the final 100-episode comparison")
+    p.add_argument("--episodes", type=int, default=100)
+    p.add_argument("--bc-overrides", nargs="*", default=[], help="extra overrides of the bc runs (algo.replay_ratio=8 ...)")
+    p.add_argument("--ft-overrides", nargs="*", default=[], help="extra overrides of the fine-tuning runs")
+    p.add_argument("--root", default="outputs/imitation")
+    p.add_argument("--out", default="docs/imitation.json")
+    p.add_argument("--png", default="docs/imitation.png")
+    args = p.parse_args()
+    root = Path(args.root) / time.strftime("%Y%m%d-%H%M%S")
+    results = []
+    for task in args.tasks:
+        results.append(run_task(task, args, root))
+        Path(args.out).write_text(json.dumps({"args": vars(args), "results": results}, indent=2) + "\n")  # after each task: a partial result survives
+    plot(results, Path(args.png))
+    print(table(results))
+
+
+if __name__ == "__main__":
+    main()
