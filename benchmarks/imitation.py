@@ -62,12 +62,16 @@ def run_task(task: str, args, root: Path) -> dict:
     metric = TASKS[task].metric
     bc_dir, ft_dir = root / f"{task}_bc", root / f"{task}_{learner(task)}"
     t0 = time.perf_counter()
-    bc = train(load([*common(args, task, args.bc_minutes), "algo=bc", *args.bc_overrides]), bc_dir)
+    if args.bc_dir:  # fine-tune a clone made before (one task)
+        bc_dir = Path(args.bc_dir)
+        bc = json.loads((bc_dir / "summary.json").read_text())
+    else:
+        bc = train(load([*common(args, task, args.bc_minutes), "algo=bc", *args.bc_overrides]), bc_dir)
     ft = train(load([*common(args, task, args.ft_minutes), f"algo={learner(task)}", f"init={bc_dir}", *FINE_TUNE, *args.ft_overrides]), ft_dir)
     return {
         "task": task,
         "metric": metric,
-        "wall_s": time.perf_counter() - t0,
+        "wall_s": time.perf_counter() - t0 + (bc["wall_time_s"] if args.bc_dir else 0.0),
         "bc": {"run_dir": str(bc_dir), "frames": bc["frames"], "wall_s": bc["wall_time_s"], "curve": curve(bc_dir, metric)},
         "fine_tune": {"run_dir": str(ft_dir), "algo": learner(task), "frames": ft["frames"], "wall_s": ft["wall_time_s"], "curve": curve(ft_dir, metric)},
         "held_out": {
@@ -125,6 +129,7 @@ def main() -> None:
     p.add_argument("--eval-seed", type=int, default=1000, help="held-out seed of the final 100-episode comparison")
     p.add_argument("--episodes", type=int, default=100)
     p.add_argument("--bc-overrides", nargs="*", default=[], help="extra overrides of the bc runs (algo.replay_ratio=8 ...)")
+    p.add_argument("--bc-dir", default=None, help="a finished bc run of the (one) task to fine-tune instead of a new one")
     p.add_argument("--ft-overrides", nargs="*", default=[], help="extra overrides of the fine-tuning runs")
     p.add_argument("--root", default="outputs/imitation")
     p.add_argument("--out", default="docs/imitation.json")

@@ -97,8 +97,35 @@ def test_cli_refuses_a_mismatched_init_with_exit_2_and_writes_nothing(hover_run,
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and "task hover" in lines[0] and "task solo_bump" in lines[0]
     assert not out.exists()
-    res = subprocess.run(
-        [sys.executable, "-m", "volleybots.cli", "train", "task=hover", *PPO_TINY, f"init={tmp_path / 'nowhere'}", f"hydra.run.dir={out}"],
-        capture_output=True, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"}, timeout=300,
-    )
-    assert res.returncode == 2 and "nowhere" in res.stderr and not out.exists()
+
+
+def test_init_names_a_missing_source(tmp_path):
+    from volleybots.train import check_init
+
+    with pytest.raises(ConfigError, match="nowhere.*neither a run directory"):
+        check_init(load(["task=hover", *TINY, f"init={tmp_path / 'nowhere'}"]))
+
+
+def test_actor_freeze_updates_lets_only_the_critic_learn_first():
+    from volleybots.algos import ALGOS
+    from volleybots.config import make_env
+    from volleybots.train import collect
+
+    torch.set_num_threads(1)
+    cfg = load(["task=hover", *PPO_TINY, "algo.actor_freeze_updates=1"])
+    env = make_env(cfg)
+    algo = ALGOS["ppo"](cfg.algo, env, seed=0)
+    td = env.reset()
+
+    def step():
+        nonlocal td
+        actor = {k: v.clone() for k, v in algo.actor.state_dict().items()}
+        critic = {k: v.clone() for k, v in algo.critic.state_dict().items()}
+        batch, td = collect(env, algo.policy(), td, 8)
+        logs = algo.update(batch)
+        moved = lambda old, new: any(not torch.equal(old[k], new[k]) for k in old)  # noqa: E731
+        return logs["actor_frozen"], moved(actor, algo.actor.state_dict()), moved(critic, algo.critic.state_dict())
+
+    assert step() == (1.0, False, True)
+    assert step() == (0.0, True, True)
+    assert algo.state_dict()["updates"] == 2
