@@ -49,7 +49,7 @@ def curve(run: Path, metric: str) -> list[dict]:
 def held_out(target: str, args, task: str, metric: str) -> dict:
     from volleybots.eval import evaluate
 
-    extra = [f"task={task}", f"env.action_space={args.action_space}"] if target == "scripted" else []
+    extra = [f"task={task}", f"env.action_space={args.action_space}"] if target in ("scripted", "random") else []
     res = evaluate(target, [*extra, f"seed={args.eval_seed}", f"threads={args.threads}"], episodes=args.episodes)
     return {"mean": res["stats"][metric]["mean"], "std": res["stats"][metric]["std"], "return": res["stats"]["return"]["mean"]}
 
@@ -61,17 +61,20 @@ def run_task(task: str, args, root: Path) -> dict:
 
     metric = TASKS[task].metric
     bc_dir, ft_dir = root / f"{task}_bc", root / f"{task}_{learner(task)}"
-    t0 = time.perf_counter()
     if args.bc_dir:  # fine-tune a clone made before (one task)
         bc_dir = Path(args.bc_dir)
         bc = json.loads((bc_dir / "summary.json").read_text())
     else:
         bc = train(load([*common(args, task, args.bc_minutes), "algo=bc", *args.bc_overrides]), bc_dir)
-    ft = train(load([*common(args, task, args.ft_minutes), f"algo={learner(task)}", f"init={bc_dir}", *FINE_TUNE, *args.ft_overrides]), ft_dir)
+    if args.ft_dir:  # evaluate a fine-tuning run made before
+        ft_dir = Path(args.ft_dir)
+        ft = json.loads((ft_dir / "summary.json").read_text())
+    else:
+        ft = train(load([*common(args, task, args.ft_minutes), f"algo={learner(task)}", f"init={bc_dir}", *FINE_TUNE, *args.ft_overrides]), ft_dir)
     return {
         "task": task,
         "metric": metric,
-        "wall_s": time.perf_counter() - t0 + (bc["wall_time_s"] if args.bc_dir else 0.0),
+        "wall_s": bc["wall_time_s"] + ft["wall_time_s"],  # training only; the held-out evaluations come on top
         "bc": {"run_dir": str(bc_dir), "frames": bc["frames"], "wall_s": bc["wall_time_s"], "curve": curve(bc_dir, metric)},
         "fine_tune": {"run_dir": str(ft_dir), "algo": learner(task), "frames": ft["frames"], "wall_s": ft["wall_time_s"], "curve": curve(ft_dir, metric)},
         "held_out": {
@@ -130,11 +133,20 @@ def main() -> None:
     p.add_argument("--episodes", type=int, default=100)
     p.add_argument("--bc-overrides", nargs="*", default=[], help="extra overrides of the bc runs (algo.replay_ratio=8 ...)")
     p.add_argument("--bc-dir", default=None, help="a finished bc run of the (one) task to fine-tune instead of a new one")
+    p.add_argument("--ft-dir", default=None, help="a finished fine-tuning run of the (one) task to evaluate instead of a new one")
     p.add_argument("--ft-overrides", nargs="*", default=[], help="extra overrides of the fine-tuning runs")
     p.add_argument("--root", default="outputs/imitation")
     p.add_argument("--out", default="docs/imitation.json")
     p.add_argument("--png", default="docs/imitation.png")
+    p.add_argument("--combine", nargs="+", default=None, help="JSONs of earlier invocations: write their results together to --out / --png")
     args = p.parse_args()
+    if args.combine:
+        parts = [json.loads(Path(f).read_text()) for f in args.combine]
+        results = [r for part in parts for r in part["results"]]
+        Path(args.out).write_text(json.dumps({"runs": [part["args"] for part in parts], "results": results}, indent=2) + "\n")
+        plot(results, Path(args.png))
+        print(table(results))
+        return
     root = Path(args.root) / time.strftime("%Y%m%d-%H%M%S")
     results = []
     for task in args.tasks:
