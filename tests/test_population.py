@@ -70,7 +70,6 @@ def test_self_play_trains_on_both_sides_mirrored():
     # each side sees itself on its own +x half (mirrored frames) at the start of every episode
     assert (view["agents", "observation"][:, 0, 0, 0] > 0).all()
     # zero-sum: where a rally is decided, one side's result is the other's loss
-    r = batch["next", "agents", "reward"][..., 0]
     decided = batch["next", "stats", "winner"][..., 0] >= 0
     done = batch["next", "done"][..., 0] & decided
     assert done.any()
