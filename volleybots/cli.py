@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import List, Optional
 
 import typer
+from typer.core import TyperGroup
 
 import volleybots
 from volleybots.config import ConfigError
@@ -162,7 +163,27 @@ def train(
 
 
 # ------------------------------------------------------------------------------------ eval, replay
-@app.command("eval", context_settings=_PASS_THROUGH)
+class _EvalGroup(TyperGroup):
+    """``eval`` is a group of verbs (crossplay, elo) whose first argument may instead be a target:
+    ``volleybots eval RUN_DIR episodes=3`` runs the hidden ``policy`` verb."""
+
+    def parse_args(self, ctx, args):
+        if args and args[0] not in self.commands and not args[0].startswith("-"):
+            args = ["policy", *args]
+        return super().parse_args(ctx, args)
+
+
+eval_app = typer.Typer(
+    cls=_EvalGroup,
+    no_args_is_help=True,
+    help="Evaluate: `eval TARGET episodes=100 ...` plays one policy (a run dir, a checkpoint, scripted, random) "
+    "and reports the task metric; `eval crossplay` and `eval elo` rank competitors of a match.",
+)
+app.add_typer(eval_app, name="eval")
+_COMPETITORS = "Competitors (a run dir, a checkpoint, a population run, scripted, random; label one with name=PATH)"
+
+
+@eval_app.command("policy", hidden=True, context_settings=_PASS_THROUGH)
 @_user_errors
 def eval_cmd(
     target: str = typer.Argument(..., help="A run directory, a checkpoint file, 'scripted' or 'random'."),
@@ -179,6 +200,50 @@ def eval_cmd(
         from rich.console import Console
 
         Console().print(format_table(result))
+
+
+def _pair_progress(labels):
+    return lambda i, j, g: typer.echo(f"  {labels[i]} vs {labels[j]}: W/D/L {'/'.join(map(str, g.total.tolist()))}", err=True)
+
+
+@eval_app.command("crossplay", context_settings=_PASS_THROUGH)
+@_user_errors
+def crossplay_cmd(
+    args: Optional[List[str]] = typer.Argument(None, help=f"{_COMPETITORS}, then games=1000 seed=0 batch=256 scenario=any|serve|receive deterministic=false task=1v1 env.action_space=prt."),
+    as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of the table."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder for crossplay.json and crossplay.png (new or empty; default outputs/crossplay/<time>_<task>)."),
+) -> None:
+    """Every pair plays N games, each side half of them: W/D/L, win rates with Wilson intervals, average win rate, heatmap."""
+    from volleybots.eval.crossplay import format_table, run_crossplay
+
+    res, path = run_crossplay(list(args or []), out, progress=None if as_json else lambda i, j, g: None)
+    if as_json:
+        typer.echo(json.dumps(res.to_dict(), indent=1))
+        return
+    from rich.console import Console
+
+    Console().print(format_table(res))
+    typer.echo(f"wrote {path / 'crossplay.json'} and {path / 'crossplay.png'}")
+
+
+@eval_app.command("elo", context_settings=_PASS_THROUGH)
+@_user_errors
+def elo_cmd(
+    args: Optional[List[str]] = typer.Argument(None, help=f"{_COMPETITORS}, or from=CROSSPLAY_JSON; then rounds=2000 k=168 bootstrap=1000 seed=0 and cross-play's options."),
+    as_json: bool = typer.Option(False, "--json", help="Print the ratings JSON instead of the table."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder for ratings.json, ratings.png (and the games played); new or empty."),
+) -> None:
+    """Elo over rounds in which every pair meets once (the paper's), Bradley-Terry with bootstrap intervals, the Nash mixture."""
+    from volleybots.eval.ranking import format_table, run_elo
+
+    report, path = run_elo(list(args or []), out)
+    if as_json:
+        typer.echo(json.dumps(report, indent=1))
+        return
+    from rich.console import Console
+
+    Console().print(format_table(report))
+    typer.echo(f"wrote {path / 'ratings.json'} and {path / 'ratings.png'}")
 
 
 def _free_path(path: Path) -> Path:

@@ -12,7 +12,7 @@ row competitor against the column one (so ``wdl[j, i] == wdl[i, j, ::-1]``).
 """
 
 from volleybots.ratings.bradley_terry import bradley_terry, bradley_terry_bootstrap, half_win_matrix
-from volleybots.ratings.elo import ELO_K, ELO_START, elo, expected_score, round_robin, sample_round_robin
+from volleybots.ratings.elo import ELO_K, ELO_START, elo, elo_history, expected_score, round_robin, sample_round_robin
 from volleybots.ratings.intervals import wilson_interval
 
 __all__ = [
@@ -21,6 +21,7 @@ __all__ = [
     "bradley_terry",
     "bradley_terry_bootstrap",
     "elo",
+    "elo_history",
     "expected_score",
     "half_win_matrix",
     "round_robin",

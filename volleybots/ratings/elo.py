@@ -23,13 +23,20 @@ def expected_score(ra, rb):
 
 def elo(games: Iterable, n: int, k: float = ELO_K, start: float = ELO_START) -> np.ndarray:
     """Final ratings [n] after the games ``(a, b, score_a)`` in order (score 1 win, 0.5 draw, 0 loss)."""
+    return elo_history(games, n, k, start)[-1]
+
+
+def elo_history(games: Iterable, n: int, k: float = ELO_K, start: float = ELO_START) -> np.ndarray:
+    """Ratings [1 + games, n]: at the start and after every game."""
     r = np.full(n, float(start))
+    out = [r.copy()]
     for a, b, score in games:
         a, b = int(a), int(b)
         delta = k * (float(score) - expected_score(r[a], r[b]))
         r[a] += delta
         r[b] -= delta
-    return r
+        out.append(r.copy())
+    return np.asarray(out)
 
 
 def round_robin(n: int, rounds: int, play: Callable[[int, int, int], float], rng: np.random.Generator) -> np.ndarray:
