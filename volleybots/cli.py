@@ -257,22 +257,36 @@ def _free_path(path: Path) -> Path:
 @app.command(context_settings=_PASS_THROUGH)
 @_user_errors
 def replay(
-    target: str = typer.Argument(..., help="A run directory, a checkpoint file, 'scripted' or 'random'."),
-    overrides: Optional[List[str]] = typer.Argument(None, help="seed=0 deterministic=true; for scripted/random also task=NAME env.action_space=ctbr."),
+    args: List[str] = typer.Argument(..., help="TARGET [overrides]: a run dir, a checkpoint, 'scripted' or 'random' with seed=0 deterministic=true (for scripted/random also task=NAME env.action_space=ctbr); or A B [task=3v3 seed=0 scenario=any|serve|receive]: a match between two competitors (name=PATH labels one)."),
     out: Optional[Path] = typer.Option(None, "--out", help="The .rrd file to write (never overwritten)."),
     no_viewer: bool = typer.Option(False, "--no-viewer", help="Do not open the rerun viewer even when a display exists."),
 ) -> None:
-    """Record one episode to a rerun file: court, net, drones, ball trail, hits / violations, rewards."""
-    from volleybots.config import make_env
-    from volleybots.eval import resolve_target
-    from volleybots.replay import has_display, record_episode
+    """Record one episode to a rerun file: court, net, drones, ball trail, hits / violations, rewards; for two
+    competitors, one match with each team's colour, the touches and the fault that ended the rally."""
+    from volleybots.replay import has_display
 
     if out is not None and out.suffix != ".rrd":
         raise ConfigError(f"--out {str(out)!r} must end in .rrd")
     if out is not None and out.exists():
         raise ConfigError(f"--out {str(out)!r} exists; choose another file (replays never overwrite)")
-    t = resolve_target(target, list(overrides or []))
     viewer = not no_viewer and has_display()
+    from volleybots.eval.crossplay import is_competitor_spec, replay_match
+
+    if sum(map(is_competitor_spec, args)) >= 2:
+        stats, out, labels = replay_match(args, out, viewer)
+        where = str(out) if out is not None else "the viewer"
+        who = {0: f"{labels[0]} (blue) won", 1: f"{labels[1]} (red) won", -1: "a draw"}[int(stats["winner"])]
+        typer.echo(f"recorded one match of {labels[0]} (blue) against {labels[1]} (red) to {where}: {who}")
+        return
+    _replay_one(args[0], args[1:], out, viewer)
+
+
+def _replay_one(target: str, overrides: list[str], out: Path | None, viewer: bool) -> None:
+    from volleybots.config import make_env
+    from volleybots.eval import resolve_target
+    from volleybots.replay import record_episode
+
+    t = resolve_target(target, overrides)
     if out is None and not viewer:
         stamp = time.strftime("%Y%m%d-%H%M%S")
         base = Path(target) if Path(target).is_dir() else Path("outputs") / "replays"

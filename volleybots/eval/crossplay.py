@@ -140,10 +140,12 @@ def split_args(args, options: dict) -> tuple[list[str], dict, list[str]]:
         if eq and key in options:
             v = parse_value(value)
             kind = options[key]
+            if kind is float and isinstance(v, int) and not isinstance(v, bool):
+                v = float(v)
             if not isinstance(v, kind) or (kind is int and isinstance(v, bool)):
                 raise ConfigError(f"{key}={value!r} must be {'an integer' if kind is int else 'true or false' if kind is bool else 'a ' + kind.__name__}")
             opts[key] = v
-        elif eq and (key == "task" or key.startswith(("task.", "env."))):
+        elif eq and (key in ("task", "threads") or key.startswith(("task.", "env."))):
             overrides.append(arg)
         else:
             specs.append(arg)
@@ -198,12 +200,13 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
         raise ConfigError(f"cross-play needs at least two competitors; got {n}")
     labels = [c.label for c in competitors]
     wdl = np.zeros((n, n, 3))
-    outcomes, sides = {}, {}
+    outcomes, sides, served = {}, {}, {}
     for i, j in combinations(range(n), 2):
         g = play_games(cfg, competitors[i], competitors[j], games, seed=seed, batch=batch, scenario=scenario, deterministic=deterministic)
         wdl[i, j], wdl[j, i] = g.total, g.total[::-1]
         outcomes[f"{i},{j}"] = g.outcomes
         sides[f"{i},{j}"] = g.wdl.tolist()
+        served[f"{i},{j}"] = g.served
         if progress is not None:
             progress(i, j, g)
     specs = specs or labels
@@ -216,6 +219,7 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
         "scenario": scenario,
         "deterministic": deterministic,
         "competitors": [provenance(c, s) for c, s in zip(competitors, specs)],
+        "served": served,  # "i,j" -> games in which i served
         "config": to_dict(cfg),
         "versions": versions(),
     }
@@ -325,3 +329,48 @@ def run_crossplay(args, out: Path | None = None, progress=None, verb: str = "cro
     res.save(path / RESULTS)
     heatmap(res, path / HEATMAP)
     return res, path
+
+
+REPLAY_OPTIONS = {"seed": int, "scenario": str, "deterministic": bool}
+
+
+def is_competitor_spec(arg: str) -> bool:
+    """A replay argument names a competitor (rather than a config override) when it has no ``=`` or
+    labels a built-in player or an existing path: ``replay A B`` records a match, ``replay A k=v`` one policy."""
+    from volleybots.competitors import BUILTIN
+
+    label, eq, value = arg.partition("=")
+    return not eq or value in BUILTIN or (bool(value) and Path(value).exists())
+
+
+def replay_match(args, out: Path | None, viewer: bool) -> tuple[dict, Path | None, list[str]]:
+    """``volleybots replay A B task=3v3``: one match between two competitors recorded to rerun (team
+    colours, touches, the point and its fault); returns (env 0's statistics, the file, the labels)."""
+    import time
+
+    from volleybots.eval.games import side_env
+    from volleybots.replay import record_match
+    from volleybots.tasks.multi import TeamPolicies
+
+    comps, specs, opts, cfg = setup(args, REPLAY_OPTIONS)
+    if len(comps) != 2:
+        raise ConfigError(f"a match replay takes two competitors; got {len(comps)}: {' '.join(specs)}")
+    labels = [c.label for c in comps]
+    if out is None and not viewer:
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        name = "_vs_".join(lab.replace("@", "_").replace("/", "_") for lab in labels)
+        out = Path("outputs") / "replays" / f"replay_{cfg.task.name}_{name}_{stamp}.rrd"
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    seed = opts.get("seed", 0)
+    env = side_env(cfg, 0, opts.get("scenario", "any"), 1, seed)  # A is team 0 (blue)
+    gen = torch_generator(seed)
+    policy = TeamPolicies(env, tuple(c.team_policy(env, opts.get("deterministic", False), gen) for c in comps))
+    return record_match(env, policy, tuple(labels), out, viewer=viewer), out, labels
+
+
+def torch_generator(seed: int):
+    import torch
+
+    torch.manual_seed(seed)
+    return torch.Generator().manual_seed(seed)

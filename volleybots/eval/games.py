@@ -39,6 +39,7 @@ class Games:
     wdl: np.ndarray  # [2, 3] int: A on team 0 / on team 1 -> wins, draws, losses
     outcomes: str  # one letter of OUTCOMES per game, in play order
     faults: np.ndarray = field(default_factory=lambda: np.zeros((2, len(Referee.FAULTS)), dtype=int))  # [A, B] x fault: the faults that lost games
+    served: int = 0  # games in which A served
 
     @property
     def total(self) -> np.ndarray:
@@ -92,6 +93,7 @@ def play_games(cfg, a, b, games: int, seed: int = 0, batch: int = DEFAULT_BATCH,
     wdl = np.zeros((2, 3), dtype=int)
     faults = np.zeros((2, len(Referee.FAULTS)), dtype=int)
     outcomes: list[str] = []
+    a_served = 0
     per_side = (batch_sizes(games - games // 2, batch), batch_sizes(games // 2, batch) if games > 1 else [])
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(seed)
@@ -101,12 +103,13 @@ def play_games(cfg, a, b, games: int, seed: int = 0, batch: int = DEFAULT_BATCH,
             for side, player in enumerate(sides):
                 if k >= len(per_side[side]):
                     continue
-                for o, reason in player.play(per_side[side][k]):
+                for o, reason, served in player.play(per_side[side][k]):
                     wdl[side, OUTCOMES.index(o)] += 1
+                    a_served += served
                     if o != "D":
                         faults[0 if o == "L" else 1, reason] += 1  # a lost game is the loser's fault
                     outcomes.append(o)
-    return Games(wdl, "".join(outcomes), faults)
+    return Games(wdl, "".join(outcomes), faults, a_served)
 
 
 def head_to_head(cfg, a, b, games: int, seed: int, deterministic: bool = False) -> dict[str, int]:
@@ -125,9 +128,8 @@ class _Side:
         pa, pb = (c.team_policy(self.env, deterministic, gen) for c in (a, b))
         self.policy = TeamPolicies(self.env, (pa, pb) if side == 0 else (pb, pa))
 
-    def play(self, size: int) -> list[tuple[str, int]]:
-        """(outcome from A's side, index of the ending fault or -1) for ``size`` games."""
+    def play(self, size: int) -> list[tuple[str, int, bool]]:
+        """(outcome from A's side, index of the ending fault or -1, whether A served) for ``size`` games."""
         res = run_episodes(self.env, self.policy)
-        winner = res["winner"][:size].round().long().tolist()
-        reason = res["reason"][:size].round().long().tolist()
-        return [("D" if w < 0 else "W" if w == self.side else "L", r) for w, r in zip(winner, reason)]
+        winner, reason, serve = (res[k][:size].round().long().tolist() for k in ("winner", "reason", "serve_team"))
+        return [("D" if w < 0 else "W" if w == self.side else "L", r, s == self.side) for w, r, s in zip(winner, reason, serve)]

@@ -126,8 +126,6 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
 
     options = {**{k: v for k, v in OPTIONS.items() if k != "games"}, **ELO_OPTIONS}
     specs, opts, _ = split_args(args, options)
-    if isinstance(opts.get("k"), int):
-        opts["k"] = float(opts["k"])
     rounds = opts.get("rounds", 2000)
     if rounds < 1:
         raise ConfigError(f"rounds={rounds} must be >= 1")
