@@ -71,7 +71,8 @@ def tiny_ckpt(tmp_path_factory):
     """A tiny 1v1 training run (seconds): its final checkpoint is a competitor with a file."""
     d = tmp_path_factory.mktemp("tiny") / "run"
     cmd = [sys.executable, "-m", "volleybots.cli", "train", "task=1v1", "algo=mappo", "total_frames=256", "env.num_envs=8",
-           "algo.frames_per_batch=128", "evaluation.episodes=2", "evaluation.record=false", "progress=false", "threads=1", f"hydra.run.dir={d}"]
+           "algo.steps_per_batch=16", "algo.minibatches=2", "algo.epochs=1", "algo.hidden=[32,32]", "evaluation.episodes=2",
+           "evaluation.every=0", "evaluation.record=false", "progress=false", "threads=1", f"hydra.run.dir={d}"]
     res = subprocess.run(cmd, capture_output=True, text=True, env=ENV, cwd=Path(__file__).parents[1], timeout=600)
     assert res.returncode == 0, res.stderr[-3000:]
     return d
@@ -188,7 +189,7 @@ def _bad_cases(tmp, ckpt):
         (["eval", "elo", f"from={ckpt}"], ["final.pt", "not a cross-play results file"]),
         (["eval", "elo", "scripted", "random", "task=1v1", "rounds=3"], ["rounds=3", "even"]),
         (["eval", "crossplay", "scripted", "random", "task=1v1", "--out", str(tmp / "full")], ["full", "never overwritten"]),
-        (["replay", "scripted", "random", "random", "task=1v1"], ["two competitors", "3"]),
+        (["replay", "scripted", "random", "r2=random", "task=1v1"], ["two competitors", "3"]),
     ]
 
 

@@ -352,9 +352,10 @@ def replay_match(args, out: Path | None, viewer: bool) -> tuple[dict, Path | Non
     from volleybots.replay import record_match
     from volleybots.tasks.multi import TeamPolicies
 
+    specs = split_args(args, REPLAY_OPTIONS)[0]
+    if len(specs) != 2:
+        raise ConfigError(f"a match replay takes two competitors; got {len(specs)}: {' '.join(specs)}")
     comps, specs, opts, cfg = setup(args, REPLAY_OPTIONS)
-    if len(comps) != 2:
-        raise ConfigError(f"a match replay takes two competitors; got {len(comps)}: {' '.join(specs)}")
     labels = [c.label for c in comps]
     if out is None and not viewer:
         stamp = time.strftime("%Y%m%d-%H%M%S")
