@@ -216,8 +216,19 @@ def eval_cmd(
         Console().print(format_table(result))
 
 
-def _pair_progress(labels):
-    return lambda i, j, g: typer.echo(f"  {labels[i]} vs {labels[j]}: W/D/L {'/'.join(map(str, g.total.tolist()))}", err=True)
+def _pair_progress(i: int, j: int, games) -> None:
+    typer.echo(f"  pair {i},{j}: W/D/L {'/'.join(map(str, games.total.tolist()))}", err=True)
+
+
+def _show(data: dict, table, as_json: bool, files: list[Path]) -> None:
+    """A verb's result: its JSON, or its table and the files it wrote."""
+    if as_json:
+        typer.echo(json.dumps(data, indent=1))
+        return
+    from rich.console import Console
+
+    Console().print(table)
+    typer.echo(f"wrote {' and '.join(map(str, files))}")
 
 
 @eval_app.command("crossplay", context_settings=_PASS_THROUGH)
@@ -230,14 +241,8 @@ def crossplay_cmd(
     """Every pair plays N games, each side half of them: W/D/L, win rates with Wilson intervals, average win rate, heatmap."""
     from volleybots.eval.crossplay import format_table, run_crossplay
 
-    res, path = run_crossplay(list(args or []), out, progress=None if as_json else lambda i, j, g: None)
-    if as_json:
-        typer.echo(json.dumps(res.to_dict(), indent=1))
-        return
-    from rich.console import Console
-
-    Console().print(format_table(res))
-    typer.echo(f"wrote {path / 'crossplay.json'} and {path / 'crossplay.png'}")
+    res, path = run_crossplay(list(args or []), out, progress=None if as_json else _pair_progress)
+    _show(res.to_dict(), format_table(res), as_json, [path / "crossplay.json", path / "crossplay.png"])
 
 
 @eval_app.command("elo", context_settings=_PASS_THROUGH)
@@ -250,14 +255,8 @@ def elo_cmd(
     """Elo over rounds in which every pair meets once (the paper's), Bradley-Terry with bootstrap intervals, the Nash mixture."""
     from volleybots.eval.ranking import format_table, run_elo
 
-    report, path = run_elo(list(args or []), out)
-    if as_json:
-        typer.echo(json.dumps(report, indent=1))
-        return
-    from rich.console import Console
-
-    Console().print(format_table(report))
-    typer.echo(f"wrote {path / 'ratings.json'} and {path / 'ratings.png'}")
+    report, path = run_elo(list(args or []), out, progress=None if as_json else _pair_progress)
+    _show(report, format_table(report), as_json, [path / "ratings.json", path / "ratings.png"])
 
 
 def _free_path(path: Path) -> Path:
