@@ -115,9 +115,9 @@ def _read_run(d: Path, stale_after: float, now: float) -> Run:
         return Run(d, "failed", f"config.yaml unreadable ({type(e).__name__})")
     if not run.summary_path.is_file():
         total = config.get("total_frames", "?")
+        hint = f"; `volleybots train resume={d}` continues it" if any(run.ckpt_dir.glob("*.pt")) else ""
         return _unfinished(Run(d, "running", config=config), d, stale_after, now,
-                           f"no summary.json, stopped at {_frames_reached(run)} of {total} frames (killed or crashed; "
-                           f"`volleybots train resume={d}` continues it)")
+                           f"no summary.json: stopped (killed or crashed) at {_frames_reached(run)} of {total} frames{hint}")
     try:
         summary = json.loads(run.summary_path.read_text())
         value = float(summary["final_eval"]["stats"][summary["metric"]]["mean"])
@@ -274,6 +274,11 @@ def _fmt(v: float) -> str:
     return f"{v:.4g}"
 
 
+def _frames(n: int) -> str:
+    """2000000 -> 2M, 1024 -> 1,024: budgets as a sweep names them."""
+    return f"{n / 1e6:g}M" if n >= 1e6 and n % 100_000 == 0 else f"{n:,}"
+
+
 def _ci(ci) -> str:
     return "n/a (1 seed)" if ci is None else f"[{_fmt(ci[0])}, {_fmt(ci[1])}]"
 
@@ -287,7 +292,7 @@ def format_markdown(report: dict) -> str:
                   "| algorithm | variant | frames | seeds | mean | 95% CI | IQM | 95% CI |", "|---|---|---|---|---|---|---|---|"]
         for c in cells:
             seeds = ",".join(map(str, c["seeds"]))
-            lines.append(f"| {c['algo']} | {c['variant'] or '-'} | {c['total_frames']:.3g} | {seeds} | {_fmt(c['mean'])} | "
+            lines.append(f"| {c['algo']} | {c['variant'] or '-'} | {_frames(c['total_frames'])} | {seeds} | {_fmt(c['mean'])} | "
                          f"{_ci(c['mean_ci'])} | {_fmt(c['iqm'])} | {_ci(c['iqm_ci'])} |")
         lines.append("")
     if not report["cells"]:
@@ -319,7 +324,7 @@ def plot_curves(report: dict, out: Path) -> list[Path]:
         for c in cells:
             cv = c["curve"]
             label = (f"{c['algo']}{' (' + c['variant'] + ')' if c['variant'] else ''}: seeds {','.join(map(str, c['seeds']))}, "
-                     f"{c['total_frames']:.3g} frames")
+                     f"{_frames(c['total_frames'])} frames")
             (line,) = ax.plot(cv["frames"], cv["mean"], marker="o", ms=3, label=label)
             ax.fill_between(cv["frames"], cv["low"], cv["high"], color=line.get_color(), alpha=0.25, lw=0)
             if len(cv["frames"]) == 1:  # a single evaluation has no band to fill: draw its interval
