@@ -26,6 +26,7 @@ def make_run(root: Path, name: str, *, task="hover", algo="ppo", seed=0, final=1
     """A run directory as `volleybots train` writes it, with a known final metric and eval curve."""
     d = root / name
     d.mkdir(parents=True)
+    summary_frames = extra.pop("summary_frames", None)
     metric = "distance" if task == "hover" else "hits"
     cfg = {"task": {"name": task}, "algo": {"name": algo, "lr": extra.pop("lr", 0.001)}, "env": {"num_envs": 8, "device": "cpu"},
            "seed": seed, "total_frames": 2_000_000, "threads": seed + 1, "checkpoint": {"every": 10 + seed}, **extra}
@@ -37,7 +38,8 @@ def make_run(root: Path, name: str, *, task="hover", algo="ppo", seed=0, final=1
     (d / "metrics.csv").write_text("\n".join(rows) + "\n")
     if summary:
         stats = {metric: {"mean": final, "std": 0.1}, "return": {"mean": 5.0, "std": 1.0}}
-        (d / "summary.json").write_text(json.dumps({"metric": metric, "seed": seed, "final_eval": {"stats": stats}}))
+        frames = summary_frames or cfg["total_frames"]
+        (d / "summary.json").write_text(json.dumps({"metric": metric, "seed": seed, "frames": frames, "final_eval": {"stats": stats}}))
     if age is not None:
         for p in [*d.rglob("*"), d]:
             os.utime(p, (age, age))
@@ -69,6 +71,7 @@ def sweep(tmp_path):
     make_run(root, "diverged", seed=9, final=float("nan"))
     make_run(root, "killed", seed=7, summary=False, age=HOUR_AGO)
     make_run(root, "live", seed=8, summary=False)
+    make_run(root, "resumed_killed", seed=5, summary_frames=1_000_000, age=HOUR_AGO)
     job = root / "never_started" / ".hydra"
     job.mkdir(parents=True)
     (job / "overrides.yaml").write_text(yaml.safe_dump(["seed=6", "algo.lr=-1"]))
@@ -118,11 +121,12 @@ def test_runs_without_a_result_are_listed_with_their_state(sweep):
     assert runs["diverged"].status == "failed" and "nan" in runs["diverged"].reason
     assert runs["killed"].status == "failed" and "no summary.json" in runs["killed"].reason and "1.0 h ago" in runs["killed"].reason
     assert runs["live"].status == "running"
+    assert runs["resumed_killed"].status == "failed" and "summary.json is of the first 1000000" in runs["resumed_killed"].reason
     assert runs["never_started"].status == "failed" and "seed=6 algo.lr=-1" in runs["never_started"].reason
     assert sum(r.status == "complete" for r in runs.values()) == 9  # 5 + 2 + 1 + 1; .hydra/ config copies are no runs
     # a longer patience turns the killed run back into a running one
     assert {r.path.name: r.status for r in find_runs([root], stale_after=7200)}["killed"] == "running"
-    assert len(runs) == 13
+    assert len(runs) == 14
 
 
 def test_report_command_prints_and_writes_the_report(sweep, tmp_path):
@@ -133,9 +137,9 @@ def test_report_command_prints_and_writes_the_report(sweep, tmp_path):
     rows = [line for line in res.stdout.splitlines() if line.startswith("| ppo | algo.lr=0.001")]
     assert len(rows) == 1 and "| 2M | 0,1,2,3,4 | 4 |" in rows[0] and "| 3 |" in rows[0], rows
     assert "| sac | - | 2M | 0,1 | 8 | [7, 9] |" in res.stdout
-    for name in ("diverged", "killed", "live", "never_started"):
+    for name in ("diverged", "killed", "live", "never_started", "resumed_killed"):
         assert str(root / name) in res.stdout, name
-    assert "## Runs not counted (4)" in res.stdout
+    assert "## Runs not counted (5)" in res.stdout
     assert (out / "report.md").read_text().startswith(res.stdout.rstrip("\n"))
     assert json.loads((out / "report.json").read_text())["cells"] == build_report([root])["cells"]
     for task in ("hover", "solo_bump"):

@@ -54,10 +54,6 @@ class Run:
     config: dict = field(default_factory=dict)
     summary: dict | None = None
 
-    @property
-    def label(self) -> str:
-        return f"{self.config.get('task', {}).get('name', '?')}/{self.config.get('algo', {}).get('name', '?')} seed {self.config.get('seed', '?')}"
-
     def final(self) -> float:
         """The final evaluation's mean of the task metric."""
         return float(self.summary["final_eval"]["stats"][self.summary["metric"]]["mean"])
@@ -123,6 +119,11 @@ def _read_run(d: Path, stale_after: float, now: float) -> Run:
         value = float(summary["final_eval"]["stats"][summary["metric"]]["mean"])
     except (ValueError, KeyError, TypeError) as e:
         return Run(d, "failed", f"summary.json unreadable ({type(e).__name__}: {e})", config)
+    if not config.get("time_limit") and summary.get("frames", 0) < config.get("total_frames", 0):
+        # `train resume=DIR total_frames=N` rewrote config.yaml; summary.json is that of the earlier budget
+        return _unfinished(Run(d, "running", config=config), d, stale_after, now,
+                           f"resumed to {config['total_frames']} frames but stopped (killed or crashed) at {_frames_reached(run)}; "
+                           f"summary.json is of the first {summary['frames']}")
     if not math.isfinite(value):
         return Run(d, "failed", f"final {summary['metric']} is {value} (training diverged)", config, summary)
     return Run(d, "complete", "", config, summary)
