@@ -72,6 +72,8 @@ def sweep(tmp_path):
     make_run(root, "killed", seed=7, summary=False, age=HOUR_AGO)
     make_run(root, "live", seed=8, summary=False)
     make_run(root, "resumed_killed", seed=5, summary_frames=1_000_000, age=HOUR_AGO)
+    population = make_run(root, "psro", task="1v1", algo="psro_nash", summary=False)
+    (population / "summary.json").write_text(json.dumps({"metric": "win", "frames": 2_000_000, "population": {"members": ["random", "br1"]}}))
     job = root / "never_started" / ".hydra"
     job.mkdir(parents=True)
     (job / "overrides.yaml").write_text(yaml.safe_dump(["seed=6", "algo.lr=-1"]))
@@ -121,12 +123,13 @@ def test_runs_without_a_result_are_listed_with_their_state(sweep):
     assert runs["diverged"].status == "failed" and "nan" in runs["diverged"].reason
     assert runs["killed"].status == "failed" and "no summary.json" in runs["killed"].reason and "1.0 h ago" in runs["killed"].reason
     assert runs["live"].status == "running"
+    assert runs["psro"].status == "not aggregated" and "population run" in runs["psro"].reason
     assert runs["resumed_killed"].status == "failed" and "summary.json is of the first 1000000" in runs["resumed_killed"].reason
     assert runs["never_started"].status == "failed" and "seed=6 algo.lr=-1" in runs["never_started"].reason
     assert sum(r.status == "complete" for r in runs.values()) == 9  # 5 + 2 + 1 + 1; .hydra/ config copies are no runs
     # a longer patience turns the killed run back into a running one
     assert {r.path.name: r.status for r in find_runs([root], stale_after=7200)}["killed"] == "running"
-    assert len(runs) == 14
+    assert len(runs) == 15
 
 
 def test_report_command_prints_and_writes_the_report(sweep, tmp_path):
@@ -137,9 +140,9 @@ def test_report_command_prints_and_writes_the_report(sweep, tmp_path):
     rows = [line for line in res.stdout.splitlines() if line.startswith("| ppo | algo.lr=0.001")]
     assert len(rows) == 1 and "| 2M | 0,1,2,3,4 | 4 |" in rows[0] and "| 3 |" in rows[0], rows
     assert "| sac | - | 2M | 0,1 | 8 | [7, 9] |" in res.stdout
-    for name in ("diverged", "killed", "live", "never_started", "resumed_killed"):
+    for name in ("diverged", "killed", "live", "never_started", "resumed_killed", "psro"):
         assert str(root / name) in res.stdout, name
-    assert "## Runs not counted (5)" in res.stdout
+    assert "## Runs not counted (6)" in res.stdout
     assert (out / "report.md").read_text().startswith(res.stdout.rstrip("\n"))
     assert json.loads((out / "report.json").read_text())["cells"] == build_report([root])["cells"]
     for task in ("hover", "solo_bump"):

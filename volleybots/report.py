@@ -13,8 +13,9 @@ rliable computes them for one task; rliable itself pins ``arch<8``, whose releas
 not import with pandas 3, so it cannot be a dependency here.
 
 Runs without a result are listed with their state, never dropped: ``running`` (no summary.json and
-written to within ``stale_after`` seconds) or ``failed`` (a run that stopped without a summary, an
-unreadable summary, a final metric that is not finite, or a job that stopped before training).
+written to within ``stale_after`` seconds), ``failed`` (a run that stopped without a summary, an
+unreadable summary, a final metric that is not finite, or a job that stopped before training) or
+``not aggregated`` (a population run, whose result is a payoff table, not one final evaluation).
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ class Run:
     """One run directory (or Hydra job folder) and what it holds."""
 
     path: Path
-    status: str  # complete | running | failed
+    status: str  # complete | running | failed | not aggregated
     reason: str = ""  # why it is not complete
     config: dict = field(default_factory=dict)
     summary: dict | None = None
@@ -116,6 +117,8 @@ def _read_run(d: Path, stale_after: float, now: float) -> Run:
                            f"no summary.json: stopped (killed or crashed) at {_frames_reached(run)} of {total} frames{hint}")
     try:
         summary = json.loads(run.summary_path.read_text())
+        if "final_eval" not in summary and "population" in summary:
+            return Run(d, "not aggregated", "a population run: no final evaluation to average (its payoffs: population/payoffs.json)", config, summary)
         value = float(summary["final_eval"]["stats"][summary["metric"]]["mean"])
     except (ValueError, KeyError, TypeError) as e:
         return Run(d, "failed", f"summary.json unreadable ({type(e).__name__}: {e})", config)
