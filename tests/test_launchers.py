@@ -18,7 +18,7 @@ from typer.testing import CliRunner
 from volleybots.cli import app
 
 SWEEP = [
-    "seed=0,1", "task=hover", "env.num_envs=4", "algo.steps_per_batch=16", "total_frames=128", "threads=1", "progress=false",
+    "seed=0,1", "task=hover", "task.episode_len=50", "env.num_envs=4", "algo.steps_per_batch=16", "total_frames=128", "threads=1", "progress=false",
     "checkpoint.every=64", "evaluation.every=64", "evaluation.episodes=2", "evaluation.record=false",
 ]
 LAUNCHERS = {

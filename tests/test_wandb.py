@@ -17,7 +17,7 @@ from volleybots.runs import read_metrics
 
 wandb_pb = pytest.importorskip("wandb.proto.wandb_internal_pb2", reason="the wandb extra is part of the test install")
 
-TINY = ["task=hover", "env.num_envs=4", "algo.steps_per_batch=16", "total_frames=128", "threads=1", "progress=false",
+TINY = ["task=hover", "task.episode_len=50", "env.num_envs=4", "algo.steps_per_batch=16", "total_frames=128", "threads=1", "progress=false",
         "checkpoint.every=64", "evaluation.every=64", "evaluation.episodes=2", "seed=3"]
 
 
