@@ -171,7 +171,7 @@ def _run_hydra(overrides: list[str], multirun: bool, extra: list[str]) -> None:
         from hydra.core.hydra_config import HydraConfig
 
         from volleybots.config import algo_action_space, validate
-        from volleybots.train import train as train_run
+        from volleybots.runner import start as train_run
 
         try:
             cfg = algo_action_space(cfg, HydraConfig.get().overrides.task)
@@ -191,6 +191,14 @@ def _run_hydra(overrides: list[str], multirun: bool, extra: list[str]) -> None:
 
 
 def _echo_summary(summary: dict, run_dir) -> None:
+    if "population" in summary:
+        pop = summary["population"]
+        mix = ", ".join(f"{m} {w:.2f}" for m, w in zip(pop["members"], pop["mixture"]))
+        typer.echo(
+            f"run {run_dir}: {summary['frames']} frames in {summary['wall_time_s']:.0f} s ({summary['frames_per_s']:,.0f} frames/s); "
+            f"{summary['iterations']} iteration(s), population {len(pop['members'])}, meta-strategy ({pop['solver']}): {mix}"
+        )
+        return
     ev = summary["final_eval"]["stats"][summary["metric"]]
     typer.echo(
         f"run {run_dir}: {summary['frames']} frames in {summary['wall_time_s']:.0f} s "
@@ -215,7 +223,7 @@ def train(
         raise ConfigError("--cfg prints the config of one job; it cannot be combined with -m")
     resume_dir = next((o.partition("=")[2] for o in overrides if o.startswith("resume=")), None)
     if resume_dir is not None and resume_dir != "null":
-        from volleybots.train import resume
+        from volleybots.runner import resume
 
         if multirun or show:
             raise ConfigError("resume= continues one run; it takes neither -m nor --cfg")
@@ -225,17 +233,22 @@ def train(
     from volleybots.config import check_memory, compose, validate
 
     jobs = _jobs(overrides, multirun)
-    for job in jobs:
-        cfg = validate(compose(job))
-        if show is None:
-            check_memory(cfg)
+    cfgs = [validate(compose(job)) for job in jobs]
+    if not any(o.split("=", 1)[0].lstrip("+~") == "algo" for o in overrides):
+        # the task's own default (MAPPO for cooperative tasks, SP for matches) when no algo is named
+        algos = sorted({c.algo.name for c in cfgs})
+        if len(algos) > 1:
+            raise ConfigError(f"the swept tasks train with different default algorithms ({', '.join(algos)}); name one with algo=NAME")
+        overrides = [*overrides, f"algo={algos[0]}"]
     if show is not None:
         _run_hydra(overrides, multirun, ["--cfg", show])
         return
+    for cfg in cfgs:
+        check_memory(cfg)
     from volleybots.runs import unlock
 
     key = _DIR_KEYS[multirun]
-    run_dir = _claim_dir(jobs[0], overrides, multirun)
+    run_dir = _claim_dir(_jobs(overrides, multirun)[0], overrides, multirun)
     try:
         pinned = [o for o in overrides if o.partition("=")[0].lstrip("+") != key]
         _run_hydra([*pinned, f"{key}={_hydra_quote(run_dir)}"], multirun, [])
@@ -325,14 +338,30 @@ def list_cmd() -> None:
         typer.echo(f"  {name:<20} {n:>2} drone{'s' if n > 1 else ' '}  metric: {cls.metric}{cfg}")
     typer.echo("algorithms (algo=NAME):")
     for name, cls in ALGOS.items():
-        kind = "one or more drones" if cls.multi_agent else "one drone"
-        typer.echo(f"  {name:<20} {kind}; action spaces: {', '.join(cls.action_spaces)}")
+        fits = [t for t in TASKS if _fits(name, t)]
+        typer.echo(f"  {name:<20} action spaces: {', '.join(cls.action_spaces)}; tasks: {', '.join(fits)}")
     typer.echo("physics backends (env.physics=NAME):")
     for name, text in BACKEND_INFO.items():
         typer.echo(f"  {name:<20} {text}")
     typer.echo("action spaces (env.action_space=NAME):")
     for name, text in ACTION_SPACE_INFO.items():
         typer.echo(f"  {name:<20} {text}")
+
+
+def _fits(algo: str, task: str) -> bool:
+    """Whether ``algo`` accepts ``task`` in its own first action space (its ``check`` decides)."""
+    from volleybots.algos import ALGOS
+    from volleybots.config import EnvConfig
+    from volleybots.tasks import TASKS
+
+    cls = ALGOS[algo]
+    try:
+        from omegaconf import OmegaConf
+
+        cls.check(OmegaConf.structured(cls.config_cls), TASKS[task], EnvConfig(action_space=cls.action_spaces[0]))
+    except ConfigError:
+        return False
+    return True
 
 
 @app.command(context_settings=_PASS_THROUGH)

@@ -78,6 +78,8 @@ class Config:
     total_frames: int = ranged(1_000_000, ge=1)
     time_limit: float = ranged(0.0, ge=0)
     resume: Optional[str] = None
+    opponent: Optional[str] = None
+    opponent_deterministic: bool = False
     progress: bool = True
     logger: str = "csv"
     wandb: WandbConfig = field(default_factory=WandbConfig)
@@ -228,6 +230,8 @@ def validate(cfg) -> DictConfig:
         if importlib.util.find_spec("wandb") is None:
             raise ConfigError("logger=wandb needs the wandb package: pip install 'volleybots[wandb]' (or use logger=csv)")
     algo_cls.check(typed_algo, TASKS[typed_task.name], env)
+    if rest.opponent is not None:
+        _check_opponent(rest, TASKS[typed_task.name], algo_cls)
     return rest
 
 
@@ -268,6 +272,24 @@ def check_env_args(**kwargs) -> None:
         check_range(key, value, ranges.get(key))
 
 
+OPPONENT_LEARNERS = ("mappo",)  # learners that can play one team (MAPPO over one drone is PPO)
+
+
+def _check_opponent(cfg, task_cls, algo_cls) -> None:
+    """``opponent=``: a match, a learner that plays one team, and a competitor made for this task."""
+    from volleybots.algos.base import class_attr
+    from volleybots.competitors import resolve_competitor
+
+    if not class_attr(task_cls, "competitive"):
+        raise ConfigError(f"opponent={cfg.opponent!r} is for matches (1v1, 3v3, 6v6), not task {task_cls.name!r}")
+    if getattr(algo_cls, "population", False):
+        raise ConfigError(f"algo {algo_cls.name!r} chooses its own opponents; give it algo.seed_members=[...] instead of opponent=")
+    if algo_cls.name not in OPPONENT_LEARNERS:
+        raise ConfigError(f"algo {algo_cls.name!r} cannot learn one team against opponent=; allowed: {', '.join(OPPONENT_LEARNERS)}")
+    obs_dim = class_attr(task_cls, "obs_dim_prt") - (4 if cfg.env.action_space == "ctbr" else 0)
+    resolve_competitor(cfg.opponent).check_fits(task_cls.name, cfg.env.action_space, obs_dim)
+
+
 # ------------------------------------------------------------------------------------ composition
 def _check_overrides(overrides: list[str]) -> None:
     """Name the bad value of a group override before Hydra does (with the allowed options)."""
@@ -300,8 +322,9 @@ def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = Fals
     with initialize_config_dir(config_dir=str(conf_dir()), version_base="1.3"):
         try:
             cfg = hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node)
-            if _needs_multi_agent_default(cfg, overrides):
-                cfg = hydra_compose("config", overrides=[*overrides, f"algo={MULTI_AGENT_DEFAULT}"], return_hydra_config=hydra_node)
+            default = _task_default_algo(cfg, overrides)
+            if default is not None:
+                cfg = hydra_compose("config", overrides=[*overrides, f"algo={default}"], return_hydra_config=hydra_node)
             return algo_action_space(cfg, overrides)
         except HydraException as e:
             _explain_unknown_key(overrides, hydra_compose)
@@ -331,22 +354,22 @@ def _explain_unknown_key(overrides: list[str], hydra_compose) -> None:
 _ABSENT = object()
 
 
-MULTI_AGENT_DEFAULT = "mappo"  # the algorithm a multi-drone task gets when the command line names none
-
-
-def _needs_multi_agent_default(cfg: DictConfig, overrides) -> bool:
-    """The default algorithm (``ppo``) trains one drone: a multi-drone task whose command line names no
-    algo gets ``MULTI_AGENT_DEFAULT`` instead (``eval scripted task=3v3`` needs no algo at all, and
-    ``train task=3v3`` then does what one expects). A named single-drone algo is still an error."""
-    from volleybots.algos import ALGOS
+def _task_default_algo(cfg: DictConfig, overrides) -> str | None:
+    """The algorithm a task trains with when the command line names none (the task's
+    ``default_algo``: MAPPO for the cooperative tasks, SP for the matches, MAPPO against an
+    ``opponent=``), if it is not the config's
+    default already. ``eval scripted task=3v3`` needs no algo at all, and ``train task=3v3`` then does
+    what one expects. A named algo that cannot train the task is still an error."""
     from volleybots.algos.base import class_attr
     from volleybots.tasks import TASKS
 
     if any(o.split("=", 1)[0].lstrip("+~") == "algo" for o in overrides):
-        return False
+        return None
     task_cls = TASKS.get(OmegaConf.select(cfg, "task.name", default=None))
-    algo_cls = ALGOS.get(OmegaConf.select(cfg, "algo.name", default=None))
-    return task_cls is not None and algo_cls is not None and not algo_cls.multi_agent and class_attr(task_cls, "n_drones") > 1
+    if task_cls is None:
+        return None
+    default = OPPONENT_LEARNERS[0] if OmegaConf.select(cfg, "opponent", default=None) is not None else class_attr(task_cls, "default_algo")
+    return None if default == OmegaConf.select(cfg, "algo.name", default=None) else default
 
 
 def algo_action_space(cfg: DictConfig, overrides) -> DictConfig:

@@ -192,8 +192,11 @@ def load_algo_state(algo, state: dict, what: str, cfg, side: str = "run") -> Non
     """Load a checkpoint's algorithm state into ``algo``; a mismatch is a user error naming ``what``
     and both sides: "checkpoint is solo_bump (obs 32, prt, ppo), run is hover (obs 26, prt, ppo)"."""
     saved = state.get("config") or {}
-    theirs = _describe(state.get("task"), state.get("obs_dim"), state.get("action_space"), (saved.get("algo") or {}).get("name"))
-    mine = _describe(cfg.task.name, algo.obs_dim, cfg.env.action_space, cfg.algo.name)
+    theirs = (state.get("task"), state.get("obs_dim"), state.get("action_space"), (saved.get("algo") or {}).get("name"))
+    mine = (cfg.task.name, algo.obs_dim, cfg.env.action_space, cfg.algo.name)
+    # what the checkpoint does not record (an older or a population member's) is not compared
+    mine = tuple(m if t is not None else None for m, t in zip(mine, theirs))
+    theirs, mine = _describe(*theirs), _describe(*mine)
     if theirs != mine:
         raise ConfigError(f"{what} does not match: checkpoint is {theirs}, {side} is {mine}")
     try:
@@ -205,7 +208,8 @@ def load_algo_state(algo, state: dict, what: str, cfg, side: str = "run") -> Non
 
 
 def _describe(task, obs_dim, action_space, algo) -> str:
-    return f"{task} (obs {obs_dim}, {action_space}, {algo})"
+    detail = ", ".join(str(x) for x in (f"obs {obs_dim}" if obs_dim is not None else None, action_space, algo) if x is not None)
+    return f"{task or '?'} ({detail})"
 
 
 class MetricsLog:

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import inspect
 from abc import ABC, abstractmethod
-from typing import Callable, ClassVar
+from dataclasses import dataclass
+from typing import Any, Callable, ClassVar
 
 from tensordict import TensorDictBase
 from torch import nn
@@ -20,6 +21,24 @@ from volleybots.physics import ACTION_SPACES
 ACTIVATIONS = {"elu": nn.ELU, "relu": nn.ReLU, "tanh": nn.Tanh, "leaky_relu": nn.LeakyReLU}
 
 
+@dataclass(frozen=True)
+class AgentSpec:
+    """What an algorithm learns for: how many agents, what each sees and how it acts, on which device.
+
+    An env is one (all its drones: single-drone and cooperative tasks); a match's team is another
+    (``AgentSpec.of(env, team_size)``): a learner of one team sizes its centralised critic for that
+    team, and a frozen policy is rebuilt for the agent count it was trained with."""
+
+    device: Any
+    n_drones: int
+    obs_dim: int
+    actions: Any  # the env's action space (``continuous``, ``dim`` or ``n``)
+
+    @classmethod
+    def of(cls, env, n_agents: int | None = None) -> "AgentSpec":
+        return cls(env.device, int(env.n_drones if n_agents is None else n_agents), int(env.obs_dim), env.actions)
+
+
 class Algorithm(ABC):
     name: ClassVar[str]
     config_cls: ClassVar[type]
@@ -27,6 +46,7 @@ class Algorithm(ABC):
     multi_agent: ClassVar[bool] = False  # whether it trains tasks with several drones
 
     def __init__(self, cfg, env):
+        """``env`` is the env it trains on or an ``AgentSpec`` (a team of a match)."""
         self.cfg = cfg
         self.device = env.device
         self.n_agents = env.n_drones
