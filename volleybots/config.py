@@ -248,7 +248,7 @@ def check_values(schema: type, node, prefix: str) -> None:
             check_values(hints[f.name], value, key + ".")
             continue
         value = OmegaConf.to_container(value) if isinstance(value, (DictConfig, ListConfig)) else value
-        check_range(key, value, field_range(f) or (Range() if isinstance(value, float) else None))
+        check_range(key, value, field_range(schema, f.name) or (Range() if isinstance(value, float) else None))
         if isinstance(value, str) and not value.strip():
             raise ConfigError(f"bad value for {key!r}: it is empty")
 
@@ -265,7 +265,7 @@ def check_range(key: str, value, rng: Range | None) -> None:
 def check_env_args(**kwargs) -> None:
     """``volleybots.make_env``'s keywords against the ranges of the config's env and task keys (and
     ``seed``), so that ``make_env(..., substeps=0)`` is a clear error rather than a ZeroDivisionError."""
-    ranges = {f.name: field_range(f) for f in (*dataclasses.fields(EnvConfig), *dataclasses.fields(Config))}
+    ranges = {f.name: field_range(s, f.name) for s in (EnvConfig, Config) for f in dataclasses.fields(s)}
     ranges.update(TASK_RANGES)
     for key, value in kwargs.items():
         value = value.tolist() if hasattr(value, "tolist") else list(value) if isinstance(value, tuple) else value

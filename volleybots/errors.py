@@ -69,8 +69,14 @@ def ranged(default=dataclasses.MISSING, *, ge=None, gt=None, le=None, lt=None, f
     return dataclasses.field(default=default, default_factory=factory, metadata={"range": rng})
 
 
-def field_range(f: dataclasses.Field) -> Range | None:
-    return f.metadata.get("range")
+def field_range(schema: type, name: str) -> Range | None:
+    """The range of the field ``name`` of the dataclass ``schema``; a subclass that only changes a
+    default (``iterations: int = 1``) keeps the range its base class declared."""
+    for klass in schema.__mro__:
+        f = getattr(klass, "__dataclass_fields__", {}).get(name)
+        if f is not None and "range" in f.metadata:
+            return f.metadata["range"]
+    return None
 
 
 def check_device(key: str, value: str) -> None:

@@ -70,6 +70,11 @@ class RunDir:
     def has_checkpoint(self) -> bool:
         return bool(self.periodic_checkpoints()) or self.final_path.is_file()
 
+    def checkpoint_stamp(self) -> tuple:
+        """The checkpoints' names and modification times: a change means another process trained here."""
+        paths = [*self.periodic_checkpoints(), *([self.final_path] if self.final_path.is_file() else [])]
+        return tuple((p.name, p.stat().st_mtime_ns) for p in paths)
+
     def create(self, cfg) -> None:
         """Write the config of a new run, holding the directory's lock (``train`` releases it). A run
         killed before its first checkpoint is cleared first; one with a checkpoint is refused."""

@@ -413,6 +413,7 @@ def resume(run_dir, overrides=()) -> dict:
     cfg = resume_config(run_dir, overrides)
     check_writable(run.path, "the run directory")
     ckpt = run.latest_checkpoint()
+    stamp = run.checkpoint_stamp()
     if ckpt is not None:
         done = int(read_checkpoint(ckpt)["frames"])
         if done >= cfg.total_frames:
@@ -423,7 +424,7 @@ def resume(run_dir, overrides=()) -> dict:
         trainer = Trainer(cfg, run, checkpoint=ckpt)  # a checkpoint that does not fit the run fails here
         lock(run.path)
         try:
-            if run.latest_checkpoint() != ckpt:
+            if run.checkpoint_stamp() != stamp:
                 raise ConfigError(f"run {str(run_dir)!r} was trained by another process while this one checked it; run the command again")
             if ckpt is None:
                 run.clear_unfinished()
