@@ -257,7 +257,27 @@ def train(
 
 
 # ------------------------------------------------------------------------------------ eval, replay
-@app.command("eval", context_settings=_PASS_THROUGH)
+class _EvalGroup(TyperGroup):
+    """``eval`` is a group of verbs (crossplay, elo) whose first argument may instead be a target:
+    ``volleybots eval RUN_DIR episodes=3`` runs the hidden ``policy`` verb."""
+
+    def parse_args(self, ctx, args):
+        if args and args[0] not in self.commands and not args[0].startswith("-"):
+            args = ["policy", *args]
+        return super().parse_args(ctx, args)
+
+
+eval_app = typer.Typer(
+    cls=_EvalGroup,
+    no_args_is_help=True,
+    help="Evaluate: `eval TARGET episodes=100 ...` plays one policy (a run dir, a checkpoint, scripted, random) "
+    "and reports the task metric; `eval crossplay` and `eval elo` rank competitors of a match.",
+)
+app.add_typer(eval_app, name="eval")
+_COMPETITORS = "Competitors (a run dir, a checkpoint, a population run, scripted, random; label one with name=PATH)"
+
+
+@eval_app.command("policy", hidden=True, context_settings=_PASS_THROUGH)
 @_user_errors
 def eval_cmd(
     target: str = typer.Argument(..., help="A run directory, a checkpoint file, 'scripted' or 'random'."),
@@ -277,6 +297,49 @@ def eval_cmd(
         Console().print(format_table(result))
 
 
+def _pair_progress(i: int, j: int, games) -> None:
+    typer.echo(f"  pair {i},{j}: W/D/L {'/'.join(map(str, games.total.tolist()))}", err=True)
+
+
+def _show(data: dict, table, as_json: bool, files: list[Path]) -> None:
+    """A verb's result: its JSON, or its table and the files it wrote."""
+    if as_json:
+        typer.echo(json.dumps(data, indent=1))
+        return
+    from rich.console import Console
+
+    Console().print(table)
+    typer.echo(f"wrote {' and '.join(map(str, files))}")
+
+
+@eval_app.command("crossplay", context_settings=_PASS_THROUGH)
+@_user_errors
+def crossplay_cmd(
+    args: Optional[List[str]] = typer.Argument(None, help=f"{_COMPETITORS}, then games=1000 seed=0 batch=256 scenario=any|serve|receive deterministic=false task=1v1 env.action_space=prt."),
+    as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of the table."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder for crossplay.json and crossplay.png (new or empty; default outputs/crossplay/<time>_<task>)."),
+) -> None:
+    """Every pair plays N games, each side half of them: W/D/L, win rates with Wilson intervals, average win rate, heatmap."""
+    from volleybots.eval.crossplay import format_table, run_crossplay
+
+    res, path = run_crossplay(list(args or []), out, progress=None if as_json else _pair_progress)
+    _show(res.to_dict(), format_table(res), as_json, [path / "crossplay.json", path / "crossplay.png"])
+
+
+@eval_app.command("elo", context_settings=_PASS_THROUGH)
+@_user_errors
+def elo_cmd(
+    args: Optional[List[str]] = typer.Argument(None, help=f"{_COMPETITORS}, or from=CROSSPLAY_JSON; then rounds=2000 k=168 bootstrap=1000 seed=0 and cross-play's options."),
+    as_json: bool = typer.Option(False, "--json", help="Print the ratings JSON instead of the table."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder for ratings.json, ratings.png (and the games played); new or empty."),
+) -> None:
+    """Elo over rounds in which every pair meets once (the paper's), Bradley-Terry with bootstrap intervals, the Nash mixture."""
+    from volleybots.eval.ranking import format_table, run_elo
+
+    report, path = run_elo(list(args or []), out, progress=None if as_json else _pair_progress)
+    _show(report, format_table(report), as_json, [path / "ratings.json", path / "ratings.png"])
+
+
 def _free_path(path: Path) -> Path:
     stem, n = path.stem, 2
     while path.exists():
@@ -288,26 +351,41 @@ def _free_path(path: Path) -> Path:
 @app.command(context_settings=_PASS_THROUGH)
 @_user_errors
 def replay(
-    target: str = typer.Argument(..., help="A run directory, a checkpoint file, 'scripted' or 'random'."),
-    overrides: Optional[List[str]] = typer.Argument(None, help="seed=0 deterministic=true; for scripted/random also task=NAME env.action_space=ctbr."),
+    args: List[str] = typer.Argument(..., help="TARGET [overrides]: a run dir, a checkpoint, 'scripted' or 'random' with seed=0 deterministic=true (for scripted/random also task=NAME env.action_space=ctbr); or A B [task=3v3 seed=0 scenario=any|serve|receive]: a match between two competitors (name=PATH labels one)."),
     out: Optional[Path] = typer.Option(None, "--out", help="The .rrd file to write (never overwritten)."),
     no_viewer: bool = typer.Option(False, "--no-viewer", help="Do not open the rerun viewer even when a display exists."),
 ) -> None:
-    """Record one episode to a rerun file: court, net, drones, ball trail, hits / violations, rewards."""
-    from volleybots.config import make_env
-    from volleybots.eval import resolve_target
-    from volleybots.replay import has_display, record_episode
-    from volleybots.runs import check_writable, make_dir
+    """Record one episode to a rerun file: court, net, drones, ball trail, hits / violations, rewards; for two
+    competitors, one match with each team's colour, the touches and the fault that ended the rally."""
+    from volleybots.replay import has_display
+    from volleybots.runs import check_writable
 
-    _refuse_flags([target, *(overrides or [])], "--out FILE.rrd, --no-viewer, --help")
+    _refuse_flags(args, "--out FILE.rrd, --no-viewer, --help")
     if out is not None and out.suffix != ".rrd":
         raise ConfigError(f"--out {str(out)!r} must end in .rrd")
     if out is not None and (out.exists() or out.is_symlink()):
         raise ConfigError(f"--out {str(out)!r} exists; choose another file (replays never overwrite)")
     if out is not None:
         check_writable(out.parent, "the folder of --out")
-    t = resolve_target(target, list(overrides or []))
     viewer = not no_viewer and has_display()
+    from volleybots.eval.crossplay import is_competitor_spec, replay_match
+
+    if sum(map(is_competitor_spec, args)) >= 2:
+        stats, out, labels = replay_match(args, out, viewer)
+        where = str(out) if out is not None else "the viewer"
+        who = {0: f"{labels[0]} (blue) won", 1: f"{labels[1]} (red) won", -1: "a draw"}[int(stats["winner"])]
+        typer.echo(f"recorded one match of {labels[0]} (blue) against {labels[1]} (red) to {where}: {who}")
+        return
+    _replay_one(args[0], args[1:], out, viewer)
+
+
+def _replay_one(target: str, overrides: list[str], out: Path | None, viewer: bool) -> None:
+    from volleybots.config import make_env
+    from volleybots.eval import resolve_target
+    from volleybots.replay import record_episode
+    from volleybots.runs import check_writable, make_dir
+
+    t = resolve_target(target, overrides)
     if out is None and not viewer:
         stamp = time.strftime("%Y%m%d-%H%M%S")
         base = Path(target) if Path(target).is_dir() else Path("outputs") / "replays"
