@@ -354,8 +354,9 @@ def test_resume_of_a_damaged_run_is_one_line(two_runs, tmp_path):
         ("config.yaml", "- a list\n", ["config.yaml", "damaged"]),
         ("metrics.csv", "phase,frames\ntrain,abc\ntrain,64\n", ["metrics.csv", "line 2", "abc"]),
         ("metrics.csv", "garbage\n1,2\n", ["metrics.csv", "frames"]),
+        ("checkpoints/final.pt", "not a checkpoint", ["final.pt", "not a volleybots checkpoint", "move it out"]),
     ):
-        run = tmp_path / f"r_{name}_{len(damage)}"
+        run = tmp_path / f"r_{name.replace('/', '_')}_{len(damage)}"
         shutil.copytree(hover, run)
         (run / name).write_text(damage)
         before = _snapshot(run)

@@ -151,7 +151,13 @@ class RunDir:
             cands.append(self.final_path)
         if not cands:
             return None
-        return max(cands, key=lambda p: read_checkpoint(p)["frames"])
+        return max(cands, key=self._frames_of)
+
+    def _frames_of(self, path: Path) -> int:
+        try:
+            return int(read_checkpoint(path)["frames"])
+        except ConfigError as e:
+            raise ConfigError(f"{e}; move it out of {self.ckpt_dir} to use the run's other checkpoints") from None
 
     def save_checkpoint(self, state: dict, final: bool = False, keep: int = 3) -> Path:
         self.ckpt_dir.mkdir(parents=True, exist_ok=True)
