@@ -326,6 +326,27 @@ def crossplay_cmd(
     _show(res.to_dict(), format_table(res), as_json, [path / "crossplay.json", path / "crossplay.png"])
 
 
+@eval_app.command("exploitability", context_settings=_PASS_THROUGH)
+@_user_errors
+def exploitability_cmd(
+    args: Optional[List[str]] = typer.Argument(None, help="TARGET (a competitor), then budget=1000000 games=1000 seed=0 scenario=any|serve|receive init=RUN num_envs=N batch=256 task=1v1 env.action_space=prt."),
+    as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of a line."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder for the best response's run dir (br/) and exploitability.json (new or empty)."),
+) -> None:
+    """Train a best response with (MA)PPO against TARGET for a budget of frames, play it: 100 x (BR win rate - 0.5)."""
+    from volleybots.eval.exploitability import RESULTS, format_line, run_exploitability
+
+    args = list(args or [])
+    if as_json:
+        args.append("progress=false")
+    report, path = run_exploitability(args, out)
+    if as_json:
+        typer.echo(json.dumps(report, indent=1, default=float))
+        return
+    typer.echo(format_line(report))
+    typer.echo(f"wrote {path / RESULTS} and the best response's run {path / 'br'}")
+
+
 @eval_app.command("elo", context_settings=_PASS_THROUGH)
 @_user_errors
 def elo_cmd(
