@@ -221,6 +221,9 @@ def train(
         raise ConfigError(f"unknown --cfg {show!r}; allowed: job, hydra, all")
     if show is not None and multirun:
         raise ConfigError("--cfg prints the config of one job; it cannot be combined with -m")
+    from volleybots.launchers import check_launcher
+
+    check_launcher(overrides)
     resume_dir = next((o.partition("=")[2] for o in overrides if o.startswith("resume=")), None)
     if resume_dir is not None and resume_dir != "null":
         from volleybots.runner import resume
@@ -490,6 +493,26 @@ def bench(
     except ValueError as e:
         raise ConfigError(str(e).splitlines()[0]) from None
     typer.echo(format_table(rows))
+
+
+# ------------------------------------------------------------------------------------------ report
+@app.command()
+@_user_errors
+def report(
+    dirs: List[Path] = typer.Argument(..., help="Run directories, or folders that hold them (a sweep's multirun/<date>/<time>_<task>_<algo>)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Also write report.md, report.json and curves_<task>.png to this folder (never overwritten)."),
+    as_json: bool = typer.Option(False, "--json", help="Print the report as JSON instead of Markdown."),
+    stale_after: float = typer.Option(1800.0, "--stale-after", help="Seconds without a write after which a run with no summary.json counts as failed, not running."),
+) -> None:
+    """Aggregate runs across seeds: per task x algorithm the final metric's mean, IQM and 95% bootstrap intervals, learning curves."""
+    from volleybots.report import build_report, check_out, format_markdown, write_report
+
+    if out is not None:
+        check_out(out)
+    result = build_report(dirs, stale_after=stale_after)
+    if out is not None:
+        write_report(result, out)
+    typer.echo(json.dumps(result, indent=2) if as_json else format_markdown(result))
 
 
 if __name__ == "__main__":
