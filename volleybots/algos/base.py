@@ -15,7 +15,7 @@ from typing import Any, Callable, ClassVar
 from tensordict import TensorDictBase
 from torch import nn
 
-from volleybots.config import ConfigError
+from volleybots.errors import ConfigError
 from volleybots.physics import ACTION_SPACES
 
 ACTIVATIONS = {"elu": nn.ELU, "relu": nn.ReLU, "tanh": nn.Tanh, "leaky_relu": nn.LeakyReLU}
@@ -91,13 +91,6 @@ class Algorithm(ABC):
     @abstractmethod
     def load_state_dict(self, state: dict) -> None:
         ...
-
-
-def check_at_least(cfg, keys, low=1) -> None:
-    """Raise ``ConfigError`` naming the first ``algo.<key>`` below ``low``."""
-    for key in keys:
-        if getattr(cfg, key) < low:
-            raise ConfigError(f"bad value for 'algo.{key}': {getattr(cfg, key)} (must be >= {low})")
 
 
 def class_attr(cls, name: str):

@@ -20,8 +20,7 @@ from __future__ import annotations
 
 import math
 from abc import abstractmethod
-from dataclasses import dataclass, field
-from typing import ClassVar
+from dataclasses import dataclass
 
 import torch
 from tensordict import TensorDict, TensorDictBase
@@ -31,7 +30,7 @@ from torchrl.modules import MLP
 from torchrl.objectives import LossModule, SoftUpdate
 
 from volleybots.algos.base import ACTIVATIONS, Algorithm
-from volleybots.config import ConfigError
+from volleybots.errors import ConfigError, check_device, ranged
 
 OBS = ("agents", "observation")
 ACTION = ("agents", "action")
@@ -42,21 +41,21 @@ CRITIC_LOSSES = ("smooth_l1", "l2", "l1")  # TorchRL's distance losses; smooth_l
 @dataclass
 class OffPolicyConfig:
     name: str = ""
-    steps_per_batch: int = 64
-    lr: float = 5e-4
-    max_grad_norm: float = 10.0
-    buffer_size: int = 1_000_000
+    steps_per_batch: int = ranged(64, ge=1)
+    lr: float = ranged(5e-4, gt=0)
+    max_grad_norm: float = ranged(10.0, gt=0)
+    buffer_size: int = ranged(1_000_000, ge=1)
     buffer_device: str | None = None
-    batch_size: int = 4096
-    warmup_batches: int = 4
+    batch_size: int = ranged(4096, ge=1)
+    warmup_batches: int = ranged(4, ge=1)
     random_warmup: bool = True
-    replay_ratio: float = 8.0
-    gamma: float = 0.95
+    replay_ratio: float = ranged(8.0, gt=0)
+    gamma: float = ranged(0.95, gt=0, le=1)
     critic_loss: str = "smooth_l1"
-    reward_scale: float = 1.0
-    tau: float = 0.005
-    target_update_interval: int = 4
-    hidden: list[int] = field(default_factory=lambda: [256, 128, 128])
+    reward_scale: float = ranged(1.0, gt=0)
+    tau: float = ranged(0.005, gt=0, le=1)
+    target_update_interval: int = ranged(4, ge=1)
+    hidden: list[int] = ranged(factory=lambda: [256, 128, 128], ge=1)
     activation: str = "elu"
     layer_norm: bool = True
     checkpoint_buffer: bool = False
@@ -120,35 +119,19 @@ class OffPolicy(Algorithm):
     optims: dict[str, tuple[torch.optim.Optimizer, list[nn.Parameter]]]
     info_keys: tuple[str, ...] = ()  # the diagnostics ``losses`` returns besides the losses
 
-    # the numeric config keys' allowed ranges, (low, high) with None for no bound; a method adds its own
-    limits: ClassVar[dict[str, tuple[float | None, float | None]]] = {
-        "steps_per_batch": (1, None), "buffer_size": (1, None), "batch_size": (1, None), "warmup_batches": (1, None),
-        "target_update_interval": (1, None), "tau": (0, 1), "gamma": (0, 1), "lr": (0, None), "max_grad_norm": (0, None),
-        "replay_ratio": (0, None), "reward_scale": (0, None),
-    }
-    positive: ClassVar[tuple[str, ...]] = ("tau", "lr", "max_grad_norm", "replay_ratio", "reward_scale")  # > 0, not >= 0
 
     @classmethod
     def check(cls, cfg, task_cls, action_space):
         super().check(cfg, task_cls, action_space)
         if cfg.critic_loss not in CRITIC_LOSSES:
             raise ConfigError(f"unknown algo.critic_loss {cfg.critic_loss!r}; allowed: {', '.join(CRITIC_LOSSES)}")
-        for key, (low, high) in cls.limits.items():
-            value = getattr(cfg, key)
-            strict = key in cls.positive
-            if (low is not None and (value <= low if strict else value < low)) or (high is not None and value > high):
-                rng = f"{'>' if strict else '>='} {low}" if high is None else f"in {'(' if strict else '['}{low}, {high}]"
-                raise ConfigError(f"bad value for 'algo.{key}': {value} (must be {rng})")
         if cfg.warmup_batches * cfg.batch_size > cfg.buffer_size:
             raise ConfigError(
                 f"bad value for 'algo.warmup_batches': {cfg.warmup_batches} x algo.batch_size {cfg.batch_size} "
                 f"must fit in algo.buffer_size = {cfg.buffer_size}"
             )
         if cfg.buffer_device is not None:
-            try:
-                torch.device(cfg.buffer_device)
-            except (RuntimeError, ValueError):
-                raise ConfigError(f"bad value for 'algo.buffer_device': {cfg.buffer_device!r} is not a torch device") from None
+            check_device("algo.buffer_device", cfg.buffer_device)
 
     def __init__(self, cfg, env, seed: int = 0):
         super().__init__(cfg, env)

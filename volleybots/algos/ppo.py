@@ -12,7 +12,7 @@ clips to [-1, 1] (the log-probability is that of the unclipped sample); ``discre
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import torch
 from tensordict import TensorDictBase
@@ -23,8 +23,8 @@ from torchrl.modules import IndependentNormal, PopArtValueNorm, ProbabilisticAct
 from torchrl.objectives.multiagent import MAPPOLoss
 from torchrl.objectives.utils import ValueEstimators
 
-from volleybots.algos.base import Algorithm, check_at_least, mlp
-from volleybots.config import ConfigError
+from volleybots.algos.base import Algorithm, mlp
+from volleybots.errors import ConfigError, ranged
 
 OBS = ("agents", "observation")
 OBS_NORM = ("agents", "observation_norm")
@@ -36,24 +36,24 @@ VALUE = ("agents", "state_value")
 @dataclass
 class PPOConfig:
     name: str = "ppo"
-    steps_per_batch: int = 64
-    epochs: int = 4
-    minibatches: int = 16
-    actor_lr: float = 5e-4
-    critic_lr: float = 5e-4
-    max_grad_norm: float = 10.0
-    clip_epsilon: float = 0.1
-    entropy_coeff: float = 0.001
-    critic_coeff: float = 1.0
-    huber_delta: float = 10.0
-    gamma: float = 0.995
-    gae_lambda: float = 0.95
+    steps_per_batch: int = ranged(64, ge=1)
+    epochs: int = ranged(4, ge=1)
+    minibatches: int = ranged(16, ge=1)
+    actor_lr: float = ranged(5e-4, gt=0)
+    critic_lr: float = ranged(5e-4, gt=0)
+    max_grad_norm: float = ranged(10.0, gt=0)
+    clip_epsilon: float = ranged(0.1, gt=0, lt=1)
+    entropy_coeff: float = ranged(0.001, ge=0)
+    critic_coeff: float = ranged(1.0, ge=0)
+    huber_delta: float = ranged(10.0, gt=0)
+    gamma: float = ranged(0.995, gt=0, le=1)
+    gae_lambda: float = ranged(0.95, ge=0, le=1)
     normalize_advantage: bool = True
     value_norm: bool = True
     obs_norm: bool = False
-    hidden: list[int] = field(default_factory=lambda: [256, 128, 128])
+    hidden: list[int] = ranged(factory=lambda: [256, 128, 128], ge=1)
     activation: str = "elu"
-    init_log_std: float = 0.0
+    init_log_std: float = ranged(0.0, ge=-20, le=20)  # beyond, exp() of it under/overflows in float32
     centralised_critic: bool = False
 
 
@@ -113,7 +113,6 @@ class PPO(Algorithm):
     @classmethod
     def check(cls, cfg, task_cls, env_cfg):
         super().check(cfg, task_cls, env_cfg)
-        check_at_least(cfg, ("steps_per_batch", "epochs", "minibatches"))
         frames = env_cfg.num_envs * cfg.steps_per_batch
         if frames < cfg.minibatches:
             raise ConfigError(
