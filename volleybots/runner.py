@@ -29,13 +29,9 @@ def resume(run_dir, overrides=()) -> dict:
     """Continue the run in ``run_dir`` (``train resume=DIR``)."""
     from volleybots.runs import RunDir
     from volleybots.train import resume as resume_learner
-    from volleybots.train import resume_config
 
     if not is_population(RunDir(run_dir).load_config()):
         return resume_learner(run_dir, overrides)
     from volleybots.population.loop import resume as resume_population
-    from volleybots.runs import locked
 
-    cfg = resume_config(run_dir, overrides)
-    with locked(run_dir):  # a second resume of the same run is refused
-        return resume_population(run_dir, cfg)
+    return resume_population(run_dir, overrides)

@@ -394,10 +394,10 @@ def train(cfg, run_dir) -> dict:
         unlock(run.path)
 
 
-def resume_config(run_dir, overrides=()):
-    """The saved config of the run in ``run_dir`` with the overrides a resume may make."""
+def resume_config(run_dir, overrides=(), keys=RESUME_KEYS):
+    """The saved config of the run in ``run_dir`` with the overrides a resume may make (``keys``)."""
     base = RunDir(run_dir).load_config()
-    return apply_overrides(to_dict(base), overrides, RESUME_KEYS, f"run {str(run_dir)!r} (resume)")
+    return apply_overrides(to_dict(base), overrides, keys, f"run {str(run_dir)!r} (resume)")
 
 
 def resume(run_dir, overrides=()) -> dict:
