@@ -6,10 +6,12 @@ from __future__ import annotations
 from volleybots.algos.base import Algorithm
 from volleybots.algos.ddpg import DDPG
 from volleybots.algos.dqn import DQN
+from volleybots.algos.maddpg import MADDPG
 from volleybots.algos.ppo import MAPPO, PPO
+from volleybots.algos.qmix import QMIX
 from volleybots.algos.sac import SAC
 from volleybots.algos.td3 import TD3
 
-ALGOS: dict[str, type[Algorithm]] = {cls.name: cls for cls in (PPO, MAPPO, DQN, DDPG, TD3, SAC)}
+ALGOS: dict[str, type[Algorithm]] = {cls.name: cls for cls in (PPO, MAPPO, DQN, DDPG, TD3, SAC, QMIX, MADDPG)}
 
-__all__ = ["ALGOS", "Algorithm", "DDPG", "DQN", "MAPPO", "PPO", "SAC", "TD3"]
+__all__ = ["ALGOS", "Algorithm", "DDPG", "DQN", "MADDPG", "MAPPO", "PPO", "QMIX", "SAC", "TD3"]
