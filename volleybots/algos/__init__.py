@@ -6,12 +6,14 @@ from __future__ import annotations
 from volleybots.algos.base import Algorithm
 from volleybots.algos.ddpg import DDPG
 from volleybots.algos.dqn import DQN
+from volleybots.algos.happo import HAPPO
 from volleybots.algos.maddpg import MADDPG
+from volleybots.algos.mat import MAT
 from volleybots.algos.ppo import MAPPO, PPO
 from volleybots.algos.qmix import QMIX
 from volleybots.algos.sac import SAC
 from volleybots.algos.td3 import TD3
 
-ALGOS: dict[str, type[Algorithm]] = {cls.name: cls for cls in (PPO, MAPPO, DQN, DDPG, TD3, SAC, QMIX, MADDPG)}
+ALGOS: dict[str, type[Algorithm]] = {cls.name: cls for cls in (PPO, MAPPO, DQN, DDPG, TD3, SAC, QMIX, MADDPG, HAPPO, MAT)}
 
-__all__ = ["ALGOS", "Algorithm", "DDPG", "DQN", "MADDPG", "MAPPO", "PPO", "QMIX", "SAC", "TD3"]
+__all__ = ["ALGOS", "Algorithm", "DDPG", "DQN", "HAPPO", "MADDPG", "MAPPO", "MAT", "PPO", "QMIX", "SAC", "TD3"]

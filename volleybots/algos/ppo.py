@@ -178,7 +178,7 @@ class PPO(Algorithm):
         self.loss.set_keys(
             action=ACTION, sample_log_prob=LOG_PROB, value=VALUE, reward=("agents", "reward"), done="done", terminated="terminated"
         )
-        self.loss.make_value_estimator(ValueEstimators.MAGAE, gamma=cfg.gamma, lmbda=cfg.gae_lambda)
+        self.loss.make_value_estimator(ValueEstimators.MAGAE, gamma=cfg.gamma, lmbda=cfg.gae_lambda, **self.value_options)
         self.optim = torch.optim.Adam(self.param_groups())
         self.gen = torch.Generator(device=dev)  # minibatch shuffling, checkpointed with the rest
         self.gen.manual_seed(seed)
@@ -186,6 +186,7 @@ class PPO(Algorithm):
 
     # ------------------------------------------------------------ what a variant (happo, mat) replaces
     loss_options: dict = {}  # extra keywords of the loss (a network shared by actor and critic: functional=False)
+    value_options: dict = {}  # extra keywords of TorchRL's multi-agent GAE
 
     def build_actor(self, obs_in):
         """One actor shared by all drones: (policy module, Gaussian scale module or None)."""
