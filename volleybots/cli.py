@@ -237,8 +237,7 @@ def list_cmd() -> None:
         typer.echo(f"  {name:<20} {n:>2} drone{'s' if n > 1 else ' '}  metric: {cls.metric}{cfg}")
     typer.echo("algorithms (algo=NAME):")
     for name, cls in ALGOS.items():
-        kind = "one or more drones" if cls.multi_agent else "one drone"
-        typer.echo(f"  {name:<20} {kind}; action spaces: {', '.join(cls.action_spaces)}")
+        typer.echo(f"  {name:<20} tasks: {', '.join(cls.supported_kinds())}; action spaces: {', '.join(cls.action_spaces)}")
     typer.echo("physics backends (env.physics=NAME):")
     for name, text in BACKEND_INFO.items():
         typer.echo(f"  {name:<20} {text}")
