@@ -202,30 +202,30 @@ def plot(args, path: Path, stat: str | None = None) -> None:
     plt.close(fig)
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--tasks", type=_csv, default=list(TASKS), help="comma-separated tasks")
-    ap.add_argument("--algos", type=_csv, default=list(ALGOS), help="comma-separated algorithms")
-    ap.add_argument("--spaces", type=_csv, default=list(SPACES), help="comma-separated continuous action spaces")
-    ap.add_argument("--seeds", type=lambda s: [int(x) for x in _csv(s)], default=[0, 1], help="comma-separated seeds")
-    ap.add_argument("--frames", type=float, default=1e5, help="env steps per run")
+def add_run_args(ap, seeds, frames: float, eval_episodes: int, out: str) -> None:
+    """The options of a benchmark's runs (budget, seeds, off-policy scaling, device, parallelism)."""
+    ap.add_argument("--seeds", type=lambda s: [int(x) for x in _csv(s)], default=seeds, help="comma-separated seeds")
+    ap.add_argument("--frames", type=float, default=frames, help="env steps per run")
     ap.add_argument("--num-envs", type=int, default=64, help="parallel envs per run")
     ap.add_argument("--batch-size", type=int, default=1024, help="off-policy sampling batch (paper: 4096)")
     ap.add_argument("--tau", type=float, default=0.05, help="off-policy target Polyak factor (paper: 0.005, see the docstring)")
-    ap.add_argument("--target-update-interval", type=int, default=1, help="off-policy gradient steps between target updates (paper: 4)")
-    ap.add_argument("--eval-episodes", type=int, default=32, help="final deterministic evaluation episodes per run")
+    ap.add_argument("--eval-episodes", type=int, default=eval_episodes, help="final deterministic evaluation episodes per run")
     ap.add_argument("--device", default="cpu", help="torch device of env and networks")
     ap.add_argument("--threads", type=int, default=1, help="torch threads per run")
     ap.add_argument("--jobs", type=int, default=1, help="runs trained at the same time (processes)")
-    ap.add_argument("--out", default="outputs/table1", help="folder of the runs and the results")
-    args = ap.parse_args(argv)
-    for name, given, allowed in (("task", args.tasks, TASKS), ("algo", args.algos, ALGOS), ("space", args.spaces, SPACES)):
+    ap.add_argument("--out", default=out, help="folder of the runs and the results")
+
+
+def check_choices(ap, choices) -> None:
+    """Stop with the argument parser's error on the first ``(name, given, allowed)`` not allowed."""
+    for name, given, allowed in choices:
         bad = [g for g in given if g not in allowed]
         if bad:
             ap.error(f"unknown {name} {bad[0]!r}; allowed: {', '.join(allowed)}")
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    todo = jobs(args)
+
+
+def run_all(run_one, todo, args) -> None:
+    """``run_one(job, args)`` for every job, ``args.jobs`` processes at a time."""
     print(f"# {len(todo)} runs of {int(args.frames):,} env steps, {args.num_envs} envs, {args.jobs} at a time", file=sys.stderr)
     if args.jobs > 1:
         with ProcessPoolExecutor(args.jobs, mp_context=get_context("spawn")) as pool:
@@ -233,6 +233,20 @@ def main(argv=None) -> int:
     else:
         for job in todo:
             run_one(job, args)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--tasks", type=_csv, default=list(TASKS), help="comma-separated tasks")
+    ap.add_argument("--algos", type=_csv, default=list(ALGOS), help="comma-separated algorithms")
+    ap.add_argument("--spaces", type=_csv, default=list(SPACES), help="comma-separated continuous action spaces")
+    add_run_args(ap, seeds=[0, 1], frames=1e5, eval_episodes=32, out="outputs/table1")
+    ap.add_argument("--target-update-interval", type=int, default=1, help="off-policy gradient steps between target updates (paper: 4)")
+    args = ap.parse_args(argv)
+    check_choices(ap, (("task", args.tasks, TASKS), ("algo", args.algos, ALGOS), ("space", args.spaces, SPACES)))
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    run_all(run_one, jobs(args), args)
     res, returns = collect_results(args), collect_results(args, "return")
     table, table_returns = format_table(res, args), format_table(returns, args)
     (out / "table1.json").write_text(json.dumps({"args": vars(args), "metric": res, "return": returns}, indent=1) + "\n")

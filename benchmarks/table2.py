@@ -25,11 +25,9 @@ import json
 import math
 import statistics
 import sys
-from concurrent.futures import ProcessPoolExecutor
-from multiprocessing import get_context
 from pathlib import Path
 
-from table1 import _cell, _csv, _nanmean, _smooth
+from table1 import _cell, _csv, _nanmean, _smooth, add_run_args, check_choices, run_all
 
 TASKS = ("bump_and_pass", "set_and_spike_easy", "set_and_spike_hard")
 SHAPING = ("off", "on")
@@ -170,31 +168,12 @@ def main(argv=None) -> int:
     ap.add_argument("--tasks", type=_csv, default=list(TASKS), help="comma-separated tasks")
     ap.add_argument("--algos", type=_csv, default=list(ALGOS), help="comma-separated algorithms")
     ap.add_argument("--shaping", type=_csv, default=list(SHAPING), help="comma-separated: off, on")
-    ap.add_argument("--seeds", type=lambda s: [int(x) for x in _csv(s)], default=[0], help="comma-separated seeds")
-    ap.add_argument("--frames", type=float, default=2e4, help="env steps per run")
-    ap.add_argument("--num-envs", type=int, default=64, help="parallel envs per run")
-    ap.add_argument("--batch-size", type=int, default=1024, help="MADDPG sampling batch (paper: 4096)")
-    ap.add_argument("--tau", type=float, default=0.05, help="MADDPG target Polyak factor, every step (paper: 0.005 every 4)")
-    ap.add_argument("--eval-episodes", type=int, default=8, help="final deterministic evaluation episodes per run")
-    ap.add_argument("--device", default="cpu", help="torch device of env and networks")
-    ap.add_argument("--threads", type=int, default=1, help="torch threads per run")
-    ap.add_argument("--jobs", type=int, default=1, help="runs trained at the same time (processes)")
-    ap.add_argument("--out", default="outputs/table2", help="folder of the runs and the results")
+    add_run_args(ap, seeds=[0], frames=2e4, eval_episodes=8, out="outputs/table2")  # --batch-size, --tau: MADDPG's
     args = ap.parse_args(argv)
-    for name, given, allowed in (("task", args.tasks, TASKS), ("algo", args.algos, ALGOS), ("shaping", args.shaping, SHAPING)):
-        bad = [g for g in given if g not in allowed]
-        if bad:
-            ap.error(f"unknown {name} {bad[0]!r}; allowed: {', '.join(allowed)}")
+    check_choices(ap, (("task", args.tasks, TASKS), ("algo", args.algos, ALGOS), ("shaping", args.shaping, SHAPING)))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    todo = jobs(args)
-    print(f"# {len(todo)} runs of {int(args.frames):,} env steps, {args.num_envs} envs, {args.jobs} at a time", file=sys.stderr)
-    if args.jobs > 1:
-        with ProcessPoolExecutor(args.jobs, mp_context=get_context("spawn")) as pool:
-            list(pool.map(run_one, todo, [args] * len(todo)))
-    else:
-        for job in todo:
-            run_one(job, args)
+    run_all(run_one, jobs(args), args)
     res = collect_results(args)
     tables = {what: format_table(res, args, what) for what in ("metric", "return", "fps")}
     (out / "table2.json").write_text(json.dumps({"args": vars(args), "results": res}, indent=1) + "\n")

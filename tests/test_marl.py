@@ -22,6 +22,9 @@ from volleybots.eval import evaluate
 from volleybots.runs import read_metrics
 from volleybots.train import resume, train
 
+from test_offpolicy import one_thread  # noqa: F401  (autouse: one torch thread on the shared machine)
+from test_offpolicy_runs import _flat
+
 MARL = ("qmix", "maddpg", "happo", "mat")
 ENVS, STEPS = 4, 8
 FPB = ENVS * STEPS  # frames per batch
@@ -32,14 +35,6 @@ RUN = [
 ]
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
-
-
 def tiny(name: str) -> list[str]:
     """Overrides that make any registered algorithm small and quick to warm up (by its config's keys)."""
     small = {
@@ -48,16 +43,6 @@ def tiny(name: str) -> list[str]:
     }
     keys = {f.name for f in dataclasses.fields(ALGOS[name].config_cls)}
     return [f"algo.{k}={v}" for k, v in small.items() if k in keys]
-
-
-def _flat(state, prefix=""):
-    out = {}
-    for k, v in state.items() if isinstance(state, dict) else enumerate(state):
-        if isinstance(v, (dict, list)):
-            out.update(_flat(v, f"{prefix}{k}."))
-        else:
-            out[f"{prefix}{k}"] = v
-    return out
 
 
 def _train_rows(run):
