@@ -100,7 +100,7 @@ def _run_hydra(overrides: list[str], multirun: bool, extra: list[str]) -> None:
         from hydra.core.hydra_config import HydraConfig
 
         from volleybots.config import algo_action_space, validate
-        from volleybots.train import train as train_run
+        from volleybots.runner import start as train_run
 
         try:
             cfg = algo_action_space(cfg, HydraConfig.get().overrides.task)
@@ -120,6 +120,14 @@ def _run_hydra(overrides: list[str], multirun: bool, extra: list[str]) -> None:
 
 
 def _echo_summary(summary: dict, run_dir) -> None:
+    if "population" in summary:
+        pop = summary["population"]
+        mix = ", ".join(f"{m} {w:.2f}" for m, w in zip(pop["members"], pop["mixture"]))
+        typer.echo(
+            f"run {run_dir}: {summary['frames']} frames in {summary['wall_time_s']:.0f} s ({summary['frames_per_s']:,.0f} frames/s); "
+            f"{summary['iterations']} iteration(s), population {len(pop['members'])}, meta-strategy ({pop['solver']}): {mix}"
+        )
+        return
     ev = summary["final_eval"]["stats"][summary["metric"]]
     typer.echo(
         f"run {run_dir}: {summary['frames']} frames in {summary['wall_time_s']:.0f} s "
@@ -145,7 +153,7 @@ def train(
         raise ConfigError("--cfg prints the config of one job; it cannot be combined with -m")
     resume_dir = next((o.partition("=")[2] for o in overrides if o.startswith("resume=")), None)
     if resume_dir is not None and resume_dir not in ("", "null"):
-        from volleybots.train import resume
+        from volleybots.runner import resume
 
         if multirun or show:
             raise ConfigError("resume= continues one run; it takes neither -m nor --cfg")
@@ -154,8 +162,14 @@ def train(
         return
     from volleybots.config import compose, validate
 
-    for job in _jobs(overrides, multirun):
-        validate(compose(job))
+    jobs = _jobs(overrides, multirun)
+    cfgs = [validate(compose(job)) for job in jobs]
+    if not any(o.split("=", 1)[0].lstrip("+~") == "algo" for o in overrides):
+        # the task's own default (MAPPO for cooperative tasks, SP for matches) when no algo is named
+        algos = sorted({c.algo.name for c in cfgs})
+        if len(algos) > 1:
+            raise ConfigError(f"the swept tasks train with different default algorithms ({', '.join(algos)}); name one with algo=NAME")
+        overrides = [*overrides, f"algo={algos[0]}"]
     if show is None:
         _check_run_dir(overrides)
     _run_hydra(overrides, multirun, [] if show is None else ["--cfg", show])
@@ -237,13 +251,30 @@ def list_cmd() -> None:
         typer.echo(f"  {name:<20} {n:>2} drone{'s' if n > 1 else ' '}  metric: {cls.metric}{cfg}")
     typer.echo("algorithms (algo=NAME):")
     for name, cls in ALGOS.items():
-        typer.echo(f"  {name:<20} tasks: {', '.join(cls.supported_kinds())}; action spaces: {', '.join(cls.action_spaces)}")
+        fits = [t for t in TASKS if _fits(name, t)]
+        typer.echo(f"  {name:<20} action spaces: {', '.join(cls.action_spaces)}; tasks: {', '.join(fits)}")
     typer.echo("physics backends (env.physics=NAME):")
     for name, text in BACKEND_INFO.items():
         typer.echo(f"  {name:<20} {text}")
     typer.echo("action spaces (env.action_space=NAME):")
     for name, text in ACTION_SPACE_INFO.items():
         typer.echo(f"  {name:<20} {text}")
+
+
+def _fits(algo: str, task: str) -> bool:
+    """Whether ``algo`` accepts ``task`` in its own first action space (its ``check`` decides)."""
+    from volleybots.algos import ALGOS
+    from volleybots.config import EnvConfig
+    from volleybots.tasks import TASKS
+
+    cls = ALGOS[algo]
+    try:
+        from omegaconf import OmegaConf
+
+        cls.check(OmegaConf.structured(cls.config_cls), TASKS[task], EnvConfig(action_space=cls.action_spaces[0]))
+    except ConfigError:
+        return False
+    return True
 
 
 @app.command(context_settings=_PASS_THROUGH)

@@ -261,8 +261,9 @@ def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = Fals
     with initialize_config_dir(config_dir=str(conf_dir()), version_base="1.3"):
         try:
             cfg = hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node)
-            if _needs_multi_agent_default(cfg, overrides):
-                cfg = hydra_compose("config", overrides=[*overrides, f"algo={MULTI_AGENT_DEFAULT}"], return_hydra_config=hydra_node)
+            default = _task_default_algo(cfg, overrides)
+            if default is not None:
+                cfg = hydra_compose("config", overrides=[*overrides, f"algo={default}"], return_hydra_config=hydra_node)
             return algo_action_space(cfg, overrides)
         except HydraException as e:
             _explain_unknown_key(overrides, hydra_compose)
@@ -292,22 +293,21 @@ def _explain_unknown_key(overrides: list[str], hydra_compose) -> None:
 _ABSENT = object()
 
 
-MULTI_AGENT_DEFAULT = "mappo"  # the algorithm a multi-drone task gets when the command line names none
-
-
-def _needs_multi_agent_default(cfg: DictConfig, overrides) -> bool:
-    """The default algorithm (``ppo``) trains one drone: a multi-drone task whose command line names no
-    algo gets ``MULTI_AGENT_DEFAULT`` instead (``eval scripted task=3v3`` needs no algo at all, and
-    ``train task=3v3`` then does what one expects). A named single-drone algo is still an error."""
-    from volleybots.algos import ALGOS
+def _task_default_algo(cfg: DictConfig, overrides) -> str | None:
+    """The algorithm a task trains with when the command line names none (the task's
+    ``default_algo``: MAPPO for the cooperative tasks, SP for the matches), if it is not the config's
+    default already. ``eval scripted task=3v3`` needs no algo at all, and ``train task=3v3`` then does
+    what one expects. A named algo that cannot train the task is still an error."""
     from volleybots.algos.base import class_attr
     from volleybots.tasks import TASKS
 
     if any(o.split("=", 1)[0].lstrip("+~") == "algo" for o in overrides):
-        return False
+        return None
     task_cls = TASKS.get(OmegaConf.select(cfg, "task.name", default=None))
-    algo_cls = ALGOS.get(OmegaConf.select(cfg, "algo.name", default=None))
-    return task_cls is not None and algo_cls is not None and not algo_cls.multi_agent and class_attr(task_cls, "n_drones") > 1
+    if task_cls is None:
+        return None
+    default = class_attr(task_cls, "default_algo")
+    return None if default == OmegaConf.select(cfg, "algo.name", default=None) else default
 
 
 def algo_action_space(cfg: DictConfig, overrides) -> DictConfig:

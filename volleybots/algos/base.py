@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import inspect
 from abc import ABC, abstractmethod
-from typing import Callable, ClassVar
+from dataclasses import dataclass
+from typing import Any, Callable, ClassVar
 
 from tensordict import TensorDictBase
 from torch import nn
@@ -21,6 +22,24 @@ ACTIVATIONS = {"elu": nn.ELU, "relu": nn.ReLU, "tanh": nn.Tanh, "leaky_relu": nn
 TASK_KINDS = ("single", "cooperative", "competitive")  # one drone; several drones in one team; two teams
 
 
+@dataclass(frozen=True)
+class AgentSpec:
+    """What an algorithm learns for: how many agents, what each sees and how it acts, on which device.
+
+    An env is one (all its drones: single-drone and cooperative tasks); a match's team is another
+    (``AgentSpec.of(env, team_size)``): a learner of one team sizes its centralised critic for that
+    team, and a frozen policy is rebuilt for the agent count it was trained with."""
+
+    device: Any
+    n_drones: int
+    obs_dim: int
+    actions: Any  # the env's action space (``continuous``, ``dim`` or ``n``)
+
+    @classmethod
+    def of(cls, env, n_agents: int | None = None) -> "AgentSpec":
+        return cls(env.device, int(env.n_drones if n_agents is None else n_agents), int(env.obs_dim), env.actions)
+
+
 class Algorithm(ABC):
     name: ClassVar[str]
     config_cls: ClassVar[type]
@@ -30,6 +49,7 @@ class Algorithm(ABC):
     task_kinds: ClassVar[tuple[str, ...] | None] = None
 
     def __init__(self, cfg, env):
+        """``env`` is the env it trains on or an ``AgentSpec`` (a team of a match)."""
         self.cfg = cfg
         self.device = env.device
         self.n_agents = env.n_drones
@@ -100,7 +120,7 @@ def task_kind(task_cls) -> str:
     """``single`` (one drone), ``cooperative`` (several drones, one team) or ``competitive`` (two teams)."""
     if class_attr(task_cls, "n_drones") == 1:
         return "single"
-    return "cooperative" if len(set(class_attr(task_cls, "teams"))) == 1 else "competitive"
+    return "competitive" if class_attr(task_cls, "competitive") else "cooperative"
 
 
 def class_attr(cls, name: str):

@@ -97,8 +97,12 @@ def resolve_target(target: str, overrides=()) -> Target:
 
     def make_policy(env):
         from volleybots.algos import ALGOS
+        from volleybots.algos.base import AgentSpec
 
-        algo = ALGOS[cfg.algo.name](cfg.algo, env, seed=cfg.seed)
+        algo_cls = ALGOS[cfg.algo.name]
+        algo_cls = getattr(algo_cls, "learner_cls", algo_cls)  # a population method's learner
+        # built for the agents it learned for (a team's learner acts for every drone alike: its actor is per drone)
+        algo = algo_cls(cfg.algo, AgentSpec.of(env, int(state.get("n_agents", env.n_drones))), seed=cfg.seed)
         load_algo_state(algo, state, f"checkpoint {str(ckpt)!r}", cfg)
         return algo.policy(deterministic=cfg.deterministic)
 
