@@ -70,7 +70,6 @@ def test_self_play_trains_on_both_sides_mirrored():
     # each side sees itself on its own +x half (mirrored frames) at the start of every episode
     assert (view["agents", "observation"][:, 0, 0, 0] > 0).all()
     # zero-sum: where a rally is decided, one side's result is the other's loss
-    r = batch["next", "agents", "reward"][..., 0]
     decided = batch["next", "stats", "winner"][..., 0] >= 0
     done = batch["next", "done"][..., 0] & decided
     assert done.any()
@@ -183,3 +182,25 @@ def test_bad_seed_members_are_refused_before_anything_is_written(tmp_path):
         load(["task=3v3", "algo=fsp", f"algo.seed_members=[{ckpt}]"])
     # an SP run is a single policy (its one member), so it may seed a population
     assert tiny("fsp", f"algo.seed_members=[{tmp_path / 'sp1v1'}]").algo.name == "fsp"
+
+
+def test_a_learner_trains_against_a_named_opponent_and_learns_from_its_team_only(tmp_path):
+    """``opponent=``: MAPPO plays team 0 of 3v3 against a frozen random team; its critic is sized for
+    its own three drones and its checkpoint records them."""
+    from volleybots.train import Trainer, Versus, train
+
+    cfg = load(["task=3v3", "opponent=random", "env.num_envs=8", "algo.steps_per_batch=8", "algo.minibatches=2", "algo.epochs=1",
+                "algo.hidden=[32]", "total_frames=128", "evaluation.episodes=2", "evaluation.record=false", "progress=false"])
+    assert cfg.algo.name == "mappo"
+    summary = train(cfg, tmp_path / "br")
+    state = torch.load(tmp_path / "br" / "checkpoints" / "final.pt", weights_only=True)
+    assert state["n_agents"] == 3 and state["config"]["opponent"] == "random"
+    critic_in = next(v for k, v in state["algo"]["critic"].items() if k.endswith("net.0.weight"))
+    assert critic_in.shape[1] == 3 * 57  # the team's observations, not all six drones'
+    assert summary["final_eval"]["stats"]["win"]["mean"] >= 0
+    tr = Trainer(cfg, RunDir(tmp_path / "other"))
+    assert isinstance(tr.seat, Versus) and tr.seat.opponent.label == "random"
+    for bad, words in ((["task=bump_and_pass", "opponent=random"], "is for matches"), (["task=1v1", "algo=sp", "opponent=random"], "seed_members"),
+                       (["task=3v3", "algo=mappo", f"opponent={tmp_path / 'missing'}"], "does not exist")):
+        with pytest.raises(ConfigError, match=words):
+            load(bad)

@@ -77,6 +77,8 @@ class Config:
     total_frames: int = 1_000_000
     time_limit: float = 0.0
     resume: Optional[str] = None
+    opponent: Optional[str] = None
+    opponent_deterministic: bool = False
     progress: bool = True
     logger: str = "csv"
     wandb: WandbConfig = field(default_factory=WandbConfig)
@@ -226,7 +228,27 @@ def validate(cfg) -> DictConfig:
         if importlib.util.find_spec("wandb") is None:
             raise ConfigError("logger=wandb needs the wandb package: pip install 'volleybots[wandb]' (or use logger=csv)")
     algo_cls.check(typed_algo, TASKS[typed_task.name], env)
+    if rest.opponent is not None:
+        _check_opponent(rest, TASKS[typed_task.name], algo_cls)
     return rest
+
+
+OPPONENT_LEARNERS = ("mappo",)  # learners that can play one team (MAPPO over one drone is PPO)
+
+
+def _check_opponent(cfg, task_cls, algo_cls) -> None:
+    """``opponent=``: a match, a learner that plays one team, and a competitor made for this task."""
+    from volleybots.algos.base import class_attr
+    from volleybots.competitors import resolve_competitor
+
+    if not class_attr(task_cls, "competitive"):
+        raise ConfigError(f"opponent={cfg.opponent!r} is for matches (1v1, 3v3, 6v6), not task {task_cls.name!r}")
+    if getattr(algo_cls, "population", False):
+        raise ConfigError(f"algo {algo_cls.name!r} chooses its own opponents; give it algo.seed_members=[...] instead of opponent=")
+    if algo_cls.name not in OPPONENT_LEARNERS:
+        raise ConfigError(f"algo {algo_cls.name!r} cannot learn one team against opponent=; allowed: {', '.join(OPPONENT_LEARNERS)}")
+    obs_dim = class_attr(task_cls, "obs_dim_prt") - (4 if cfg.env.action_space == "ctbr" else 0)
+    resolve_competitor(cfg.opponent).check_fits(task_cls.name, cfg.env.action_space, obs_dim)
 
 
 # ------------------------------------------------------------------------------------ composition
@@ -295,7 +317,8 @@ _ABSENT = object()
 
 def _task_default_algo(cfg: DictConfig, overrides) -> str | None:
     """The algorithm a task trains with when the command line names none (the task's
-    ``default_algo``: MAPPO for the cooperative tasks, SP for the matches), if it is not the config's
+    ``default_algo``: MAPPO for the cooperative tasks, SP for the matches, MAPPO against an
+    ``opponent=``), if it is not the config's
     default already. ``eval scripted task=3v3`` needs no algo at all, and ``train task=3v3`` then does
     what one expects. A named algo that cannot train the task is still an error."""
     from volleybots.algos.base import class_attr
@@ -306,7 +329,7 @@ def _task_default_algo(cfg: DictConfig, overrides) -> str | None:
     task_cls = TASKS.get(OmegaConf.select(cfg, "task.name", default=None))
     if task_cls is None:
         return None
-    default = class_attr(task_cls, "default_algo")
+    default = OPPONENT_LEARNERS[0] if OmegaConf.select(cfg, "opponent", default=None) is not None else class_attr(task_cls, "default_algo")
     return None if default == OmegaConf.select(cfg, "algo.name", default=None) else default
 
 

@@ -140,6 +140,15 @@ class Versus(AllAgents):
         self.gen.set_state(state["gen"])
 
 
+def default_seat(cfg):
+    """``opponent=``: the learner plays team 0 against that competitor; otherwise every drone."""
+    if cfg.get("opponent") is None:
+        return AllAgents()
+    from volleybots.competitors import resolve_competitor
+
+    return Versus(resolve_competitor(cfg.opponent), cfg.opponent_deterministic, cfg.seed)
+
+
 # ------------------------------------------------------------------------------------------ trainer
 class Trainer:
     """The run loop over one learner. ``seat`` says whom it plays for (default: every drone);
@@ -151,7 +160,7 @@ class Trainer:
         from volleybots.algos import ALGOS
 
         torch.manual_seed(cfg.seed)
-        self.seat = seat or AllAgents()
+        self.seat = seat or default_seat(cfg)
         self.extra_state = extra_state or (lambda: {})
         self.env = make_env(cfg)
         algo_cls = learner_cls or ALGOS[cfg.algo.name]

@@ -15,9 +15,9 @@ from pathlib import Path
 from typing import Callable
 
 import torch
-from tensordict import TensorDictBase
 from torchrl.envs.utils import step_mdp
 
+from volleybots.competitors import scripted_policy
 from volleybots.config import ConfigError, apply_overrides, load, make_env, to_dict
 from volleybots.runs import RunDir, load_algo_state, read_checkpoint
 
@@ -79,7 +79,7 @@ def resolve_target(target: str, overrides=()) -> Target:
         cfg = load(list(overrides))
         if target == "random":
             return Target("random", cfg, None, lambda env: (lambda td: env.rand_action(td)))
-        return Target("scripted", cfg, None, lambda env: _scripted(env, cfg.env.action_space))
+        return Target("scripted", cfg, None, lambda env: scripted_policy(env, cfg.env.action_space))
     path = Path(target)
     if path.is_dir():
         run = RunDir(path)
@@ -107,26 +107,6 @@ def resolve_target(target: str, overrides=()) -> Target:
         return algo.policy(deterministic=cfg.deterministic)
 
     return Target(f"{cfg.algo.name}@{int(state['frames'])}", cfg, Path(ckpt), make_policy)
-
-
-def _scripted(env, action_space: str):
-    try:
-        from volleybots.scripted import make_scripted_policy
-    except ImportError:
-        raise ConfigError("scripted policies are not available in this install (volleybots.scripted.make_scripted_policy is missing)") from None
-    try:
-        pol = make_scripted_policy(env, action_space)
-    except (ValueError, KeyError) as e:
-        raise ConfigError(f"no scripted policy for task {env.name!r} with env.action_space={action_space!r}: {e}") from None
-
-    def act(td: TensorDictBase) -> TensorDictBase:
-        out = pol(td)
-        if isinstance(out, torch.Tensor):
-            td.set(("agents", "action"), out)
-            return td
-        return out
-
-    return act
 
 
 def evaluate(target: str, overrides=(), episodes: int | None = None) -> dict:
