@@ -120,8 +120,8 @@ class HAPPO(MAPPO):
             loss = loss.mean()  # the loss returns it per sample (its forward reduces)
             (grad_norm,) = self.step(loss, [critic_params])
             add_logs(sums, {"loss_critic": loss, "explained_variance": explained, "grad_norm_critic": grad_norm})
-        sums["factor_std"] = float(factor.std()) * cfg.epochs * cfg.minibatches  # spread of the last drone's weights
         logs = self.finish_update(batch, sums, cfg.epochs * cfg.minibatches)
+        logs["factor_std"] = float(factor.std())  # spread of the weights M after the last drone
         if self.continuous:
             logs["action_std"] = float(torch.stack([s.state_independent_scale.detach().exp().mean() for s in self._stds]).mean())
         return logs
