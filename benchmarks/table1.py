@@ -61,6 +61,17 @@ def jobs(args) -> list[tuple[str, str, str, int]]:
     return out
 
 
+def finished_summary(run_dir: Path) -> dict | None:
+    """The summary of a finished run (not repeated), or None; an interrupted run is removed, to start again."""
+    if (run_dir / "summary.json").is_file():
+        return json.loads((run_dir / "summary.json").read_text())
+    if run_dir.exists():
+        import shutil
+
+        shutil.rmtree(run_dir)
+    return None
+
+
 def run_one(job, args) -> dict:
     """Train and evaluate one run (in a worker process); returns its summary."""
     import torch
@@ -70,12 +81,9 @@ def run_one(job, args) -> dict:
 
     task, space, algo, seed = job
     run_dir = Path(args.out) / f"{task}_{space}_{algo}_s{seed}"
-    if (run_dir / "summary.json").is_file():
-        return json.loads((run_dir / "summary.json").read_text())
-    if run_dir.exists():  # an interrupted run: start it again from scratch
-        import shutil
-
-        shutil.rmtree(run_dir)
+    done = finished_summary(run_dir)
+    if done is not None:
+        return done
     torch.set_num_threads(args.threads)
     overrides = [
         f"task={task}", f"algo={algo}", f"env.action_space={space}", f"env.num_envs={args.num_envs}", f"env.device={args.device}",
@@ -149,14 +157,38 @@ def curves(args, stat: str | None = None) -> dict:
         vals = _smooth([r.get(metric, math.nan) for r in rows], 5)
         for col in SPACES if algo == "dqn" else (space,):
             out.setdefault((task, col), {}).setdefault(algo, []).append((frames, vals))
-    mean = {}
+    return mean_over_seeds(out)
+
+
+def mean_over_seeds(out: dict) -> dict:
+    """{panel: {algo: [(frames, values) of each seed]}} -> {panel: {algo: (frames, mean over seeds)}},
+    over the batches every seed reached."""
+    mean: dict = {}
     for key, by_algo in out.items():
         for algo, runs in by_algo.items():
             n = min(len(f) for f, _ in runs)
-            frames = runs[0][0][:n]
-            vals = [_nanmean([v[i] for _, v in runs]) for i in range(n)]
-            mean.setdefault(key, {})[algo] = (frames, vals)
+            mean.setdefault(key, {})[algo] = (runs[0][0][:n], [_nanmean([v[i] for _, v in runs]) for i in range(n)])
     return mean
+
+
+def draw_panel(ax, curves_by_algo: dict, colors: dict, title: str, ylabel: str, label=str.upper) -> None:
+    """One panel of learning curves (env steps on x), one line per algorithm."""
+    for algo, (frames, vals) in sorted(curves_by_algo.items()):
+        ax.plot(frames, vals, color=colors.get(algo), label=label(algo))
+    ax.set_title(title, fontsize=10)
+    ax.set_xlabel("env steps")
+    ax.set_ylabel(ylabel)
+    ax.grid(alpha=0.3)
+
+
+def save_figure(fig, axes, path: Path, title: str) -> None:
+    import matplotlib.pyplot as plt
+
+    axes[0][0].legend(fontsize=8)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def _nanmean(xs):
@@ -187,19 +219,11 @@ def plot(args, path: Path, stat: str | None = None) -> None:
     colors = {"dqn": "tab:red", "ddpg": "tab:blue", "td3": "tab:green", "sac": "tab:purple", "ppo": "tab:orange"}
     for j, task in enumerate(args.tasks):
         for i, space in enumerate(SPACES):
-            ax = axes[i][j]
-            for algo, (frames, vals) in sorted(data.get((task, space), {}).items()):
-                label = f"{algo.upper()}{' (discrete)' if algo == 'dqn' else ''}"
-                ax.plot(frames, vals, color=colors.get(algo), label=label)
-            ax.set_title(f"{TITLES[task]} ({space.upper()})", fontsize=10)
-            ax.set_xlabel("env steps")
-            ax.set_ylabel(f"train episodes: {stat or ENVS[task].metric}")
-            ax.grid(alpha=0.3)
-    axes[0][0].legend(fontsize=8)
-    fig.suptitle(f"{int(args.frames):,} env steps x {len(args.seeds)} seeds, {args.num_envs} envs (mean over seeds, last 5 batches)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+            draw_panel(
+                axes[i][j], data.get((task, space), {}), colors, f"{TITLES[task]} ({space.upper()})",
+                f"train episodes: {stat or ENVS[task].metric}", label=lambda a: f"{a.upper()}{' (discrete)' if a == 'dqn' else ''}",
+            )
+    save_figure(fig, axes, path, f"{int(args.frames):,} env steps x {len(args.seeds)} seeds, {args.num_envs} envs (mean over seeds, last 5 batches)")
 
 
 def add_run_args(ap, seeds, frames: float, eval_episodes: int, out: str) -> None:

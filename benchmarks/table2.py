@@ -27,7 +27,7 @@ import statistics
 import sys
 from pathlib import Path
 
-from table1 import _cell, _csv, _nanmean, _smooth, add_run_args, check_choices, run_all
+from table1 import _cell, _csv, _smooth, add_run_args, check_choices, draw_panel, finished_summary, mean_over_seeds, run_all, save_figure
 
 TASKS = ("bump_and_pass", "set_and_spike_easy", "set_and_spike_hard")
 SHAPING = ("off", "on")
@@ -60,12 +60,9 @@ def run_one(job, args) -> dict:
 
     task, shaping, algo, seed = job
     run_dir = _run_dir(args, job)
-    if (run_dir / "summary.json").is_file():
-        return json.loads((run_dir / "summary.json").read_text())
-    if run_dir.exists():  # an interrupted run: start it again from scratch
-        import shutil
-
-        shutil.rmtree(run_dir)
+    done = finished_summary(run_dir)
+    if done is not None:
+        return done
     torch.set_num_threads(args.threads)
     overrides = [
         f"task={task}", f"algo={algo}", f"task.reward_shaping={'true' if shaping == 'on' else 'false'}", f"env.num_envs={args.num_envs}",
@@ -129,12 +126,7 @@ def curves(args) -> dict:
         rows = [r for r in read_metrics(path) if r["phase"] == "train"]
         vals = _smooth([r.get(ENVS[task].metric, math.nan) for r in rows], 5)
         out.setdefault((task, shaping), {}).setdefault(algo, []).append(([r["frames"] for r in rows], vals))
-    mean = {}
-    for key, by_algo in out.items():
-        for algo, runs in by_algo.items():
-            n = min(len(f) for f, _ in runs)
-            mean.setdefault(key, {})[algo] = (runs[0][0][:n], [_nanmean([v[i] for _, v in runs]) for i in range(n)])
-    return mean
+    return mean_over_seeds(out)
 
 
 def plot(args, path: Path) -> None:
@@ -149,18 +141,10 @@ def plot(args, path: Path) -> None:
     fig, axes = plt.subplots(len(args.shaping), len(args.tasks), figsize=(4.4 * len(args.tasks), 3.4 * len(args.shaping)), squeeze=False)
     for j, task in enumerate(args.tasks):
         for i, shaping in enumerate(args.shaping):
-            ax = axes[i][j]
-            for algo, (frames, vals) in sorted(data.get((task, shaping), {}).items()):
-                ax.plot(frames, vals, color=COLORS.get(algo), label=algo.upper())
-            ax.set_title(f"{TITLES[task]} ({'with' if shaping == 'on' else 'without'} shaping)", fontsize=10)
-            ax.set_xlabel("env steps")
-            ax.set_ylabel(f"train episodes: {ENVS[task].metric}")
-            ax.grid(alpha=0.3)
-    axes[0][0].legend(fontsize=8)
-    fig.suptitle(f"{int(args.frames):,} env steps x seeds {','.join(map(str, args.seeds))}, {args.num_envs} envs (mean over seeds, last 5 batches)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+            title = f"{TITLES[task]} ({'with' if shaping == 'on' else 'without'} shaping)"
+            draw_panel(axes[i][j], data.get((task, shaping), {}), COLORS, title, f"train episodes: {ENVS[task].metric}")
+    seeds = ",".join(map(str, args.seeds))
+    save_figure(fig, axes, path, f"{int(args.frames):,} env steps x seeds {seeds}, {args.num_envs} envs (mean over seeds, last 5 batches)")
 
 
 def main(argv=None) -> int:
