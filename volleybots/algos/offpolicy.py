@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from abc import abstractmethod
+from typing import ClassVar
 from dataclasses import dataclass
 
 import torch
@@ -61,17 +62,20 @@ class OffPolicyConfig:
     checkpoint_buffer: bool = False
 
 
+def net_kwargs(cfg) -> dict:
+    """TorchRL ``MLP`` / ``MultiAgentMLP`` keywords of every actor and critic here: ``cfg.hidden``
+    cells, optional LayerNorm after each hidden layer (the reference's choice for these methods)."""
+    return {
+        "num_cells": list(cfg.hidden),
+        "activation_class": ACTIVATIONS[cfg.activation],
+        "norm_class": nn.LayerNorm if cfg.layer_norm else None,
+        "norm_kwargs": [{"normalized_shape": h} for h in cfg.hidden] if cfg.layer_norm else None,
+    }
+
+
 def net(in_dim: int, out_dim: int, cfg) -> MLP:
-    """The MLP of every actor and critic here: ``cfg.hidden`` cells, optional LayerNorm after each
-    hidden layer (the reference's choice for these methods)."""
-    return MLP(
-        in_features=in_dim,
-        out_features=out_dim,
-        num_cells=list(cfg.hidden),
-        activation_class=ACTIVATIONS[cfg.activation],
-        norm_class=nn.LayerNorm if cfg.layer_norm else None,
-        norm_kwargs=[{"normalized_shape": h} for h in cfg.hidden] if cfg.layer_norm else None,
-    )
+    """The MLP of every single-agent actor and critic here (``net_kwargs``)."""
+    return MLP(in_features=in_dim, out_features=out_dim, **net_kwargs(cfg))
 
 
 class QNet(nn.Module):
@@ -110,6 +114,38 @@ def transitions(batch: TensorDictBase) -> TensorDict:
     ).reshape(-1)
 
 
+def joint_transitions(batch: TensorDictBase) -> TensorDict:
+    """A collected batch [N, T] as joint transitions [N, T] that keep all drones of a step together
+    under ``("agents", ...)`` (what a centralised critic or a mixer needs). ``done``/``terminated``
+    stay shared at the root and are also given per drone, for TorchRL's per-agent TD targets."""
+    obs = batch.get(OBS)
+    shape = obs.shape[:-1]  # N, T, A
+
+    def per_agent(key):
+        return batch.get(("next", key)).unsqueeze(-2).expand(*shape, 1)
+
+    nxt = batch.get("next")
+    return TensorDict(
+        {
+            "agents": TensorDict({"observation": obs, "action": batch.get(ACTION)}, batch_size=shape),
+            "next": {
+                "agents": TensorDict(
+                    {
+                        "observation": batch.get(("next", *OBS)),
+                        "reward": batch.get(("next", *REWARD)),
+                        "done": per_agent("done"),
+                        "terminated": per_agent("terminated"),
+                    },
+                    batch_size=shape,
+                ),
+                "done": nxt.get("done"),
+                "terminated": nxt.get("terminated"),
+            },
+        },
+        batch_size=shape[:-1],
+    )
+
+
 class OffPolicy(Algorithm):
     """Replay buffer, warm-up, gradient steps, target updates and checkpoints of the four methods."""
 
@@ -118,6 +154,7 @@ class OffPolicy(Algorithm):
     loss: LossModule
     optims: dict[str, tuple[torch.optim.Optimizer, list[nn.Parameter]]]
     info_keys: tuple[str, ...] = ()  # the diagnostics ``losses`` returns besides the losses
+    reward_key: ClassVar[tuple[str, ...]] = ("next", "reward")  # the reward of a replay item (``reward_scale``)
 
 
     @classmethod
@@ -146,7 +183,7 @@ class OffPolicy(Algorithm):
         self.buffer = TensorDictReplayBuffer(
             storage=LazyTensorStorage(cfg.buffer_size, device=buffer_device), batch_size=cfg.batch_size, generator=self.rb_gen
         )
-        self.frames = 0  # transitions written to the buffer so far
+        self.frames = 0  # env steps collected so far (summed over envs)
         self.grad_steps = 0
 
     # ------------------------------------------------------------------ to be written by a method
@@ -208,17 +245,22 @@ class OffPolicy(Algorithm):
         groups = [f"{k}_{g}" for g in self.optims for k in ("loss", "grad_norm")]
         return ["buffer_size", "grad_steps", *groups, *self.info_keys]
 
+    def replay_items(self, batch: TensorDictBase) -> TensorDict:
+        """What one collection [N, T] writes to the replay buffer, one item per first index: per-drone
+        transitions here; a multi-agent method keeps a step's drones (or a whole chunk) together."""
+        return transitions(batch)
+
     def update(self, batch: TensorDictBase) -> dict[str, float]:
-        data = transitions(batch)
+        data = self.replay_items(batch)
         if self.cfg.reward_scale != 1.0:
-            data["next", "reward"] = data["next", "reward"] * self.cfg.reward_scale
+            data[self.reward_key] = data[self.reward_key] * self.cfg.reward_scale
         self.buffer.extend(data.to(self.buffer.storage.device))
-        self.frames += data.numel()
+        self.frames += batch.numel()  # env steps (epsilon schedules anneal over these)
         logs = dict.fromkeys(self.log_keys(), math.nan)
         if not self.warming_up:
             sums: dict[str, float] = {}
             counts: dict[str, int] = {}
-            for _ in range(self.gradient_steps(data.numel())):
+            for _ in range(self.gradient_steps(len(data))):
                 for k, v in self.train_step(self.buffer.sample().to(self.device)).items():
                     sums[k] = sums.get(k, 0.0) + v
                     counts[k] = counts.get(k, 0) + 1
@@ -261,9 +303,11 @@ class OffPolicy(Algorithm):
         }
         if self.cfg.checkpoint_buffer:
             n = len(self.buffer)
+            data = self.buffer.storage[:n]
             state["buffer"] = {
-                "data": self.buffer.storage[:n].to("cpu").to_dict() if n else {},
+                "data": data.to("cpu").to_dict() if n else {},
                 "cursor": torch.tensor(self.buffer._writer._cursor),
+                "batch_dims": torch.tensor(data.batch_dims if n else 1),  # items of QMIX's chunks are [T]
             }
         return state
 
@@ -277,9 +321,9 @@ class OffPolicy(Algorithm):
         self.buffer.empty()
         saved = state.get("buffer")
         if saved and saved["data"]:
-            data = TensorDict(saved["data"]).auto_batch_size_(batch_dims=1)
+            data = TensorDict(saved["data"]).auto_batch_size_(batch_dims=int(saved.get("batch_dims", 1)))
             self.buffer.extend(data.to(self.buffer.storage.device))
             self.buffer._writer._cursor = int(saved["cursor"])
 
 
-__all__ = ["OffPolicy", "OffPolicyConfig", "QNet", "net", "transitions"]
+__all__ = ["OffPolicy", "OffPolicyConfig", "QNet", "joint_transitions", "net", "net_kwargs", "transitions"]

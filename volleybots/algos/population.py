@@ -64,6 +64,7 @@ class PopulationMethod(PPO):
     name = "psro_nash"
     config_cls = PopulationConfig
     multi_agent = True
+    task_kinds = ("competitive",)
     population = True
     learner_cls = MAPPO
 
