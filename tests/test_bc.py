@@ -10,7 +10,8 @@ from tensordict import TensorDict
 
 from volleybots.algos import ALGOS
 from volleybots.algos.bc import TEACHER
-from volleybots.config import ConfigError, load, make_env
+from volleybots.config import load, make_env
+from volleybots.errors import ConfigError
 from volleybots.eval import evaluate
 from volleybots.runs import RunDir, read_metrics
 from volleybots.scripted import make_scripted_policy
@@ -81,7 +82,7 @@ def test_a_bc_run_dir_evaluates_and_starts_ppo(solo_bump_bc, tmp_path):
 
 
 def test_bc_refuses_tasks_without_a_teacher_and_discrete_actions():
-    with pytest.raises(ConfigError, match="match"):
+    with pytest.raises(ConfigError, match="competitive"):
         load(["task=1v1", "algo=bc"])
     with pytest.raises(ConfigError, match="action_space"):
         load(["task=hover", "algo=bc", "env.action_space=discrete"])

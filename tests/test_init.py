@@ -11,7 +11,8 @@ import sys
 import pytest
 import torch
 
-from volleybots.config import ConfigError, load
+from volleybots.config import load
+from volleybots.errors import ConfigError
 from volleybots.runs import RunDir
 from volleybots.train import Trainer, train
 

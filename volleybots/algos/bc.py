@@ -32,9 +32,8 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 from torch import nn
 
-from volleybots.algos.base import check_at_least
 from volleybots.algos.ppo import ACTION, OBS, PPO, PPOConfig, PPONetConfig
-from volleybots.config import ConfigError
+from volleybots.errors import ConfigError, ranged
 
 TEACHER = ("agents", "teacher_action")  # the scripted player's action, next to the executed one
 
@@ -42,13 +41,13 @@ TEACHER = ("agents", "teacher_action")  # the scripted player's action, next to 
 @dataclass
 class BCConfig(PPONetConfig):
     name: str = "bc"
-    expert_frames: int = 200_000
-    learner_envs: float = 0.5
-    action_noise: float = 0.1
-    buffer_size: int = 500_000
-    batch_size: int = 4096
-    replay_ratio: float = 4.0
-    min_std: float = 0.02
+    expert_frames: int = ranged(200_000, ge=0)
+    learner_envs: float = ranged(0.5, ge=0, le=1)
+    action_noise: float = ranged(0.1, ge=0)
+    buffer_size: int = ranged(500_000, ge=1)
+    batch_size: int = ranged(4096, ge=1)
+    replay_ratio: float = ranged(4.0, gt=0)
+    min_std: float = ranged(0.02, gt=0)
     actor_lr: float = 1e-3
     centralised_critic: bool = True
 
@@ -63,27 +62,19 @@ class BC(PPO):
     config_cls = BCConfig
     action_spaces = ("prt", "ctbr")  # the scripted players fly continuous actions only
     multi_agent = True
+    # a match's scripted player plays one team: a clone of it would need a learner seated on a team
+    task_kinds = ("single", "cooperative")
 
     @classmethod
     def check(cls, cfg, task_cls, env_cfg):
-        from volleybots.algos.base import class_attr
+        from volleybots.algos.base import task_kind
         from volleybots.scripted import SCRIPTED_POLICIES
+        from volleybots.tasks import TASKS
 
         super(PPO, cls).check(cfg, task_cls, env_cfg)  # the shared checks; PPO's own are about minibatches
-        if class_attr(task_cls, "competitive"):
-            raise ConfigError(f"algo 'bc' imitates a player of every drone; task {task_cls.name!r} is a match, whose scripted player plays one team")
         if task_cls.name not in SCRIPTED_POLICIES:
-            allowed = sorted(t for t in SCRIPTED_POLICIES if t in _single_and_coop())
-            raise ConfigError(f"algo 'bc' needs a scripted player; task {task_cls.name!r} has none; allowed: {', '.join(allowed)}")
-        check_at_least(cfg, ("steps_per_batch", "buffer_size", "batch_size"))
-        check_at_least(cfg, ("expert_frames",), low=0)
-        for key, value, ok, rule in (
-            ("learner_envs", cfg.learner_envs, 0 <= cfg.learner_envs <= 1, "in [0, 1]"),
-            ("action_noise", cfg.action_noise, cfg.action_noise >= 0, ">= 0"),
-            ("replay_ratio", cfg.replay_ratio, cfg.replay_ratio > 0, "> 0"),
-        ):
-            if not ok:
-                raise ConfigError(f"bad value for 'algo.{key}': {value} (must be {rule})")
+            allowed = sorted(t for t in SCRIPTED_POLICIES if t in TASKS and task_kind(TASKS[t]) in cls.task_kinds)
+            raise ConfigError(f"algo 'bc' imitates a scripted player; task {task_cls.name!r} has none; allowed: {', '.join(allowed)}")
 
     def __init__(self, cfg, env, seed: int = 0):
         super().__init__(ppo_config(cfg), env, seed)
@@ -227,10 +218,3 @@ class BC(PPO):
         self.frames, self.size, self.cursor = (int(x) for x in state["counters"])
         self.data_obs[: self.size] = state["data"]["obs"]
         self.data_act[: self.size] = state["data"]["action"]
-
-
-def _single_and_coop() -> list[str]:
-    from volleybots.algos.base import class_attr
-    from volleybots.tasks import TASKS
-
-    return [n for n, t in TASKS.items() if not class_attr(t, "competitive")]
