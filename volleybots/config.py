@@ -484,7 +484,7 @@ def check_memory(cfg, worlds: int | None = None) -> None:
         ]
         if "buffer_size" in a:  # flat per-drone transitions: observation, next observation, action, reward, flags
             per = 4 * (2 * obs_dim + max(1, probe.actions.dim if probe.actions.continuous else 1) + 3)
-            needs.append((a.buffer_size * per, f"algo.buffer_size={a.buffer_size} ({per} bytes per transition)", "algo.buffer_size", a.buffer_device or cfg.env.device))
+            needs.append((a.buffer_size * per, f"algo.buffer_size={a.buffer_size} ({per} bytes per transition)", "algo.buffer_size", a.get("buffer_device") or cfg.env.device))
     check_fits(needs)
 
 
