@@ -157,7 +157,7 @@ class PPO(Algorithm):
     def check(cls, cfg, task_cls, env_cfg):
         super().check(cfg, task_cls, env_cfg)
         if cfg.actor_freeze_updates and cls.update is not PPO.update:
-            raise ConfigError(f"algo {cls.name!r} has its own update; algo.actor_freeze_updates is for ppo and mappo")
+            raise ConfigError(f"algo {cls.name!r} updates its actors its own way: algo.actor_freeze_updates must be 0 (it is for ppo, mappo, mat)")
         frames = env_cfg.num_envs * cfg.steps_per_batch
         if frames < cfg.minibatches:
             raise ConfigError(
