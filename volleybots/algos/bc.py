@@ -46,7 +46,7 @@ class BCConfig(PPONetConfig):
     action_noise: float = ranged(0.1, ge=0)
     buffer_size: int = ranged(500_000, ge=1)
     batch_size: int = ranged(4096, ge=1)
-    replay_ratio: float = ranged(4.0, gt=0)
+    replay_ratio: float = ranged(8.0, gt=0)
     min_std: float = ranged(0.02, gt=0)
     actor_lr: float = 1e-3
     centralised_critic: bool = True
