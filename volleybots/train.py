@@ -203,7 +203,10 @@ def apply_init(algo, cfg, spec: AgentSpec) -> dict:
     state = read_checkpoint(path, device=algo.device)
     if "algo" not in state:
         raise ConfigError(f"init={cfg.init!r} is a built-in player ({state.get('builtin')}), not a trained policy")
-    src = validate(state["config"])
+    try:
+        src = validate(state["config"])
+    except ConfigError as e:
+        raise ConfigError(f"init={cfg.init!r}: the source's saved config is not valid here ({e})") from None
     here_drones = class_attr(TASKS[cfg.task.name], "n_drones")
     there_drones = class_attr(TASKS[src.task.name], "n_drones")
     here = _side(cfg.algo.name, cfg.task.name, here_drones, cfg.env.action_space, spec.obs_dim)
