@@ -104,8 +104,7 @@ class BC(PPO):
     def teach(self, td: TensorDictBase) -> torch.Tensor:
         """The teacher's action for the states of ``td`` (left as it was), timed."""
         t0 = time.perf_counter()
-        view = td.clone(recurse=False).set("agents", td.get("agents").clone(recurse=False))
-        out = self.teacher(view)
+        out = self.teacher(_view(td))
         action = out if isinstance(out, torch.Tensor) else out.get(ACTION)
         self.teacher_s += time.perf_counter() - t0
         return action.clamp(-1.0, 1.0)
@@ -121,7 +120,7 @@ class BC(PPO):
             teacher = self.teach(td)
             drive = teacher
             if self.dagger and self.cfg.learner_envs > 0:
-                own = learner(td.clone(recurse=False).set("agents", td.get("agents").clone(recurse=False))).get(ACTION)
+                own = learner(_view(td)).get(ACTION)
                 drive = torch.where(self.learner_mask, own, teacher)
             noise = torch.randn(drive.shape, generator=self.gen, device=self.gen.device).to(drive.device) * self.cfg.action_noise
             td.set(TEACHER, teacher)
@@ -218,3 +217,8 @@ class BC(PPO):
         self.frames, self.size, self.cursor = (int(x) for x in state["counters"])
         self.data_obs[: self.size] = state["data"]["obs"]
         self.data_act[: self.size] = state["data"]["action"]
+
+
+def _view(td: TensorDictBase) -> TensorDictBase:
+    """A shallow copy whose ``agents`` entries a policy may write without touching ``td``'s."""
+    return td.clone(recurse=False).set("agents", td.get("agents").clone(recurse=False))
