@@ -108,6 +108,7 @@ class VolleyEnv(EnvBase):
         drone_params = drone if isinstance(drone, DroneParams) else DroneParams.named(drone)
         self.params = WorldParams(substeps=substeps, downwash=downwash, drone=drone_params, ball=BallParams(drag=ball_drag))
         self.num_envs = num_envs
+        self._hover_throttle = torch.tensor(drone_params.hover_throttle, device=self.device)  # solved once, not per reset
         self.reward_shaping = reward_shaping
         # compile=True compiles the whole env step below, physics included
         self.physics = make_physics(physics, self.params, num_envs, self.n_drones, device=self.device)
@@ -181,8 +182,7 @@ class VolleyEnv(EnvBase):
         if quat is None:
             quat = torch.tensor((1.0, 0.0, 0.0, 0.0), device=self.device)
         zeros = torch.zeros(3, device=self.device)
-        throttle = torch.tensor(self.params.drone.hover_throttle, device=self.device)
-        self.physics.set_state(mask, pos=pos, quat=quat, vel=zeros, omega=zeros, throttle=throttle)
+        self.physics.set_state(mask, pos=pos, quat=quat, vel=zeros, omega=zeros, throttle=self._hover_throttle)
 
     def place_ball(self, mask: torch.Tensor, pos, vel=None) -> None:
         pos = torch.as_tensor(pos, device=self.device, dtype=torch.float32)
