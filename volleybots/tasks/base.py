@@ -37,7 +37,7 @@ from torchrl.envs import EnvBase
 from volleybots.physics import WorldParams, make_action_space, make_physics
 from volleybots.physics.math import quat_axes, quat_rotate
 from volleybots.physics.params import BallParams, DroneParams
-from volleybots.physics.torch_backend import compile_options, masked_select
+from volleybots.physics.torch_backend import compile_options
 from volleybots.rules import Referee
 
 PARKED_BALL = (-100.0, 0.0, 0.1)  # where tasks without a ball keep it, resting on the ground far away
