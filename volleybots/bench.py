@@ -62,8 +62,7 @@ def measure(
     torch.manual_seed(seed)
     # a few pre-drawn random actions, cycled, so that sampling does not count as env time
     actions = [env.full_action_spec.rand() for _ in range(8)]
-    env.reset()
-    td = env.reset()  # the first reset counts the random numbers a reset draws; the second compiles
+    td = env.reset()
     for i in range(warmup):  # includes compilation when compile=True
         _, td = env.step_and_maybe_reset(td.update(actions[i % len(actions)]))
     _sync(device)

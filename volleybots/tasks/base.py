@@ -56,20 +56,23 @@ class StepResult:
 class NoiseTape:
     """The random numbers of one reset, handed out in order to ``VolleyEnv.uniform``.
 
-    With ``noise`` [N, K] given, ``take(k)`` returns its next k columns; without, it draws them from
-    ``rng`` and counts them (how the env learns K, once, at construction).
+    With ``noise`` [N, K] given, ``take(k)`` returns its next k columns; without, it hands out 0.5
+    and only counts: how the env learns K, once, without touching its generator (so that every reset,
+    the first included, draws its numbers the same way: a resumed run repeats the uninterrupted one).
     """
 
-    def __init__(self, noise: torch.Tensor | None, rng: torch.Generator | None = None, num_envs: int = 0):
-        self.noise, self.rng, self.num_envs = noise, rng, num_envs
+    def __init__(self, noise: torch.Tensor | None, num_envs: int = 0, device=None):
+        self.noise, self.num_envs, self.device = noise, num_envs, device
         self.used = 0
+        self.widths: list[int] = []  # columns of each take, in order
 
     def take(self, k: int) -> torch.Tensor:
         if self.noise is None:
-            out = torch.rand(self.num_envs, k, generator=self.rng, device=self.rng.device)
+            out = torch.full((self.num_envs, k), 0.5, device=self.device)
         else:
             out = self.noise[:, self.used : self.used + k]
         self.used += k
+        self.widths.append(k)
         return out
 
 
@@ -123,7 +126,7 @@ class VolleyEnv(EnvBase):
         self._warned_nonfinite = False
         self._make_specs()
         self.rng.manual_seed(seed)
-        self._noise_width = None  # random numbers per env a reset draws: counted by the first reset
+        self._noise_widths = None  # random numbers per env of each draw of a reset: counted by the first
         self.compiled = bool(compile_physics) and physics == "torch"  # MuJoCo steps in its own native code
         self._step_fn, self._reset_fn = self._step_core, self._reset_core
         if self.compiled:
@@ -249,12 +252,12 @@ class VolleyEnv(EnvBase):
         return self.observe(), self._stats_tensor()
 
     def _reset_envs(self, mask: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        if self._noise_width is None:  # the first reset runs eagerly, drawing as it goes, and counts
-            self._tape = NoiseTape(None, self.rng, self.num_envs)
-            out = self._reset_core(mask, None)
-            self._noise_width = self._tape.used
-            return out
-        noise = torch.rand(self.num_envs, self._noise_width, generator=self.rng, device=self.device)
+        if self._noise_widths is None:  # a dry run of the first reset counts its random numbers
+            self._tape = NoiseTape(None, self.num_envs, self.device)
+            self._reset_core(mask, None)
+            self._noise_widths = tuple(self._tape.widths)
+        # one [N, k] block per draw, in order: a full reset draws exactly what drawing as it goes would
+        noise = torch.cat([torch.rand(self.num_envs, k, generator=self.rng, device=self.device) for k in self._noise_widths], -1)
         return self._reset_fn(mask, noise)
 
     def _reset(self, tensordict: TensorDictBase | None = None, **kwargs) -> TensorDictBase:
@@ -288,7 +291,8 @@ class VolleyEnv(EnvBase):
         self._stats["return"] = self._stats["return"] + reward.mean(1)
         self._stats["episode_len"] = self._stats["episode_len"] + 1.0
         for k, v in res.stats.items():
-            self._stats[k] = v.to(torch.float32)
+            # a copy, never the task's own buffer: aliased inputs would recompile the reset graph
+            self._stats[k] = v.to(torch.float32, copy=True)
         self._stats["nonfinite_action"] = torch.maximum(self._stats["nonfinite_action"], bad.float())
         terminated = res.terminated | bad
         truncated = (self.t >= self.episode_len) & ~terminated
