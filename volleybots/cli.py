@@ -1,8 +1,9 @@
 """The ``volleybots`` command line: train, eval, replay, list, bench.
 
-Bad input (an unknown name or key, a wrong type, an algorithm that cannot act in the chosen action
-space, a missing or mismatched checkpoint, an output file that exists) prints one line naming the bad
-value and the allowed ones, exits with code 2 and writes nothing.
+Bad input (an unknown name, key, verb or option, a wrong type or an out-of-range value, an algorithm
+that cannot act in the chosen action space, a missing or mismatched checkpoint, an output file that
+exists or cannot be written, a run directory in use) prints one line naming the bad value and the
+allowed ones, exits with code 2 and writes nothing. docs/usage.md lists the guarantees.
 """
 
 from __future__ import annotations
@@ -16,11 +17,53 @@ from pathlib import Path
 from typing import List, Optional
 
 import typer
+from typer.core import TyperGroup
+
+try:  # typer >= 0.2x carries its own copy of click
+    from typer._click import exceptions as click_errors
+except ImportError:
+    from click import exceptions as click_errors
 
 import volleybots
-from volleybots.config import ConfigError
+from volleybots.errors import ConfigError
+
+
+class _Verbs(TyperGroup):
+    """Click's own usage errors (a missing argument, an unknown verb or option, an option without its
+    value) as one line and exit code 2, like every other bad input, not a boxed usage message."""
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        try:
+            rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        except click_errors.ClickException as e:
+            if not standalone_mode:
+                raise
+            if type(e).__name__ == "NoArgsIsHelpError":  # bare `volleybots`: the help, as Click does
+                typer.echo(e.format_message())
+            else:
+                typer.echo(f"error: {_usage_message(self, e)}", err=True)
+            sys.exit(2 if isinstance(e, click_errors.UsageError) else e.exit_code)
+        except typer.Abort:
+            if not standalone_mode:
+                raise
+            typer.echo("error: aborted", err=True)
+            sys.exit(1)
+        if standalone_mode:
+            sys.exit(rv if isinstance(rv, int) else 0)
+        return rv
+
+
+def _usage_message(group, e) -> str:
+    msg = " ".join(e.format_message().split()).rstrip(".")
+    ctx = getattr(e, "ctx", None)
+    where = ctx.command_path if ctx is not None else "volleybots"
+    if msg.startswith("No such command"):
+        msg += f"; allowed: {', '.join(group.commands)}"
+    return f"{msg[:1].lower()}{msg[1:]} (see: {where} --help)"
+
 
 app = typer.Typer(
+    cls=_Verbs,
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
@@ -80,14 +123,42 @@ def _jobs(overrides: list[str], multirun: bool) -> list[list[str]]:
     return [list(c) for c in itertools.product(*choices)] or [[]]
 
 
-def _check_run_dir(overrides: list[str]) -> None:
-    """Refuse an explicit ``hydra.run.dir`` that already holds a run (Hydra would write into it)."""
-    from volleybots.runs import RunDir
+_DIR_KEYS = {False: "hydra.run.dir", True: "hydra.sweep.dir"}
+_NONEMPTY = ("resume", "hydra.run.dir", "hydra.sweep.dir", "hydra.sweep.subdir", "hydra.job.name")
 
+
+def _refuse_flags(args: list[str], allowed: str) -> None:
+    """An option Click passed through (the verbs take Hydra overrides after them) is a misspelt one."""
+    flags = [a for a in args if a.startswith("-")]
+    if flags:
+        raise ConfigError(f"unknown option {flags[0]!r}; allowed: {allowed}")
+
+
+def _refuse_empty(overrides: list[str]) -> None:
+    """``resume=`` or ``hydra.run.dir=`` with nothing after the '=' would silently mean "none" / "here"."""
     for o in overrides:
-        key, _, value = o.partition("=")
-        if key == "hydra.run.dir" and RunDir(value).has_results():
-            raise ConfigError(f"{value} already holds a run; choose another hydra.run.dir or continue it with resume={value}")
+        key, eq, value = o.partition("=")
+        if eq and key.lstrip("+") in _NONEMPTY and not value.strip():
+            raise ConfigError(f"{key}= is empty; give it a value ({key}=DIR) or leave it out")
+
+
+def _claim_dir(job: list[str], overrides: list[str], multirun: bool) -> str:
+    """Resolve the run directory (the sweep's with -m) that Hydra would use and lock it for this
+    process; the default, time-stamped one gets a suffix when taken (two starts in one second)."""
+    from volleybots.config import compose
+    from volleybots.runs import claim_run_dir
+
+    key = _DIR_KEYS[multirun]
+    cfg = compose(job, hydra_node=True)
+    path = str(cfg.hydra.sweep.dir if multirun else cfg.hydra.run.dir)
+    if not path.strip():
+        raise ConfigError(f"{key} is empty; give it a directory")
+    explicit = any(o.partition("=")[0].lstrip("+") == key for o in overrides)
+    return str(claim_run_dir(path, unique=not explicit, sweep=multirun))
+
+
+def _hydra_quote(value: str) -> str:
+    return "'" + value.replace("\\", "\\\\").replace("'", "\\'") + "'"
 
 
 def _run_hydra(overrides: list[str], multirun: bool, extra: list[str]) -> None:
@@ -100,7 +171,7 @@ def _run_hydra(overrides: list[str], multirun: bool, extra: list[str]) -> None:
         from hydra.core.hydra_config import HydraConfig
 
         from volleybots.config import algo_action_space, validate
-        from volleybots.train import train as train_run
+        from volleybots.runner import start as train_run
 
         try:
             cfg = algo_action_space(cfg, HydraConfig.get().overrides.task)
@@ -120,6 +191,14 @@ def _run_hydra(overrides: list[str], multirun: bool, extra: list[str]) -> None:
 
 
 def _echo_summary(summary: dict, run_dir) -> None:
+    if "population" in summary:
+        pop = summary["population"]
+        mix = ", ".join(f"{m} {w:.2f}" for m, w in zip(pop["members"], pop["mixture"]))
+        typer.echo(
+            f"run {run_dir}: {summary['frames']} frames in {summary['wall_time_s']:.0f} s ({summary['frames_per_s']:,.0f} frames/s); "
+            f"{summary['iterations']} iteration(s), population {len(pop['members'])}, meta-strategy ({pop['solver']}): {mix}"
+        )
+        return
     ev = summary["final_eval"]["stats"][summary["metric"]]
     typer.echo(
         f"run {run_dir}: {summary['frames']} frames in {summary['wall_time_s']:.0f} s "
@@ -136,33 +215,72 @@ def train(
 ) -> None:
     """Train a policy; writes a run directory (config, metrics.csv, checkpoints, summary.json, recordings)."""
     overrides = list(overrides or [])
-    flags = [o for o in overrides if o.startswith("-")]
-    if flags:
-        raise ConfigError(f"unknown option {flags[0]!r}; allowed: -m/--multirun, --cfg job|hydra|all, --help")
+    _refuse_flags(overrides, "-m/--multirun, --cfg job|hydra|all, --help")
+    _refuse_empty(overrides)
     if show is not None and show not in ("job", "hydra", "all"):
         raise ConfigError(f"unknown --cfg {show!r}; allowed: job, hydra, all")
     if show is not None and multirun:
         raise ConfigError("--cfg prints the config of one job; it cannot be combined with -m")
+    from volleybots.launchers import check_launcher
+
+    check_launcher(overrides)
     resume_dir = next((o.partition("=")[2] for o in overrides if o.startswith("resume=")), None)
-    if resume_dir is not None and resume_dir not in ("", "null"):
-        from volleybots.train import resume
+    if resume_dir is not None and resume_dir != "null":
+        from volleybots.runner import resume
 
         if multirun or show:
             raise ConfigError("resume= continues one run; it takes neither -m nor --cfg")
         summary = resume(resume_dir, [o for o in overrides if not o.startswith("resume=")])
         _echo_summary(summary, resume_dir)
         return
-    from volleybots.config import compose, validate
+    from volleybots.config import check_memory, compose, validate
 
-    for job in _jobs(overrides, multirun):
-        validate(compose(job))
-    if show is None:
-        _check_run_dir(overrides)
-    _run_hydra(overrides, multirun, [] if show is None else ["--cfg", show])
+    jobs = _jobs(overrides, multirun)
+    cfgs = [validate(compose(job)) for job in jobs]
+    if not any(o.split("=", 1)[0].lstrip("+~") == "algo" for o in overrides):
+        # the task's own default (MAPPO for cooperative tasks, SP for matches) when no algo is named
+        algos = sorted({c.algo.name for c in cfgs})
+        if len(algos) > 1:
+            raise ConfigError(f"the swept tasks train with different default algorithms ({', '.join(algos)}); name one with algo=NAME")
+        overrides = [*overrides, f"algo={algos[0]}"]
+    if show is not None:
+        _run_hydra(overrides, multirun, ["--cfg", show])
+        return
+    for cfg in cfgs:
+        check_memory(cfg)
+    from volleybots.runs import unlock
+
+    key = _DIR_KEYS[multirun]
+    run_dir = _claim_dir(_jobs(overrides, multirun)[0], overrides, multirun)
+    try:
+        pinned = [o for o in overrides if o.partition("=")[0].lstrip("+") != key]
+        _run_hydra([*pinned, f"{key}={_hydra_quote(run_dir)}"], multirun, [])
+    finally:
+        unlock(run_dir)
 
 
 # ------------------------------------------------------------------------------------ eval, replay
-@app.command("eval", context_settings=_PASS_THROUGH)
+class _EvalGroup(TyperGroup):
+    """``eval`` is a group of verbs (crossplay, elo) whose first argument may instead be a target:
+    ``volleybots eval RUN_DIR episodes=3`` runs the hidden ``policy`` verb."""
+
+    def parse_args(self, ctx, args):
+        if args and args[0] not in self.commands and not args[0].startswith("-"):
+            args = ["policy", *args]
+        return super().parse_args(ctx, args)
+
+
+eval_app = typer.Typer(
+    cls=_EvalGroup,
+    no_args_is_help=True,
+    help="Evaluate: `eval TARGET episodes=100 ...` plays one policy (a run dir, a checkpoint, scripted, random) "
+    "and reports the task metric; `eval crossplay` and `eval elo` rank competitors of a match.",
+)
+app.add_typer(eval_app, name="eval")
+_COMPETITORS = "Competitors (a run dir, a checkpoint, a population run, scripted, random; label one with name=PATH)"
+
+
+@eval_app.command("policy", hidden=True, context_settings=_PASS_THROUGH)
 @_user_errors
 def eval_cmd(
     target: str = typer.Argument(..., help="A run directory, a checkpoint file, 'scripted' or 'random'."),
@@ -172,6 +290,7 @@ def eval_cmd(
     """Play N episodes (episodes=100) and report the task metric's mean / std and every per-term return."""
     from volleybots.eval import evaluate, format_table
 
+    _refuse_flags([target, *(overrides or [])], "--json, --help")
     result = evaluate(target, list(overrides or []))
     if as_json:
         typer.echo(json.dumps(result, indent=2))
@@ -179,6 +298,70 @@ def eval_cmd(
         from rich.console import Console
 
         Console().print(format_table(result))
+
+
+def _pair_progress(i: int, j: int, games) -> None:
+    typer.echo(f"  pair {i},{j}: W/D/L {'/'.join(map(str, games.total.tolist()))}", err=True)
+
+
+def _show(data: dict, table, as_json: bool, files: list[Path]) -> None:
+    """A verb's result: its JSON, or its table and the files it wrote."""
+    if as_json:
+        typer.echo(json.dumps(data, indent=1))
+        return
+    from rich.console import Console
+
+    Console().print(table)
+    typer.echo(f"wrote {' and '.join(map(str, files))}")
+
+
+@eval_app.command("crossplay", context_settings=_PASS_THROUGH)
+@_user_errors
+def crossplay_cmd(
+    args: Optional[List[str]] = typer.Argument(None, help=f"{_COMPETITORS}, then games=1000 seed=0 batch=256 scenario=any|serve|receive deterministic=false task=1v1 env.action_space=prt."),
+    as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of the table."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder for crossplay.json and crossplay.png (new or empty; default outputs/crossplay/<time>_<task>)."),
+) -> None:
+    """Every pair plays N games, each side half of them: W/D/L, win rates with Wilson intervals, average win rate, heatmap."""
+    from volleybots.eval.crossplay import format_table, run_crossplay
+
+    res, path = run_crossplay(list(args or []), out, progress=None if as_json else _pair_progress)
+    _show(res.to_dict(), format_table(res), as_json, [path / "crossplay.json", path / "crossplay.png"])
+
+
+@eval_app.command("exploitability", context_settings=_PASS_THROUGH)
+@_user_errors
+def exploitability_cmd(
+    args: Optional[List[str]] = typer.Argument(None, help="TARGET (a competitor), then budget=1000000 games=1000 seed=0 scenario=any|serve|receive init=RUN num_envs=N batch=256 task=1v1 env.action_space=prt."),
+    as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of a line."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder for the best response's run dir (br/) and exploitability.json (new or empty)."),
+) -> None:
+    """Train a best response with (MA)PPO against TARGET for a budget of frames, play it: 100 x (BR win rate - 0.5)."""
+    from volleybots.eval.exploitability import RESULTS, format_line, run_exploitability
+
+    args = list(args or [])
+    if as_json:
+        args.append("progress=false")
+    report, path = run_exploitability(args, out)
+    if as_json:
+        typer.echo(json.dumps(report, indent=1, default=float))
+        return
+    typer.echo(format_line(report))
+    typer.echo(f"wrote {path / RESULTS} and the best response's run {path / 'br'}")
+
+
+@eval_app.command("elo", context_settings=_PASS_THROUGH)
+@_user_errors
+def elo_cmd(
+    args: Optional[List[str]] = typer.Argument(None, help=f"{_COMPETITORS}, or from=CROSSPLAY_JSON; then rounds=2000 k=168 bootstrap=1000 seed=0 and cross-play's options."),
+    as_json: bool = typer.Option(False, "--json", help="Print the ratings JSON instead of the table."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder for ratings.json, ratings.png (and the games played); new or empty."),
+) -> None:
+    """Elo over rounds in which every pair meets once (the paper's), Bradley-Terry with bootstrap intervals, the Nash mixture."""
+    from volleybots.eval.ranking import format_table, run_elo
+
+    report, path = run_elo(list(args or []), out, progress=None if as_json else _pair_progress)
+    _show(report, format_table(report), as_json, [path / "ratings.json", path / "ratings.png"])
 
 
 def _free_path(path: Path) -> Path:
@@ -192,28 +375,48 @@ def _free_path(path: Path) -> Path:
 @app.command(context_settings=_PASS_THROUGH)
 @_user_errors
 def replay(
-    target: str = typer.Argument(..., help="A run directory, a checkpoint file, 'scripted' or 'random'."),
-    overrides: Optional[List[str]] = typer.Argument(None, help="seed=0 deterministic=true; for scripted/random also task=NAME env.action_space=ctbr."),
+    args: List[str] = typer.Argument(..., help="TARGET [overrides]: a run dir, a checkpoint, 'scripted' or 'random' with seed=0 deterministic=true (for scripted/random also task=NAME env.action_space=ctbr); or A B [task=3v3 seed=0 scenario=any|serve|receive]: a match between two competitors (name=PATH labels one)."),
     out: Optional[Path] = typer.Option(None, "--out", help="The .rrd file to write (never overwritten)."),
     no_viewer: bool = typer.Option(False, "--no-viewer", help="Do not open the rerun viewer even when a display exists."),
 ) -> None:
-    """Record one episode to a rerun file: court, net, drones, ball trail, hits / violations, rewards."""
-    from volleybots.config import make_env
-    from volleybots.eval import resolve_target
-    from volleybots.replay import has_display, record_episode
+    """Record one episode to a rerun file: court, net, drones, ball trail, hits / violations, rewards; for two
+    competitors, one match with each team's colour, the touches and the fault that ended the rally."""
+    from volleybots.replay import has_display
+    from volleybots.runs import check_writable
 
+    _refuse_flags(args, "--out FILE.rrd, --no-viewer, --help")
     if out is not None and out.suffix != ".rrd":
         raise ConfigError(f"--out {str(out)!r} must end in .rrd")
-    if out is not None and out.exists():
+    if out is not None and (out.exists() or out.is_symlink()):
         raise ConfigError(f"--out {str(out)!r} exists; choose another file (replays never overwrite)")
-    t = resolve_target(target, list(overrides or []))
+    if out is not None:
+        check_writable(out.parent, "the folder of --out")
     viewer = not no_viewer and has_display()
+    from volleybots.eval.crossplay import is_competitor_spec, replay_match
+
+    if sum(map(is_competitor_spec, args)) >= 2:
+        stats, out, labels = replay_match(args, out, viewer)
+        where = str(out) if out is not None else "the viewer"
+        who = {0: f"{labels[0]} (blue) won", 1: f"{labels[1]} (red) won", -1: "a draw"}[int(stats["winner"])]
+        typer.echo(f"recorded one match of {labels[0]} (blue) against {labels[1]} (red) to {where}: {who}")
+        return
+    _replay_one(args[0], args[1:], out, viewer)
+
+
+def _replay_one(target: str, overrides: list[str], out: Path | None, viewer: bool) -> None:
+    from volleybots.config import make_env
+    from volleybots.eval import resolve_target
+    from volleybots.replay import record_episode
+    from volleybots.runs import check_writable, make_dir
+
+    t = resolve_target(target, overrides)
     if out is None and not viewer:
         stamp = time.strftime("%Y%m%d-%H%M%S")
         base = Path(target) if Path(target).is_dir() else Path("outputs") / "replays"
+        check_writable(base, "the replay folder (choose another with --out)")
         out = _free_path(base / f"replay_{t.cfg.task.name}_{t.label.replace('@', '_')}_{stamp}.rrd")
     if out is not None:
-        out.parent.mkdir(parents=True, exist_ok=True)
+        make_dir(out.parent, "the folder of --out")
     env = make_env(t.cfg, num_envs=1, seed=t.cfg.seed)
     stats = record_episode(env, t.make_policy(env), out, viewer=viewer)
     where = str(out) if out is not None else "the viewer"
@@ -237,14 +440,30 @@ def list_cmd() -> None:
         typer.echo(f"  {name:<20} {n:>2} drone{'s' if n > 1 else ' '}  metric: {cls.metric}{cfg}")
     typer.echo("algorithms (algo=NAME):")
     for name, cls in ALGOS.items():
-        kind = "one or more drones" if cls.multi_agent else "one drone"
-        typer.echo(f"  {name:<20} {kind}; action spaces: {', '.join(cls.action_spaces)}")
+        fits = [t for t in TASKS if _fits(name, t)]
+        typer.echo(f"  {name:<20} action spaces: {', '.join(cls.action_spaces)}; tasks: {', '.join(fits)}")
     typer.echo("physics backends (env.physics=NAME):")
     for name, text in BACKEND_INFO.items():
         typer.echo(f"  {name:<20} {text}")
     typer.echo("action spaces (env.action_space=NAME):")
     for name, text in ACTION_SPACE_INFO.items():
         typer.echo(f"  {name:<20} {text}")
+
+
+def _fits(algo: str, task: str) -> bool:
+    """Whether ``algo`` accepts ``task`` in its own first action space (its ``check`` decides)."""
+    from volleybots.algos import ALGOS
+    from volleybots.config import EnvConfig
+    from volleybots.tasks import TASKS
+
+    cls = ALGOS[algo]
+    try:
+        from omegaconf import OmegaConf
+
+        cls.check(OmegaConf.structured(cls.config_cls), TASKS[task], EnvConfig(action_space=cls.action_spaces[0]))
+    except ConfigError:
+        return False
+    return True
 
 
 @app.command(context_settings=_PASS_THROUGH)
@@ -265,7 +484,7 @@ def bench(
         from volleybots.bench import format_table, run_bench
     except ImportError:
         raise ConfigError("the benchmark module volleybots.bench is not available in this install") from None
-    from volleybots.config import parse_value
+    from volleybots.config import check_bench_options, parse_value
 
     allowed = [p for p in inspect.signature(run_bench).parameters if p != "progress"]
     kwargs = {"compile": True} if compile else {}
@@ -274,11 +493,32 @@ def bench(
         if not eq or key not in allowed:
             raise ConfigError(f"unknown bench option {key!r}; allowed: {', '.join(allowed)}")
         kwargs[key] = parse_value(value)
+    kwargs = check_bench_options(kwargs)
     try:
         rows = run_bench(**kwargs, progress=lambda row: typer.echo(f"  measured {row.get('task')} {row.get('kind', 'env')} {row.get('backend')} x{row.get('num_envs')}: {row.get('env_steps_per_s', 0):,.0f}/s", err=True))
     except ValueError as e:
         raise ConfigError(str(e).splitlines()[0]) from None
     typer.echo(json.dumps(rows, indent=1) if as_json else format_table(rows))
+
+
+# ------------------------------------------------------------------------------------------ report
+@app.command()
+@_user_errors
+def report(
+    dirs: List[Path] = typer.Argument(..., help="Run directories, or folders that hold them (a sweep's multirun/<date>/<time>_<task>_<algo>)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Also write report.md, report.json and curves_<task>.png to this folder (never overwritten)."),
+    as_json: bool = typer.Option(False, "--json", help="Print the report as JSON instead of Markdown."),
+    stale_after: float = typer.Option(1800.0, "--stale-after", help="Seconds without a write after which a run with no summary.json counts as failed, not running."),
+) -> None:
+    """Aggregate runs across seeds: per task x algorithm the final metric's mean, IQM and 95% bootstrap intervals, learning curves."""
+    from volleybots.report import build_report, check_out, format_markdown, write_report
+
+    if out is not None:
+        check_out(out)
+    result = build_report(dirs, stale_after=stale_after)
+    if out is not None:
+        write_report(result, out)
+    typer.echo(json.dumps(result, indent=2) if as_json else format_markdown(result))
 
 
 if __name__ == "__main__":

@@ -8,6 +8,14 @@ Checkpoints are written at batch boundaries and all envs start fresh episodes ri
 cut episodes count as truncated, hence bootstrapped). The run's state is then exactly the networks,
 optimiser, normalisers, counters and random generators, and a run resumed from a checkpoint repeats
 the uninterrupted one bit for bit on a CPU.
+
+Seats say whom the learner plays for (spec: populations.md). ``AllAgents`` (the default): it drives
+every drone and learns from all of them; on a match that is MAPPO's shared-parameter self-play, one
+actor for both teams and a critic over all drones, whose ``win`` is team 0's and says little.
+``SelfPlay``: one actor and critic for a team, both teams driven by it, each side's samples (mirrored
+views) a separate slice of the batch it learns from. ``Versus``: the learner plays team 0 against a
+frozen competitor on team 1 (a checkpoint, a population's mixture drawn per episode, scripted or
+random) and learns from its own team only; ``win`` is then the learner's.
 """
 
 from __future__ import annotations
@@ -20,9 +28,14 @@ from pathlib import Path
 import torch
 
 import volleybots
-from volleybots.config import ConfigError, apply_overrides, make_env, to_dict
+from volleybots.algos.base import AgentSpec
+from volleybots.config import apply_overrides, check_memory, make_env, to_dict
+from volleybots.errors import ConfigError
 from volleybots.eval import run_episodes, summarize
-from volleybots.runs import CKPT_FORMAT, MetricsLog, RunDir, WandbLogger, load_algo_state, read_checkpoint, write_curves
+from volleybots.runs import (
+    CKPT_FORMAT, MetricsLog, RunDir, WandbLogger, check_writable, load_algo_state, lock, memory_errors_as, read_checkpoint, unlock,
+    write_curves,
+)
 
 # keys a resumed run may change: how long it goes on and how it reports, not what it learns
 RESUME_KEYS = ("total_frames", "time_limit", "progress", "threads", "logger", "wandb", "checkpoint", "evaluation", "env.device")
@@ -51,19 +64,118 @@ def finished_stats(batch) -> dict[str, float]:
     return out
 
 
+# ------------------------------------------------------------------------------------------ seats
+def team_slice(batch, idx: torch.Tensor):
+    """The ``("agents", ...)`` entries of the agents ``idx`` of a [N, T] batch (``next`` too)."""
+    out = batch.exclude("agents", ("next", "agents"))
+    out.set("agents", batch.get("agents")[:, :, idx])
+    out.set(("next", "agents"), batch.get(("next", "agents"))[:, :, idx])
+    return out
+
+
+class AllAgents:
+    """The learner drives every drone and learns from all of them."""
+
+    yardstick = None  # a competitor the evaluations play on team 1 (None: the learner plays every drone)
+
+    def spec(self, env) -> AgentSpec:
+        return AgentSpec.of(env)
+
+    def policy(self, env, learner):
+        return learner
+
+    def eval_policy(self, env, learner):
+        """What the periodic and final evaluations play: against a fixed yardstick, so that the curves
+        of successive learners (and of self-play, whose own win rate is 1/2) compare."""
+        if self.yardstick is None:
+            return self.policy(env, learner)
+        from volleybots.tasks.multi import TeamPolicies
+
+        return TeamPolicies(env, (learner, self.yardstick.team_policy(env, deterministic=False)))
+
+    def view(self, env, batch):
+        return batch
+
+    def state_dict(self) -> dict:
+        return {}
+
+    def load_state_dict(self, state: dict) -> None:
+        pass
+
+
+class SelfPlay(AllAgents):
+    """One learner for a team plays both teams; each team's samples train it (mirrored views), as
+    2N envs of one team each, so a centralised critic sees its own team."""
+
+    def __init__(self, yardstick=None):
+        self.yardstick = yardstick
+
+    def spec(self, env) -> AgentSpec:
+        return AgentSpec.of(env, len(env.team_index(0)))
+
+    def view(self, env, batch):
+        return torch.cat([team_slice(batch, env.team_index(t)) for t in (0, 1)], dim=0)
+
+
+class Versus(AllAgents):
+    """The learner plays team 0 against a frozen ``Competitor`` on team 1 (the sides are mirror images,
+    so a learner always on team 0 loses nothing: serves are drawn at random)."""
+
+    def __init__(self, opponent, deterministic: bool = False, seed: int = 0, yardstick=None):
+        self.opponent, self.deterministic, self.yardstick = opponent, deterministic, yardstick
+        self.gen = torch.Generator()  # which population member each episode meets
+        self.gen.manual_seed(seed)
+
+    def spec(self, env) -> AgentSpec:
+        return AgentSpec.of(env, len(env.team_index(0)))
+
+    def policy(self, env, learner):
+        from volleybots.tasks.multi import TeamPolicies
+
+        return TeamPolicies(env, (learner, self.opponent.team_policy(env, self.deterministic, self.gen)))
+
+    def view(self, env, batch):
+        return team_slice(batch, env.team_index(0))
+
+    def state_dict(self) -> dict:
+        return {"gen": self.gen.get_state()}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.gen.set_state(state["gen"])
+
+
+def default_seat(cfg):
+    """``opponent=``: the learner plays team 0 against that competitor; otherwise every drone."""
+    if cfg.get("opponent") is None:
+        return AllAgents()
+    from volleybots.competitors import resolve_competitor
+
+    return Versus(resolve_competitor(cfg.opponent), cfg.opponent_deterministic, cfg.seed)
+
+
+# ------------------------------------------------------------------------------------------ trainer
 class Trainer:
-    def __init__(self, cfg, run: RunDir, checkpoint: Path | None = None):
+    """The run loop over one learner. ``seat`` says whom it plays for (default: every drone);
+    ``learner_cls`` overrides the registry's class (a population method's learner); ``extra_state``
+    adds the caller's own counters to every checkpoint (the population loop's oracle)."""
+
+    def __init__(self, cfg, run: RunDir, checkpoint: Path | None = None, seat=None, learner_cls=None, extra_state=None):
         self.cfg, self.run = cfg, run
         from volleybots.algos import ALGOS
 
         torch.manual_seed(cfg.seed)
+        self.seat = seat or default_seat(cfg)
+        self.extra_state = extra_state or (lambda: {})
         self.env = make_env(cfg)
-        self.algo = ALGOS[cfg.algo.name](cfg.algo, self.env, seed=cfg.seed)
+        algo_cls = learner_cls or ALGOS[cfg.algo.name]
+        self.algo = algo_cls(cfg.algo, self.seat.spec(self.env), seed=cfg.seed)
         self.frames = self.iteration = 0
         self.wall_offset = 0.0
         self.evals: list[dict] = []
+        self.checkpoint_state: dict = {}
         if checkpoint is not None:
-            self._restore(read_checkpoint(checkpoint, device=self.env.device))
+            self.checkpoint_state = read_checkpoint(checkpoint, device=self.env.device)
+            self._restore(self.checkpoint_state)
         self.frames_per_batch = self.env.num_envs * self.algo.steps_per_batch
         self.metric = self.env.metric
         self._eval_env = None
@@ -85,13 +197,15 @@ class Trainer:
             "task": self.cfg.task.name,
             "action_space": self.cfg.env.action_space,
             "obs_dim": int(self.env.obs_dim),
-            "n_agents": int(self.env.n_drones),
+            "n_agents": int(self.algo.n_agents),
             "frames": int(self.frames),
             "iteration": int(self.iteration),
             "wall_time": float(self._wall()),
             "evals": self.evals,
             "algo": self.algo.state_dict(),
             "rng": self._rng_state(),
+            "seat": self.seat.state_dict(),
+            **self.extra_state(),
         }
 
     def _restore(self, state: dict) -> None:
@@ -105,6 +219,7 @@ class Trainer:
             self.env.rng.set_state(rng["env"])
         if "cuda" in rng and torch.cuda.is_available():
             torch.cuda.set_rng_state_all(rng["cuda"])
+        self.seat.load_state_dict(state.get("seat", {}))
 
     def _wall(self) -> float:
         return self.wall_offset + time.perf_counter() - self._t0
@@ -116,14 +231,18 @@ class Trainer:
             self._eval_env = make_env(cfg, num_envs=cfg.evaluation.episodes, seed=cfg.seed + EVAL_SEED_OFFSET)
         env = self._eval_env
         env.set_seed(cfg.seed + EVAL_SEED_OFFSET)
-        policy = self.algo.policy(deterministic=True)
-        if cfg.evaluation.record:
-            from volleybots.replay import EpisodeRecorder, recording
+        policy = self.seat.eval_policy(env, self.algo.policy(deterministic=True))
+        # its own random numbers (a random yardstick's): training's stream is left as it was, so a
+        # resumed run, which skips the evaluation at its checkpoint, repeats the uninterrupted one
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(cfg.seed + EVAL_SEED_OFFSET)
+            if cfg.evaluation.record:
+                from volleybots.replay import EpisodeRecorder, recording
 
-            with recording(self.run.path / f"eval_{self.frames:012d}.rrd", "volleybots_eval") as rec:
-                res = run_episodes(env, policy, on_step=EpisodeRecorder(rec, env, 0))
-        else:
-            res = run_episodes(env, policy)
+                with recording(self.run.path / f"eval_{self.frames:012d}.rrd", "volleybots_eval") as rec:
+                    res = run_episodes(env, policy, on_step=EpisodeRecorder(rec, env, 0))
+            else:
+                res = run_episodes(env, policy)
         summary = summarize(res, self.metric)
         summary["frames"] = int(self.frames)
         self.evals.append(summary)
@@ -131,12 +250,19 @@ class Trainer:
 
     # -------------------------------------------------------------------------------- the loop
     def fit(self) -> dict:
+        """Train to ``total_frames``, then evaluate, write final.pt and summary.json."""
+        self.train_loop()
+        return self.finish()
+
+    def train_loop(self, stop=None, row_extra=None) -> None:
+        """Collect and update until ``total_frames`` (or ``time_limit``), or until ``stop(row)`` says so
+        after a batch; ``row_extra`` adds columns to every metrics row."""
         cfg, run = self.cfg, self.run
         resumed = self.frames > 0
         self.metrics = MetricsLog(run.metrics_path, keep_until_frames=self.frames if resumed else None)
-        wandb = WandbLogger(cfg, run.path, resumed) if cfg.logger == "wandb" else None
+        self.wandb = wandb = WandbLogger(cfg, run.path, resumed) if cfg.logger == "wandb" else None
         self._t0 = time.perf_counter()
-        policy = self.algo.policy()
+        policy = self.seat.policy(self.env, self.algo.policy())
         td = self.env.reset()
         ck_every, ev_every = cfg.checkpoint.every, cfg.evaluation.every
         next_ck = _next_multiple(self.frames, ck_every)
@@ -149,9 +275,10 @@ class Trainer:
                 self.frames += self.frames_per_batch
                 self.iteration += 1
                 stats = finished_stats(batch)
-                losses = self.algo.update(batch)
+                losses = self.algo.update(self.seat.view(self.env, batch))
                 dt = time.perf_counter() - t_batch
                 row = {"phase": "train", "frames": self.frames, "iteration": self.iteration, "wall_time": self._wall(), "fps": self.frames_per_batch / dt}
+                row.update(row_extra or {})
                 row.update(stats)
                 row.update(losses)
                 row.update({f"eval_{self.metric}": None, f"eval_{self.metric}_std": None, "eval_return": None})
@@ -161,6 +288,10 @@ class Trainer:
                 if not math.isnan(stats.get(self.metric, math.nan)):
                     last = stats
                 bar(self.frames, row["fps"], self.metric, last.get(self.metric))
+                # the caller's counters see this batch before a checkpoint records them
+                stopping = stop is not None and stop(row)
+                if stopping:
+                    break
                 if ck_every and self.frames >= next_ck and self.frames < cfg.total_frames:
                     run.save_checkpoint(self._state(), keep=cfg.checkpoint.keep)
                     td = self.env.reset()  # see the module docstring: a checkpoint is a clean cut
@@ -169,6 +300,12 @@ class Trainer:
                 if ev_every and self.frames >= next_ev and self.frames < cfg.total_frames:
                     self._log_eval(self.evaluate(), wandb)
                     next_ev = _next_multiple(self.frames, ev_every)
+        self.last_train = last
+
+    def finish(self, summary_extra=None) -> dict:
+        """The final evaluation, final.pt and summary.json (what ``fit`` ends with)."""
+        cfg, run, wandb = self.cfg, self.run, self.wandb
+        last = getattr(self, "last_train", {})
         final_eval = self.evaluate()
         self._log_eval(final_eval, wandb)
         final = run.save_checkpoint(self._state(), final=True)
@@ -188,6 +325,7 @@ class Trainer:
             "last_train_episodes": last,
             "checkpoints": [str(p.relative_to(run.path)) for p in [*run.periodic_checkpoints(), final]],
             "version": volleybots.__version__,
+            **(summary_extra or {}),
         }
         run.write_summary(summary)
         if wandb:
@@ -245,24 +383,58 @@ class _progress:
 
 
 def train(cfg, run_dir) -> dict:
-    """Start a new run of the validated config ``cfg`` in ``run_dir``."""
+    """Start a new run of the validated config ``cfg`` in ``run_dir``, holding its lock while it trains."""
+    check_memory(cfg)
     run = RunDir(run_dir)
     run.create(cfg)
-    return Trainer(cfg, run).fit()
+    try:
+        with memory_errors_as(_counts(cfg)):
+            return Trainer(cfg, run).fit()
+    finally:
+        unlock(run.path)
+
+
+def resume_config(run_dir, overrides=(), keys=RESUME_KEYS):
+    """The saved config of the run in ``run_dir`` with the overrides a resume may make (``keys``)."""
+    base = RunDir(run_dir).load_config()
+    return apply_overrides(to_dict(base), overrides, keys, f"run {str(run_dir)!r} (resume)")
 
 
 def resume(run_dir, overrides=()) -> dict:
-    """Continue the run in ``run_dir`` from its latest checkpoint (``train resume=DIR``)."""
-    run = RunDir(run_dir)
-    base = run.load_config()
-    cfg = apply_overrides(to_dict(base), overrides, RESUME_KEYS, f"run {str(run_dir)!r} (resume)")
-    ckpt = run.latest_checkpoint()
-    if ckpt is None:
-        raise ConfigError(f"run {str(run_dir)!r} has no checkpoint to resume from")
-    done = int(read_checkpoint(ckpt)["frames"])
-    if done >= cfg.total_frames:
-        raise ConfigError(f"run {str(run_dir)!r} already has {done} frames >= total_frames={cfg.total_frames}; raise total_frames to continue it")
-    from omegaconf import OmegaConf
+    """Continue the run in ``run_dir`` from its latest checkpoint (``train resume=DIR``); a run killed
+    before its first checkpoint starts afresh, saying so.
 
-    run.config_path.write_text(OmegaConf.to_yaml(OmegaConf.create(to_dict(cfg))))
-    return Trainer(cfg, run, checkpoint=ckpt).fit()
+    Everything is checked before anything is written (the config and overrides, the checkpoint
+    against the run's task and networks, metrics.csv, memory); the run's lock is then taken, so a
+    second resume of the same run is refused."""
+    if not str(run_dir).strip():
+        raise ConfigError("resume= needs a run directory: resume=RUN_DIR")
+    run = RunDir(run_dir)
+    cfg = resume_config(run_dir, overrides)
+    check_writable(run.path, "the run directory")
+    ckpt = run.latest_checkpoint()
+    stamp = run.checkpoint_stamp()
+    if ckpt is not None:
+        done = int(read_checkpoint(ckpt)["frames"])
+        if done >= cfg.total_frames:
+            raise ConfigError(f"run {str(run_dir)!r} already has {done} frames >= total_frames={cfg.total_frames}; raise total_frames to continue it")
+        run.check_metrics()
+    check_memory(cfg)
+    with memory_errors_as(_counts(cfg)):
+        trainer = Trainer(cfg, run, checkpoint=ckpt)  # a checkpoint that does not fit the run fails here
+        lock(run.path)
+        try:
+            if run.checkpoint_stamp() != stamp:
+                raise ConfigError(f"run {str(run_dir)!r} was trained by another process while this one checked it; run the command again")
+            if ckpt is None:
+                run.clear_unfinished()
+            run.write_config(cfg)
+            return trainer.fit()
+        finally:
+            unlock(run.path)
+
+
+def _counts(cfg) -> str:
+    """The config's counts that decide the memory a run takes, for an out-of-memory message."""
+    buffer = f", algo.buffer_size={cfg.algo.buffer_size}" if "buffer_size" in cfg.algo else ""
+    return f"env.num_envs={cfg.env.num_envs}, algo.steps_per_batch={cfg.algo.steps_per_batch}, evaluation.episodes={cfg.evaluation.episodes}{buffer}"

@@ -15,11 +15,12 @@ from pathlib import Path
 from typing import Callable
 
 import torch
-from tensordict import TensorDictBase
 from torchrl.envs.utils import step_mdp
 
-from volleybots.config import ConfigError, apply_overrides, load, make_env, to_dict
-from volleybots.runs import RunDir, load_algo_state, read_checkpoint
+from volleybots.competitors import scripted_policy
+from volleybots.config import apply_overrides, check_memory, load, make_env, to_dict
+from volleybots.errors import ConfigError
+from volleybots.runs import RunDir, load_algo_state, memory_errors_as, read_checkpoint
 
 POLICY_NAMES = ("scripted", "random")
 # keys of a checkpoint's config that evaluation may change; the rest fix what the policy was trained on
@@ -79,7 +80,7 @@ def resolve_target(target: str, overrides=()) -> Target:
         cfg = load(list(overrides))
         if target == "random":
             return Target("random", cfg, None, lambda env: (lambda td: env.rand_action(td)))
-        return Target("scripted", cfg, None, lambda env: _scripted(env, cfg.env.action_space))
+        return Target("scripted", cfg, None, lambda env: scripted_policy(env, cfg.env.action_space))
     path = Path(target)
     if path.is_dir():
         run = RunDir(path)
@@ -97,41 +98,26 @@ def resolve_target(target: str, overrides=()) -> Target:
 
     def make_policy(env):
         from volleybots.algos import ALGOS
+        from volleybots.algos.base import AgentSpec
 
-        algo = ALGOS[cfg.algo.name](cfg.algo, env, seed=cfg.seed)
-        load_algo_state(algo, state, f"checkpoint {str(ckpt)!r}", cfg)
+        algo_cls = ALGOS[cfg.algo.name]
+        algo_cls = getattr(algo_cls, "learner_cls", algo_cls)  # a population method's learner
+        # built for the agents it learned for (a team's learner acts for every drone alike: its actor is per drone)
+        algo = algo_cls(cfg.algo, AgentSpec.of(env, int(state.get("n_agents", env.n_drones))), seed=cfg.seed)
+        load_algo_state(algo, state, f"checkpoint {str(ckpt)!r}", cfg, side="its config")
         return algo.policy(deterministic=cfg.deterministic)
 
     return Target(f"{cfg.algo.name}@{int(state['frames'])}", cfg, Path(ckpt), make_policy)
-
-
-def _scripted(env, action_space: str):
-    try:
-        from volleybots.scripted import make_scripted_policy
-    except ImportError:
-        raise ConfigError("scripted policies are not available in this install (volleybots.scripted.make_scripted_policy is missing)") from None
-    try:
-        pol = make_scripted_policy(env, action_space)
-    except (ValueError, KeyError) as e:
-        raise ConfigError(f"no scripted policy for task {env.name!r} with env.action_space={action_space!r}: {e}") from None
-
-    def act(td: TensorDictBase) -> TensorDictBase:
-        out = pol(td)
-        if isinstance(out, torch.Tensor):
-            td.set(("agents", "action"), out)
-            return td
-        return out
-
-    return act
 
 
 def evaluate(target: str, overrides=(), episodes: int | None = None) -> dict:
     """Play ``episodes`` (default: the config's ``episodes``) and summarise them."""
     t = resolve_target(target, overrides)
     n = int(episodes or t.cfg.episodes)
-    env = make_env(t.cfg, num_envs=n, seed=t.cfg.seed)
-    policy = t.make_policy(env)
-    res = run_episodes(env, policy)
+    check_memory(t.cfg, worlds=n)
+    with memory_errors_as(f"episodes={n}"):
+        env = make_env(t.cfg, num_envs=n, seed=t.cfg.seed)
+        res = run_episodes(env, t.make_policy(env))
     out = summarize(res, env.metric)
     out.update(
         target=t.label,

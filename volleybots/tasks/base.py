@@ -87,6 +87,8 @@ class VolleyEnv(EnvBase):
     shaping_terms: tuple[str, ...] = ()  # zeroed by reward_shaping=False
     metric: str = ""  # the task's headline metric, a key of the stats
     extra_stats: tuple[str, ...] = ()  # further per-episode statistics besides the metric
+    competitive: bool = False  # two teams play against each other (the matches)
+    default_algo: str = "ppo"  # what `volleybots train task=...` trains when no algo is named
 
     def __init__(
         self,

@@ -51,6 +51,8 @@ class _Match(MultiDroneTask):
     out_at_any_height: bool = False
     init_noise: float = 0.1
     metric = "win"
+    competitive = True
+    default_algo = "sp"
     extra_stats = ("loss", "draw", "winner", "reason", "hits_team0", "hits_team1", "serve_team")
 
     def __init__(self, *args, serve: int | None = None, **kw):

@@ -82,6 +82,7 @@ class MultiDroneTask(VolleyEnv):
     """Base of the cooperative tasks and the matches: anchors, teams and the agent-grouping helpers."""
 
     anchors_xyz: tuple[tuple[float, float, float], ...] = ()  # one anchor per drone
+    default_algo = "mappo"
 
     def __init__(self, *args, **kw):
         super().__init__(*args, **kw)
@@ -131,17 +132,24 @@ class TeamPolicies:
     """Drive a match with one policy per team. Each policy receives a tensordict laid out like the
     env's, batch [N], whose ``("agents", ...)`` holds only its team's agents ([N, A_t], with
     ``"observation"``), and writes ``("agents", "action")`` there, so any policy written for the env
-    (scripted, or a TorchRL actor with those keys) plays one team; the actions are scattered back.
-    Usable as the policy of ``env.rollout`` and of TorchRL collectors."""
+    (scripted, or a TorchRL actor with those keys) plays one team; its outputs are scattered back.
+    Usable as the policy of ``env.rollout`` and of TorchRL collectors.
+
+    A policy with a ``begin_episodes(starts [N])`` method is told which envs start an episode this
+    step (a population opponent draws its member then)."""
 
     def __init__(self, env: MultiDroneTask, policies: tuple[Callable, Callable]):
         self.env = env
         self.policies = policies
 
     def __call__(self, td: TensorDictBase) -> TensorDictBase:
+        starts = td.get(("stats", "episode_len")).reshape(-1) == 0
         for team, policy in enumerate(self.policies):
+            if hasattr(policy, "begin_episodes"):
+                policy.begin_episodes(starts)
             sub = TensorDict({"agents": self.env.select_team(td, team)}, batch_size=td.batch_size, device=td.device)
             out = policy(sub)
             out = sub if out is None else out
-            self.env.write_team(td, team, out.get("agents").select("action"))
+            # everything it wrote (a learner's log-probabilities too), not the observation it read
+            self.env.write_team(td, team, out.get("agents").exclude("observation"))
         return td

@@ -1,0 +1,75 @@
+"""1v1 self-play, fictitious self-play, PSRO-uniform and PSRO-Nash on one budget (issue 14's benchmark).
+
+Each method trains with the same env count, batch and frame budget (``--frames``) on seed ``--seed``;
+the script records the population size, the oracles' updates and convergence, the final meta-strategy,
+the end-to-end frames per second, and copies each run's payoff PNG into ``--out``. The run dirs feed
+the evaluation's table-3 layout (``volleybots eval crossplay`` over them).
+
+    python benchmarks/competitive.py                                  # the default budget
+    python benchmarks/competitive.py --frames 2e6 --num-envs 256      # longer
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import time
+from pathlib import Path
+
+METHODS = ("sp", "fsp", "psro_uniform", "psro_nash")
+
+
+def run(method: str, args, root: Path) -> dict:
+    from volleybots.config import load
+    from volleybots.runner import start
+
+    cfg = load([
+        "task=1v1", f"algo={method}", f"env.num_envs={args.num_envs}", f"seed={args.seed}", f"threads={args.threads}",
+        f"total_frames={int(args.frames)}", f"algo.iterations={args.iterations}", f"algo.max_updates={args.max_updates}",
+        f"algo.min_updates={args.min_updates}", f"algo.payoff_games={args.games}", "evaluation.every=0", "evaluation.episodes=32",
+        "evaluation.record=false", "progress=false", *args.overrides,
+    ])
+    run_dir = root / f"{method}_s{args.seed}_{time.strftime('%Y%m%d-%H%M%S')}"
+    t0 = time.perf_counter()
+    summary = start(cfg, run_dir)
+    wall = time.perf_counter() - t0
+    png = Path(args.out) / f"competitive_{method}_payoffs.png"
+    shutil.copyfile(run_dir / "payoffs.png", png)
+    return {
+        "method": method, "run_dir": str(run_dir), "frames": summary["frames"], "wall_s": wall,
+        "frames_per_s_end_to_end": summary["frames"] / wall, "population": summary["population"],
+        "oracles": summary["oracles"], "png": str(png),
+    }
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--methods", default=",".join(METHODS))
+    p.add_argument("--frames", type=float, default=1.5e6, help="env frames per method (all iterations together)")
+    p.add_argument("--num-envs", type=int, default=128)
+    p.add_argument("--iterations", type=int, default=4)
+    p.add_argument("--max-updates", type=int, default=40)
+    p.add_argument("--min-updates", type=int, default=10)
+    p.add_argument("--games", type=int, default=200, help="games per payoff entry")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--threads", type=int, default=1)
+    p.add_argument("--root", default="outputs/benchmarks/competitive")
+    p.add_argument("--out", default="docs")
+    p.add_argument("overrides", nargs="*", help="further config overrides")
+    args = p.parse_args()
+    root = Path(args.root)
+    root.mkdir(parents=True, exist_ok=True)
+    rows = [run(m, args, root) for m in args.methods.split(",")]
+    Path(args.out, "competitive.json").write_text(json.dumps({"args": vars(args), "rows": rows}, indent=1) + "\n")
+    print("| method | frames | wall (s) | frames/s | members | meta-strategy | oracle updates (converged) |")
+    print("|---|---|---|---|---|---|---|")
+    for r in rows:
+        pop = r["population"]
+        mix = ", ".join(f"{m} {w:.2f}" for m, w in zip(pop["members"], pop["mixture"]))
+        ups = ", ".join(f"{o['updates']}{'*' if o.get('converged') else ''}" for o in r["oracles"])
+        print(f"| {r['method']} | {r['frames']:,} | {r['wall_s']:.0f} | {r['frames_per_s_end_to_end']:,.0f} | {len(pop['members'])} | {mix} | {ups} |")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,216 @@
+"""The opponent seam and the population loop: seats, mixtures, SP / FSP / PSRO runs, kill and resume."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+import volleybots
+from volleybots.competitors import Competitor, builtin_member, resolve_competitor
+from volleybots.config import ConfigError, load
+from volleybots.population.loop import PopulationLoop
+from volleybots.population.payoffs import PayoffTable
+from volleybots.runner import resume, start
+from volleybots.runs import RunDir
+from volleybots.train import SelfPlay, collect
+
+TINY = [
+    "task=1v1", "env.num_envs=16", "algo.steps_per_batch=16", "algo.minibatches=2", "algo.epochs=1", "algo.hidden=[32,32]",
+    "algo.min_updates=2", "algo.max_updates=4", "algo.payoff_games=6", "evaluation.episodes=2", "evaluation.every=0",
+    "evaluation.record=false", "checkpoint.every=512", "progress=false", "threads=1",
+]
+
+
+def tiny(algo, *more):
+    return load([*TINY, f"algo={algo}", *more])
+
+
+def test_every_method_accepts_matches_only():
+    for algo in ("sp", "fsp", "psro_uniform", "psro_nash"):
+        assert tiny(algo).algo.name == algo
+        with pytest.raises(ConfigError, match="trains for matches"):
+            load(["task=bump_and_pass", f"algo={algo}"])
+    with pytest.raises(ConfigError, match="unknown algo.solver 'best'; allowed: uniform, nash"):
+        tiny("psro_nash", "algo.solver=best")
+    # a match with no algo named trains self-play; a cooperative task MAPPO
+    assert load(["task=3v3"]).algo.name == "sp" and load(["task=bump_and_pass"]).algo.name == "mappo"
+
+
+def test_mixture_draws_members_per_env_as_weighted_and_only_at_episode_starts():
+    env = volleybots.make_env("1v1", num_envs=400, seed=0)
+    comp = Competitor("mix", [builtin_member("random"), builtin_member("random")], [0.25, 0.75])
+    pol = comp.team_policy(env, generator=torch.Generator().manual_seed(0))
+    starts = torch.ones(400, dtype=torch.bool)
+    pol.begin_episodes(starts)
+    first = pol.choice.clone()
+    assert abs(first.float().mean().item() - 0.75) < 0.07
+    some = torch.zeros(400, dtype=torch.bool)
+    some[:10] = True
+    pol.begin_episodes(some)
+    assert torch.equal(pol.choice[10:], first[10:])  # only starting envs draw again
+
+
+def test_self_play_trains_on_both_sides_mirrored():
+    """SP's batch is the two teams' slices stacked: the same transitions, each from its own side."""
+    cfg = tiny("sp")
+    env = volleybots.make_env("1v1", num_envs=8, seed=3, serve=0)
+    seat = SelfPlay()
+    torch.manual_seed(0)
+    td = env.reset()
+    policy = lambda t: t.set(("agents", "action"), torch.rand(8, 2, 4) * 2 - 1)  # noqa: E731
+    batch, _ = collect(env, policy, td, 60)
+    view = seat.view(env, batch)
+    assert view.batch_size == (16, 60) and view["agents"].batch_size == (16, 60, 1)
+    assert seat.spec(env).n_drones == 1 and cfg.algo.self_play
+    obs, nobs = batch["agents", "observation"], batch["next", "agents", "observation"]
+    assert torch.equal(view["agents", "observation"][:8, :, 0], obs[:, :, 0])
+    assert torch.equal(view["agents", "observation"][8:, :, 0], obs[:, :, 1])
+    assert torch.equal(view["next", "agents", "observation"][8:, :, 0], nobs[:, :, 1])
+    # each side sees itself on its own +x half (mirrored frames) at the start of every episode
+    assert (view["agents", "observation"][:, 0, 0, 0] > 0).all()
+    # zero-sum: where a rally is decided, one side's result is the other's loss
+    decided = batch["next", "stats", "winner"][..., 0] >= 0
+    done = batch["next", "done"][..., 0] & decided
+    assert done.any()
+    win_term = batch["next", "stats", "r_win_or_lose"][..., 0][done]
+    assert torch.allclose(win_term, torch.zeros_like(win_term))  # team-mean of +100 and -100
+
+
+def _read(run):
+    meta = [json.loads(x) for x in (run / "population" / "meta.jsonl").read_text().splitlines()]
+    pay = json.loads((run / "population" / "payoffs.json").read_text())
+    members = sorted((run / "population").glob("member_*.pt"))
+    return meta, pay, members
+
+
+def test_psro_run_grows_the_population_and_fills_the_payoffs(tmp_path):
+    cfg = tiny("psro_nash", "algo.iterations=2", "total_frames=100000")
+    summary = start(cfg, tmp_path / "run")
+    meta, pay, members = _read(tmp_path / "run")
+    assert [m["iteration"] for m in meta] == [0, 1, 2] and len(members) == 3
+    assert pay["members"] == ["random", "br1", "br2"]
+    games = np.array(pay["games"])
+    assert (games[~np.eye(3, dtype=bool)] == 6).all() and (np.diag(games) == 0).all()
+    p = np.array(pay["payoff"])
+    assert np.allclose(p, -p.T)
+    for m in meta:
+        assert len(m["mixture"]) == len(m["members"]) and abs(sum(m["mixture"]) - 1) < 1e-9
+    assert all(2 <= m["oracle"]["updates"] <= 4 for m in meta[1:])
+    for path in members:
+        torch.load(path, weights_only=True)
+    assert (tmp_path / "run" / "payoffs.png").stat().st_size > 1000
+    assert summary["population"]["members"] == ["random", "br1", "br2"]
+    # the run is a competitor: its members with the final meta-strategy
+    comp = resolve_competitor(f"pop={tmp_path / 'run'}")
+    assert len(comp.members) == 3 and comp.mixture == meta[-1]["mixture"]
+    # a finished run is refused untouched; more iterations continue it
+    before = (tmp_path / "run" / "config.yaml").read_text()
+    with pytest.raises(ConfigError, match="has finished .*raise algo.iterations"):
+        resume(tmp_path / "run")
+    with pytest.raises(ConfigError, match="cannot change 'algo.solver'"):
+        resume(tmp_path / "run", ["algo.solver=uniform"])
+    assert (tmp_path / "run" / "config.yaml").read_text() == before
+    resume(tmp_path / "run", ["algo.iterations=3"])
+    meta, pay, members = _read(tmp_path / "run")
+    assert [m["iteration"] for m in meta] == [0, 1, 2, 3] and pay["members"] == ["random", "br1", "br2", "br3"]
+
+
+def test_fsp_learner_starts_from_the_previous_one(tmp_path, monkeypatch):
+    cfg = tiny("fsp", "algo.iterations=2", "algo.max_updates=2", "algo.min_updates=2", "total_frames=100000")
+    seen = []
+    orig = PopulationLoop._oracle
+
+    def spy(self, i, k, frames, updates, wall):
+        orig(self, i, k, frames, updates, wall)
+        seen.append(torch.load(self.run.path / "population" / f"member_{k:03d}.pt", weights_only=True)["algo"]["actor"])
+
+    monkeypatch.setattr(PopulationLoop, "_oracle", spy)
+    start(cfg, tmp_path / "fsp")
+    # two updates move the second learner only a little from the first: far closer than a fresh init
+    w1, w2 = (next(v for k, v in a.items() if k.endswith("0.weight")) for a in seen)
+    assert (w2 - w1).abs().mean() < 0.1 * w1.abs().mean()
+
+
+def test_sp_run_is_one_member_with_full_weight(tmp_path):
+    cfg = tiny("sp", "total_frames=1024")
+    summary = start(cfg, tmp_path / "sp")
+    meta, pay, members = _read(tmp_path / "sp")
+    assert len(members) == 1 and meta[-1]["mixture"] == [1.0] and summary["frames"] == 1024
+    assert (tmp_path / "sp" / "checkpoints" / "final.pt").is_file()
+
+
+def test_killed_mid_iteration_resumes_to_the_same_population(tmp_path, monkeypatch):
+    args = ("algo.iterations=2", "algo.min_updates=3", "algo.max_updates=4", "total_frames=100000")
+    start(tiny("psro_uniform", *args), tmp_path / "whole")
+
+    from volleybots.population import loop
+
+    calls = {"n": 0}
+    orig = loop.Convergence.__call__
+
+    def crash(self, row):
+        calls["n"] += 1
+        if calls["n"] == 7:  # iteration 2, after its first periodic checkpoint
+            raise KeyboardInterrupt("killed")
+        return orig(self, row)
+
+    monkeypatch.setattr(loop.Convergence, "__call__", crash)
+    with pytest.raises(KeyboardInterrupt):
+        start(tiny("psro_uniform", *args), tmp_path / "cut")
+    monkeypatch.setattr(loop.Convergence, "__call__", orig)
+    cut = tmp_path / "cut"
+    assert len(_read(cut)[2]) == 2 and RunDir(cut).periodic_checkpoints()  # killed inside iteration 2
+    resume(cut)
+    (m1, p1, f1), (m2, p2, f2) = _read(tmp_path / "whole"), _read(cut)
+    assert p1 == p2
+    assert [m["mixture"] for m in m1] == [m["mixture"] for m in m2]
+    assert [m["oracle"] for m in m1] == [m["oracle"] for m in m2]
+    for a, b in zip(f1, f2):
+        sa, sb = torch.load(a, weights_only=True), torch.load(b, weights_only=True)
+        if "algo" in sa:
+            for k, v in sa["algo"]["actor"].items():
+                assert torch.equal(v, sb["algo"]["actor"][k]), k
+
+
+def test_payoff_table_adds_rows_antisymmetric():
+    t = PayoffTable()
+    t.add_member("a", [])
+    t.add_member("b", [{"wins": 6, "draws": 2, "losses": 2}])
+    assert t.matrix()[1, 0] == pytest.approx(0.4) and t.matrix()[0, 1] == pytest.approx(-0.4)
+    with pytest.raises(ValueError):
+        t.add_member("c", [{"wins": 1, "draws": 0, "losses": 0}])
+
+
+def test_bad_seed_members_are_refused_before_anything_is_written(tmp_path):
+    with pytest.raises(ConfigError, match="does not exist"):
+        tiny("fsp", f"algo.seed_members=[{tmp_path / 'nope.pt'}]")
+    start(tiny("sp", "total_frames=256"), tmp_path / "sp1v1")
+    ckpt = tmp_path / "sp1v1" / "checkpoints" / "final.pt"
+    assert tiny("fsp", f"algo.seed_members=[random,{ckpt}]").algo.seed_members[1] == str(ckpt)
+    with pytest.raises(ConfigError, match="plays task '1v1', not '3v3'"):
+        load(["task=3v3", "algo=fsp", f"algo.seed_members=[{ckpt}]"])
+    # an SP run is a single policy (its one member), so it may seed a population
+    assert tiny("fsp", f"algo.seed_members=[{tmp_path / 'sp1v1'}]").algo.name == "fsp"
+
+
+def test_a_learner_trains_against_a_named_opponent_and_learns_from_its_team_only(tmp_path):
+    """``opponent=``: MAPPO plays team 0 of 3v3 against a frozen random team; its critic is sized for
+    its own three drones and its checkpoint records them."""
+    from volleybots.train import Trainer, Versus, train
+
+    cfg = load(["task=3v3", "opponent=random", "env.num_envs=8", "algo.steps_per_batch=8", "algo.minibatches=2", "algo.epochs=1",
+                "algo.hidden=[32]", "total_frames=128", "evaluation.episodes=2", "evaluation.record=false", "progress=false"])
+    assert cfg.algo.name == "mappo"
+    summary = train(cfg, tmp_path / "br")
+    state = torch.load(tmp_path / "br" / "checkpoints" / "final.pt", weights_only=True)
+    assert state["n_agents"] == 3 and state["config"]["opponent"] == "random"
+    critic_in = next(v for k, v in state["algo"]["critic"].items() if k.endswith("net.0.weight"))
+    assert critic_in.shape[1] == 3 * 57  # the team's observations, not all six drones'
+    assert summary["final_eval"]["stats"]["win"]["mean"] >= 0
+    tr = Trainer(cfg, RunDir(tmp_path / "other"))
+    assert isinstance(tr.seat, Versus) and tr.seat.opponent.label == "random"
+    for bad, words in ((["task=bump_and_pass", "opponent=random"], "is for matches"), (["task=1v1", "algo=sp", "opponent=random"], "seed_members"),
+                       (["task=3v3", "algo=mappo", f"opponent={tmp_path / 'missing'}"], "does not exist")):
+        with pytest.raises(ConfigError, match=words):
+            load(bad)

@@ -1,0 +1,120 @@
+"""The population methods as algorithms of the registry: ``sp``, ``fsp``, ``psro_uniform``, ``psro_nash``.
+
+They are one loop (``volleybots.population.loop``) with a swappable meta-solver and learner
+initialisation; here live only their configs and what they accept. The learner is MAPPO with a critic
+over its own team (for one drone a side that is PPO: a critic over one agent) with the paper's PPO
+hyperparameters, which the config inherits (``algo.actor_lr=...`` sets the learner's).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from volleybots.algos.base import class_attr
+from volleybots.algos.ppo import MAPPO, MAPPOConfig, PPO
+from volleybots.errors import ConfigError, ranged
+
+INITS = ("scratch", "last")
+
+
+@dataclass
+class PopulationConfig(MAPPOConfig):
+    name: str = "psro_nash"
+    solver: str = "nash"
+    learner_init: str = "scratch"
+    self_play: bool = False
+    iterations: int = ranged(10, ge=1)
+    min_updates: int = ranged(20, ge=1)
+    max_updates: int = ranged(300, ge=1)
+    win_window: int = ranged(10, ge=1)
+    win_mean: float = ranged(0.9, ge=0, le=1)
+    win_std: float = ranged(0.05, ge=0)
+    payoff_games: int = ranged(100, ge=1)
+    seed_members: list[str] = field(default_factory=lambda: ["random"])
+    opponent_deterministic: bool = False
+    eval_opponent: str = "random"
+    payoff_pool: str = "serial"
+
+
+@dataclass
+class SPConfig(PopulationConfig):
+    name: str = "sp"
+    solver: str = "last"
+    self_play: bool = True
+    iterations: int = 1
+    seed_members: list[str] = field(default_factory=list)
+
+
+@dataclass
+class FSPConfig(PopulationConfig):
+    name: str = "fsp"
+    solver: str = "uniform"
+    learner_init: str = "last"
+
+
+@dataclass
+class PSROUniformConfig(PopulationConfig):
+    name: str = "psro_uniform"
+    solver: str = "uniform"
+
+
+class PopulationMethod(PPO):
+    """Not trained by the plain run loop: ``population = True`` sends it to the population loop."""
+
+    name = "psro_nash"
+    config_cls = PopulationConfig
+    multi_agent = True
+    task_kinds = ("competitive",)
+    population = True
+    learner_cls = MAPPO
+
+    @classmethod
+    def check(cls, cfg, task_cls, env_cfg):
+        from volleybots.competitors import BUILTIN, resolve_competitor
+        from volleybots.population.solvers import SOLVERS
+
+        if not class_attr(task_cls, "competitive"):
+            from volleybots.tasks import TASKS
+
+            matches = [n for n, t in TASKS.items() if class_attr(t, "competitive")]
+            raise ConfigError(f"algo {cls.name!r} trains for matches, not task {task_cls.name!r}; allowed tasks: {', '.join(matches)}")
+        super().check(cfg, task_cls, env_cfg)
+        if cfg.solver not in SOLVERS:
+            raise ConfigError(f"unknown algo.solver {cfg.solver!r}; allowed: {', '.join(SOLVERS)}")
+        if cfg.learner_init not in INITS:
+            raise ConfigError(f"unknown algo.learner_init {cfg.learner_init!r}; allowed: {', '.join(INITS)}")
+        if cfg.eval_opponent not in BUILTIN:
+            raise ConfigError(f"unknown algo.eval_opponent {cfg.eval_opponent!r}; allowed: {', '.join(BUILTIN)}")
+        from volleybots.eval.pool import check_pool
+
+        check_pool(cfg.payoff_pool, "algo.payoff_pool")
+        if cfg.max_updates < cfg.min_updates:
+            raise ConfigError(f"algo.max_updates={cfg.max_updates} is below algo.min_updates={cfg.min_updates}")
+        if not cfg.self_play and not cfg.seed_members:
+            raise ConfigError(f"algo {cls.name!r} needs a first opponent: algo.seed_members=[random] (or scripted, or checkpoint paths)")
+        obs_dim = class_attr(task_cls, "obs_dim_prt") - (4 if env_cfg.action_space == "ctbr" else 0)
+        for spec in cfg.seed_members:
+            comp = resolve_competitor(str(spec))
+            if len(comp.members) != 1:
+                raise ConfigError(f"algo.seed_members entry {spec!r} is a population; name single policies (its member files)")
+            comp.check_fits(task_cls.name, env_cfg.action_space, obs_dim)
+
+
+class SP(PopulationMethod):
+    name = "sp"
+    config_cls = SPConfig
+
+
+class FSP(PopulationMethod):
+    name = "fsp"
+    config_cls = FSPConfig
+
+
+class PSROUniform(PopulationMethod):
+    name = "psro_uniform"
+    config_cls = PSROUniformConfig
+
+
+class PSRONash(PopulationMethod):
+    name = "psro_nash"
+    config_cls = PopulationConfig

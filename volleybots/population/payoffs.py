@@ -1,0 +1,108 @@
+"""The empirical payoff table of a population: W/D/L counts per ordered pair of members.
+
+Counts of ``(i, j)`` are from member ``i``'s side; ``(j, i)`` holds the mirror image, so the zero-sum
+payoff matrix ``(wins - losses) / games`` is antisymmetric. A member against itself has payoff 0 by
+the symmetry of the court and is not played. Entries are added as members join, never recomputed.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+
+class PayoffTable:
+    def __init__(self, labels: list[str] | None = None, counts: dict | None = None):
+        self.labels = list(labels or [])
+        n = len(self.labels)
+        c = counts or {}
+        self.wins = np.array(c.get("wins", np.zeros((n, n))), dtype=np.int64).reshape(n, n)
+        self.draws = np.array(c.get("draws", np.zeros((n, n))), dtype=np.int64).reshape(n, n)
+        self.losses = np.array(c.get("losses", np.zeros((n, n))), dtype=np.int64).reshape(n, n)
+
+    def __len__(self) -> int:
+        return len(self.labels)
+
+    def add_member(self, label: str, results: list[dict[str, int]]) -> None:
+        """A new row and column: ``results[j]`` holds the new member's W/D/L against member ``j``."""
+        n = len(self)
+        if len(results) != n:
+            raise ValueError(f"a new member needs results against all {n} members, got {len(results)}")
+        grow = lambda a: np.pad(a, ((0, 1), (0, 1)))  # noqa: E731
+        self.wins, self.draws, self.losses = grow(self.wins), grow(self.draws), grow(self.losses)
+        for j, r in enumerate(results):
+            self.wins[n, j], self.draws[n, j], self.losses[n, j] = r["wins"], r["draws"], r["losses"]
+            self.wins[j, n], self.draws[j, n], self.losses[j, n] = r["losses"], r["draws"], r["wins"]
+        self.labels.append(label)
+
+    @property
+    def games(self) -> np.ndarray:
+        return self.wins + self.draws + self.losses
+
+    def matrix(self) -> np.ndarray:
+        """The zero-sum payoff of the row member, (wins - losses) / games (0 where none were played)."""
+        g = self.games
+        return np.where(g > 0, (self.wins - self.losses) / np.maximum(g, 1), 0.0)
+
+    def to_json(self) -> dict:
+        return {
+            "members": self.labels,
+            "wins": self.wins.tolist(),
+            "draws": self.draws.tolist(),
+            "losses": self.losses.tolist(),
+            "games": self.games.tolist(),
+            "payoff": self.matrix().tolist(),
+        }
+
+    def save(self, path: Path) -> None:
+        write_atomic(path, json.dumps(self.to_json(), indent=1) + "\n")
+
+    @classmethod
+    def load(cls, path: Path) -> "PayoffTable":
+        path = Path(path)
+        if not path.is_file():
+            return cls()
+        data = json.loads(path.read_text())
+        return cls(data["members"], data)
+
+
+def write_atomic(path: Path, text: str) -> None:
+    """Write ``text`` so that a process killed meanwhile leaves the old file whole."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def plot(table: PayoffTable, mixture, path: Path, title: str = "") -> None:
+    """The payoff matrix as a heatmap beside the meta-strategy's bars (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(table)
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(4 + 0.6 * n, 2.5 + 0.45 * n), gridspec_kw={"width_ratios": [3, 1]})
+    m = table.matrix()
+    im = ax.imshow(m, cmap="RdBu", vmin=-1, vmax=1)
+    ax.set_xticks(range(n), table.labels, rotation=60, ha="right", fontsize=7)
+    ax.set_yticks(range(n), table.labels, fontsize=7)
+    for i in range(n):
+        for j in range(n):
+            ax.text(j, i, f"{m[i, j]:+.2f}", ha="center", va="center", fontsize=6)
+    ax.set_title("payoff of row vs column\n(wins - losses) / games", fontsize=8)
+    fig.colorbar(im, ax=ax, fraction=0.046)
+    bx.barh(range(n), mixture)
+    for i, w in enumerate(mixture):
+        bx.text(min(w + 0.03, 0.7), i, f"{w:.2f}", va="center", fontsize=7)
+    bx.set_yticks(range(n), [""] * n)
+    bx.invert_yaxis()
+    bx.set_xlim(0, 1)
+    bx.set_title("meta-strategy", fontsize=8)
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
