@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import torch
 
+from volleybots.physics.torch_backend import masked_select
 from volleybots.rules import COURTS, RefereeConfig
 from volleybots.tasks.base import StepResult
 from volleybots.tasks.defence import DefenceRacket
@@ -49,7 +50,7 @@ class _CoopTask(MultiDroneTask):
         pos = self.place_around_anchors(mask, self.init_low, self.init_high)
         ball = self.anchors[0] + torch.tensor((0.0, 0.0, 2.0), device=self.device)
         self.place_ball(mask, ball)
-        self.prev_ball[mask] = ball
+        self.prev_ball = masked_select(mask, ball.expand_as(self.prev_ball), self.prev_ball)
         self.referee.reset(mask, self.physics.state.ball_pos)
         self.reset_coop(mask, pos)
 
@@ -117,11 +118,11 @@ class BumpAndPass(_CoopTask):
         return RefereeConfig(court=COURTS["full"], turns="alternate", drone_min_z=0.4)
 
     def reset_coop(self, mask, pos):
-        for buf in (self.pending, self.crossed):
-            buf[mask] = False
-        for buf in (self.apex, self.streak, self.best, self.passes, self.hits):
-            buf[mask] = 0.0
-        self.receiver[mask] = 1
+        self.pending, self.crossed = self.pending & ~mask, self.crossed & ~mask
+        self.apex, self.streak, self.best, self.passes, self.hits = (
+            torch.where(mask, 0.0, buf) for buf in (self.apex, self.streak, self.best, self.passes, self.hits)
+        )
+        self.receiver = torch.where(mask, 1, self.receiver)
 
     def turn_obs(self):
         return self.referee.may_hit.float()
@@ -197,8 +198,8 @@ class _SetAndSpike(_CoopTask):
         return RefereeConfig(court=COURTS["full"], turns="sequence", order=(0, 1), drone_min_z=self.drone_min_z)
 
     def reset_coop(self, mask, pos):
-        for v in self.flags.values():
-            v[mask] = False
+        for k, v in self.flags.items():
+            self.flags[k] = v & ~mask
 
     def turn_obs(self):
         return one_hot(self.referee.seq_index.clamp_max(2), 3)
@@ -301,15 +302,14 @@ class SetAndSpikeHard(_SetAndSpike):
     def reset_coop(self, mask, pos):
         super().reset_coop(mask, pos)
         self.defence.reset(mask)
-        self.intercepted[mask] = False
+        self.intercepted = self.intercepted & ~mask
 
     def evaluate(self, ev):
         # the racket acts on the ball first, so that a returned ball is never scored as landed
         s = self.physics.state
         touch, bpos, bvel = self.defence.step(self.prev_ball, s.ball_pos, s.ball_vel, self.flags["attacker_hit"])
-        if touch.any():
-            self.physics.set_state(touch, ball_pos=bpos[touch], ball_vel=bvel[touch])
-            ev.ball_landed = ev.ball_landed & ~touch
+        self.physics.set_state(touch, ball_pos=bpos, ball_vel=bvel)  # untouched envs keep their ball
+        ev.ball_landed = ev.ball_landed & ~touch
         self.intercepted = self.intercepted | touch
         return super().evaluate(ev)
 

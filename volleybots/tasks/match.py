@@ -87,22 +87,20 @@ class _Match(MultiDroneTask):
 
     # ------------------------------------------------------------------ reset
     def reset_task(self, mask):
-        m = int(mask.sum())
+        n = self.num_envs
         noise = (self.init_noise,) * 3
         pos = self.place_around_anchors(mask, tuple(-x for x in noise), noise, yaw=self.yaw)
-        team = torch.randint(0, 2, (m,), generator=self.rng, device=self.device)
+        team = (self.uniform(0.0, 1.0, (n,)) < 0.5).long()  # a fair coin per env
         if self.fixed_serve is not None:
             team = torch.full_like(team, self.fixed_serve)
         server = torch.stack((self.team_index(0)[self.server_rank], self.team_index(1)[self.server_rank]))[team]
-        ball = pos[torch.arange(m, device=self.device), server] + torch.tensor((0.0, 0.0, self.ball_above), device=self.device)
+        ball = pos.gather(1, server.view(n, 1, 1).expand(n, 1, 3)).squeeze(1) + torch.tensor((0.0, 0.0, self.ball_above), device=self.device)
         self.place_ball(mask, ball)
-        first = torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
-        first[mask] = server
-        self.referee.reset(mask, self.physics.state.ball_pos, first=first)
-        self.serve_team[mask] = team
-        self.winner[mask] = -1
-        self.reason[mask] = -1
-        self.is_draw[mask] = False
+        self.referee.reset(mask, self.physics.state.ball_pos, first=server)
+        self.serve_team = torch.where(mask, team, self.serve_team)
+        self.winner = torch.where(mask, -1, self.winner)
+        self.reason = torch.where(mask, -1, self.reason)
+        self.is_draw = self.is_draw & ~mask
 
     # ------------------------------------------------------------------ observation helpers
     def own_root(self) -> torch.Tensor:

@@ -114,14 +114,12 @@ class MultiDroneTask(VolleyEnv):
     # ---------------------------------------------------------------- shared pieces
     def place_around_anchors(self, mask: torch.Tensor, low, high, yaw: torch.Tensor | None = None) -> torch.Tensor:
         """Drones at rest, uniform in anchor + [low, high], level, heading ``yaw`` [A] (default 0).
-        Returns the positions [M, A, 3]."""
-        m = int(mask.sum())
-        pos = self.anchors + self.uniform(low, high, (m, self.n_drones))
+        Returns the positions [N, A, 3] (those of the envs outside ``mask`` are not used)."""
+        pos = self.anchors + self.uniform(low, high, (self.num_envs, self.n_drones))
         quat = None
         if yaw is not None:
             half = 0.5 * yaw.to(self.device, torch.float32)
             quat = torch.stack((half.cos(), torch.zeros_like(half), torch.zeros_like(half), half.sin()), -1)
-            quat = quat.expand(m, self.n_drones, 4)
         self.place_drones(mask, pos, quat)
         return pos
 
