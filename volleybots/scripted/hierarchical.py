@@ -50,6 +50,8 @@ DRILLS = ("hover", "serve", "pass", "set", "attack")  # the drill tasks, by inde
 DRILL_LABELS = ("none", "hover", "serve", "pass", "set", "attack left", "attack right")
 TEAM = 3
 HIT_JUMP = 0.5  # m/s: a change of the ball's velocity beyond free flight this large is a hit
+SPACE = 1.3  # m: hovering drones steer away from teammates closer than this (0.8 m ends the rally) ...
+SPACE_GAIN = 2.0  # ... by this many metres per metre inside it
 NET_KEEP = 1.2  # m: a drone making room stays this far from the net
 ROOM = 1.5  # m: a hovering drone keeps this far (horizontally) from a teammate playing the ball and from where it meets it
 
@@ -181,6 +183,11 @@ class HierarchicalPolicy:
         ax = torch.where(dist[..., 0] < 0.3, -(0.5**0.5), (d[..., 0] / dist[..., 0].clamp_min(1e-6)).clamp(max=0.0))
         ay = torch.where(anchor[..., 1] < 0, -1.0, 1.0) * (1.0 - ax * ax).sqrt()
         push = torch.stack((ax, ay), -1) * (ROOM - dist).clamp_min(0.0) * coming[:, None, None]
+        # and away from teammates close by (a passer flying home passes the front drones)
+        gap = pos[:, :, None, :2] - pos[:, None, :, :2]  # [N, me, other, 2]
+        near = gap.norm(dim=-1, keepdim=True)
+        others = ~torch.eye(TEAM, dtype=torch.bool, device=pos.device)[None, :, :, None]
+        push = push + (gap / near.clamp_min(1e-6) * (SPACE - near).clamp_min(0.0) * SPACE_GAIN * others).sum(2)
         push[..., 0] = torch.maximum(push[..., 0], NET_KEEP - anchor[..., 0])
         return torch.cat((push, torch.zeros_like(push[..., :1])), -1)
 
