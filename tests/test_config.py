@@ -78,9 +78,9 @@ def test_task_options_reach_the_env():
 
 def test_a_multi_drone_task_gets_a_multi_agent_algo_unless_one_is_named():
     assert load(["task=hover"]).algo.name == "ppo"  # the config's default
-    for task in ("bump_and_pass", "3v3"):
+    for task, algo in (("bump_and_pass", "mappo"), ("3v3", "sp"), ("1v1", "sp")):  # cooperative: MAPPO; matches: self-play
         cfg = load([f"task={task}"])
-        assert cfg.algo.name == "mappo" and ALGOS[cfg.algo.name].multi_agent
+        assert cfg.algo.name == algo and ALGOS[cfg.algo.name].multi_agent
     with pytest.raises(ConfigError, match="trains one drone"):
         load(["task=3v3", "algo=ppo"])  # named: still an error, not silently replaced
 

@@ -150,6 +150,43 @@ class EpisodeRecorder:
             self.rec.log(self._p("world/violations"), rr.Points3D([ball], radii=[0.2], colors=[(240, 40, 40)]))
 
 
+class MatchLog:
+    """Beside ``EpisodeRecorder`` in a match: who plays which colour, the touches per team as they
+    happen, and at the end the point (winner) with the fault that ended the rally."""
+
+    def __init__(self, rec, env, labels: tuple[str, str], env_index: int = 0):
+        import rerun as rr
+
+        self.rec, self.i, self.labels = rec, env_index, labels
+        self.names = [f"{labels[t]} ({'blue' if t == 0 else 'red'}, team {t}, {'+x' if t == 0 else '-x'})" for t in (0, 1)]
+        self.done = False
+        self.hits = [0, 0]
+        rec.log("match", rr.TextLog(f"{self.names[0]} against {self.names[1]}", level="INFO"), static=True)
+
+    def __call__(self, env, td, nxt) -> None:
+        import rerun as rr
+
+        if self.done:
+            return
+        from volleybots.rules import Referee
+
+        i = self.i
+        hits = [int(nxt["stats", f"hits_team{t}"][i]) for t in (0, 1)]
+        if hits != self.hits:
+            self.hits = hits
+            self.rec.log("match", rr.TextLog(f"touches: {self.labels[0]} {hits[0]}, {self.labels[1]} {hits[1]}", level="INFO"))
+        for t in (0, 1):
+            self.rec.log(f"score/touches_team{t}", rr.Scalars(float(hits[t])))
+        if bool(nxt["done"][i]):
+            self.done = True
+            winner, reason = int(nxt["stats", "winner"][i]), int(nxt["stats", "reason"][i])
+            if winner < 0:
+                msg = "no point: a draw (crash, teammates too close, a double fault or the time limit)"
+            else:
+                msg = f"point to {self.names[winner]}: {self.labels[1 - winner]} faulted ({Referee.FAULTS[reason]}); score {self.labels[0]} {int(winner == 0)} - {int(winner == 1)} {self.labels[1]}"
+            self.rec.log("match", rr.TextLog(msg, level="WARN" if winner < 0 else "INFO"))
+
+
 def has_display() -> bool:
     import os
 
@@ -194,4 +231,15 @@ def record_episode(env, policy, out: Path | None, viewer: bool = False) -> dict:
     return {k: float(v[0]) for k, v in res.items()}
 
 
-__all__ = ["EpisodeRecorder", "has_display", "record_episode", "recording"]
+def record_match(env, policy, labels: tuple[str, str], out: Path | None, viewer: bool = False) -> dict:
+    """``record_episode`` for a match between two labelled teams (``policy``: ``TeamPolicies``),
+    with the ``MatchLog`` of colours, touches and the ending fault."""
+    from volleybots.eval import run_episodes
+
+    with recording(out, viewer=viewer) as rec:
+        hooks = (EpisodeRecorder(rec, env, 0), MatchLog(rec, env, labels, 0))
+        res = run_episodes(env, policy, on_step=lambda *a: [h(*a) for h in hooks])
+    return {k: float(v[0]) for k, v in res.items()}
+
+
+__all__ = ["EpisodeRecorder", "MatchLog", "has_display", "record_episode", "record_match", "recording"]

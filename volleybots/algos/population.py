@@ -33,6 +33,7 @@ class PopulationConfig(MAPPOConfig):
     seed_members: list[str] = field(default_factory=lambda: ["random"])
     opponent_deterministic: bool = False
     eval_opponent: str = "random"
+    payoff_pool: str = "serial"
 
 
 @dataclass
@@ -83,6 +84,9 @@ class PopulationMethod(PPO):
             raise ConfigError(f"unknown algo.learner_init {cfg.learner_init!r}; allowed: {', '.join(INITS)}")
         if cfg.eval_opponent not in BUILTIN:
             raise ConfigError(f"unknown algo.eval_opponent {cfg.eval_opponent!r}; allowed: {', '.join(BUILTIN)}")
+        from volleybots.eval.pool import check_pool
+
+        check_pool(cfg.payoff_pool, "algo.payoff_pool")
         for key in ("iterations", "min_updates", "max_updates", "win_window", "payoff_games"):
             if getattr(cfg, key) < 1:
                 raise ConfigError(f"bad value for 'algo.{key}': {getattr(cfg, key)} (must be >= 1)")

@@ -40,7 +40,7 @@ from volleybots.competitors import (
     BUILTIN, POPULATION_DIR, Competitor, checkpoint_member, member_path, population_members, resolve_competitor,
 )
 from volleybots.config import ConfigError, to_dict, validate
-from volleybots.eval.games import head_to_head
+from volleybots.eval.pool import head_to_heads
 from volleybots.population.payoffs import PayoffTable, plot, write_atomic
 from volleybots.population.solvers import SOLVERS
 from volleybots.runs import CKPT_FORMAT, RunDir, read_checkpoint
@@ -185,10 +185,8 @@ class PopulationLoop:
         for k in range(len(table), len(paths)):
             new = checkpoint_member(paths[k])
             seed = self.cfg.seed + GAMES_SEED + 1000 * k
-            results = [
-                head_to_head(self.cfg, Competitor("new", [new]), Competitor("old", [checkpoint_member(paths[j])]), self.m.payoff_games, seed + j)
-                for j in range(k)
-            ]
+            matches = [(Competitor("new", [new]), Competitor("old", [checkpoint_member(paths[j])]), self.m.payoff_games, seed + j) for j in range(k)]
+            results = head_to_heads(self.cfg, matches, self.m.payoff_pool)
             table.add_member(self._label(paths[k]), results)
             table.save(self.payoffs_path)
 

@@ -1,33 +1,115 @@
-"""Meta-solvers: ``payoffs [n, n]`` (the row player's zero-sum payoff) -> a mixture over the n members."""
+"""Meta-solvers: a population's payoff table -> the mixture the next best response plays against.
+
+Each solver is a pure function ``payoffs [n, n] -> mixture [n]`` where ``payoffs[i, j]`` is the
+zero-sum payoff of member i (row) against member j, e.g. (wins - losses) / games from i's side;
+``SOLVERS`` registers them by the name ``algo=`` and the population loop use:
+
+* ``uniform``: every member equally (fictitious self-play, PSRO-uniform);
+* ``nash``: the row player's maximin mixture of the zero-sum game, by linear programming with
+  scipy's HiGHS (PSRO-Nash); for the symmetric meta-games of self-play it is a Nash equilibrium;
+* ``last``: all weight on the newest member (self-play);
+* ``alpharank``: the stationary distribution of single-population alpha-rank (Omidshafiei et al.
+  2019), a ranking that exists where Nash equilibria are many.
+
+``exploitability`` and ``member_exploitability`` measure how far a mixture or each member is from
+unexploitable *within* the population (what a best response among the members gains).
+"""
 
 from __future__ import annotations
+
+from typing import Callable
 
 import numpy as np
 from scipy.optimize import linprog
 
+ALPHARANK_ALPHA = 10.0  # selection intensity: large alpha ranks by who beats whom, not by how much
+ALPHARANK_POP = 50  # the population size m of alpha-rank's Moran process
 
-def uniform(payoffs: np.ndarray) -> np.ndarray:
-    n = len(payoffs)
+
+def _square(payoffs) -> np.ndarray:
+    a = np.asarray(payoffs, dtype=float)
+    if a.ndim != 2 or a.shape[0] != a.shape[1] or a.shape[0] == 0:
+        raise ValueError(f"payoffs must be a non-empty square matrix; got shape {a.shape}")
+    if not np.isfinite(a).all():
+        raise ValueError("payoffs must be finite")
+    return a
+
+
+def uniform(payoffs) -> np.ndarray:
+    n = _square(payoffs).shape[0]
     return np.full(n, 1.0 / n)
 
 
-def last(payoffs: np.ndarray) -> np.ndarray:
-    """Self-play: all weight on the newest member."""
-    out = np.zeros(len(payoffs))
+def last(payoffs) -> np.ndarray:
+    n = _square(payoffs).shape[0]
+    out = np.zeros(n)
     out[-1] = 1.0
     return out
 
 
-def nash(payoffs: np.ndarray) -> np.ndarray:
-    """The row player's maximin mixture of the zero-sum game (HiGHS LP): max v s.t. x^T A >= v, sum x = 1."""
-    a = np.asarray(payoffs, dtype=float)
-    n, m = a.shape
+def nash_with_value(payoffs) -> tuple[np.ndarray, float]:
+    """The row player's maximin mixture x and the game value v: maximise v subject to
+    (x^T A)_j >= v for every column j, sum x = 1, x >= 0."""
+    a = _square(payoffs)
+    n = a.shape[0]
     c = np.zeros(n + 1)
-    c[-1] = -1.0
-    res = linprog(c, A_ub=np.hstack([-a.T, np.ones((m, 1))]), b_ub=np.zeros(m), A_eq=[[1.0] * n + [0.0]], b_eq=[1.0],
-                  bounds=[(0, None)] * n + [(None, None)], method="highs")
+    c[-1] = -1.0  # minimise -v
+    a_ub = np.hstack((-a.T, np.ones((n, 1))))  # v - (x^T A)_j <= 0
+    a_eq = np.hstack((np.ones((1, n)), np.zeros((1, 1))))
+    bounds = [(0.0, None)] * n + [(None, None)]
+    res = linprog(c, A_ub=a_ub, b_ub=np.zeros(n), A_eq=a_eq, b_eq=[1.0], bounds=bounds, method="highs")
+    if res.status != 0:
+        raise RuntimeError(f"the Nash linear program failed: {res.message}")
     x = np.clip(res.x[:n], 0.0, None)
-    return x / x.sum()
+    return x / x.sum(), float(res.x[-1])
 
 
-SOLVERS = {"uniform": uniform, "nash": nash, "last": last}
+def nash(payoffs) -> np.ndarray:
+    return nash_with_value(payoffs)[0]
+
+
+def alpharank(payoffs, alpha: float = ALPHARANK_ALPHA, m: int = ALPHARANK_POP) -> np.ndarray:
+    """Single-population alpha-rank of a symmetric game: a Markov chain over the members in which a
+    mutant j takes over a population of i with the Moran fixation probability of fitness gap
+    f = A[j, i] - A[i, j]; the mixture is the chain's stationary distribution."""
+    a = _square(payoffs)
+    n = a.shape[0]
+    if n == 1:
+        return np.ones(1)
+    gap = a.T - a  # gap[i, j] = A[j, i] - A[i, j]: what mutant j gains over resident i
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        x = alpha * gap
+        fix = np.where(np.abs(x) < 1e-12, 1.0 / m, -np.expm1(-x) / -np.expm1(-m * x))
+    fix = np.nan_to_num(fix, nan=0.0, posinf=1.0)
+    chain = fix / (n - 1)
+    np.fill_diagonal(chain, 0.0)
+    np.fill_diagonal(chain, 1.0 - chain.sum(1))
+    w, v = np.linalg.eig(chain.T)
+    pi = np.abs(np.real(v[:, np.argmin(np.abs(w - 1.0))]))
+    return pi / pi.sum()
+
+
+SOLVERS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "uniform": uniform,
+    "nash": nash,
+    "last": last,
+    "alpharank": alpharank,
+}
+
+
+def exploitability(payoffs, mixture) -> float:
+    """What the best pure member gains against ``mixture`` over the mixture itself:
+    max_i (A sigma)_i - sigma^T A sigma (0 for a Nash mixture of a symmetric zero-sum game)."""
+    a = _square(payoffs)
+    s = np.asarray(mixture, float)
+    return float(np.max(a @ s) - s @ a @ s)
+
+
+def member_exploitability(payoffs) -> np.ndarray:
+    """[n]: for each member i, max_j A[j, i] - A[i, i], the most another member gains against it
+    beyond what i gets against itself (spec evaluation.md's exploitability within the population)."""
+    a = _square(payoffs)
+    return a.max(0) - np.diag(a)
+
+
+__all__ = ["SOLVERS", "alpharank", "exploitability", "last", "member_exploitability", "nash", "nash_with_value", "uniform"]

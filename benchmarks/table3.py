@@ -1,0 +1,103 @@
+"""Paper table 3's layout for 1 vs 1: for each competitor its average win rate, Elo and Bradley-Terry
+rating (with its 95 % bootstrap interval), its Nash weight in the cross-play meta-game and its
+exploitability within that population, plus the heatmap and the ratings plot.
+
+    python benchmarks/table3.py scripted random                                    # what exists without training
+    python benchmarks/table3.py sp=runs/sp fsp=runs/fsp psro_u=runs/psro_uniform psro_n=runs/psro_nash scripted random --games 1000
+
+Cross-play plays ``--games`` per pair (both sides equally), Elo runs ``--rounds`` rounds sampled from
+the cross-play counts with ``--k`` (the paper: 2000 rounds, K = 168 for 4 policies). The paper's
+exploitability column trains a best response against each competitor (``volleybots eval
+exploitability``) for ``--br-budget`` frames and plays ``--br-games`` games (0: the column reads "n/a");
+the within-population exploitability stands beside it. Writes ``table3.json``, ``table3.md``, ``table3_crossplay.png`` and
+``table3_ratings.png`` into ``--out`` (default docs/), each naming games, rounds, seed and competitors.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("competitors", nargs="+", help="run dirs, checkpoints, scripted, random; name=PATH labels one")
+    p.add_argument("--task", default="1v1")
+    p.add_argument("--games", type=int, default=1000, help="games per pair (even)")
+    p.add_argument("--rounds", type=int, default=2000, help="Elo rounds, sampled from the cross-play counts")
+    p.add_argument("--k", type=float, default=168.0, help="Elo K")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--batch", type=int, default=256, help="worlds per batch of games")
+    p.add_argument("--bootstrap", type=int, default=1000)
+    p.add_argument("--out", type=Path, default=ROOT / "docs")
+    p.add_argument("--br-budget", type=int, default=0, help="frames of best-response training per competitor (0: no BR column)")
+    p.add_argument("--br-games", type=int, default=400, help="games of each best response against its target")
+    p.add_argument("--br-envs", type=int, default=128, help="envs of best-response training")
+    p.add_argument("--br-root", type=Path, default=ROOT / "outputs" / "table3_br", help="where the best responses' run dirs go")
+    a = p.parse_args(argv)
+
+    from volleybots.eval.crossplay import OPTIONS, crossplay, heatmap, setup
+    from volleybots.eval.ranking import plot, ratings
+
+    comps, specs, _, cfg = setup([*a.competitors, f"task={a.task}", f"games={a.games}"], OPTIONS)
+    t0 = time.time()
+    res = crossplay(cfg, comps, a.games, seed=a.seed, batch=a.batch, specs=specs,
+                    progress=lambda i, j, g: print(f"  {comps[i].label} vs {comps[j].label}: W/D/L {g.total.tolist()}", flush=True))
+    wall = time.time() - t0
+    rep = ratings(res, a.rounds, a.k, a.seed, sample=True, bootstrap=a.bootstrap)
+    rep["exploitability_br"] = [best_response(spec, a) for spec in specs] if a.br_budget else [None] * len(specs)
+    a.out.mkdir(parents=True, exist_ok=True)
+    heatmap(res, a.out / "table3_crossplay.png")
+    plot(rep, a.out / "table3_ratings.png")
+    (a.out / "table3.json").write_text(json.dumps({"crossplay": res.to_dict(), "ratings": rep, "wall_time_s": wall}, indent=1) + "\n")
+    (a.out / "table3.md").write_text(table(rep, res, a, wall))
+    print(table(rep, res, a, wall))
+    return 0
+
+
+def best_response(spec: str, a) -> dict:
+    """Exploitability of one competitor: a best response of ``--br-budget`` frames, ``--br-games`` games."""
+    from volleybots.eval.exploitability import run_exploitability
+
+    label = spec.partition("=")[0] if "=" in spec else Path(spec).name
+    out = a.br_root / f"{label}_{time.strftime('%Y%m%d-%H%M%S')}"
+    args = [spec, f"task={a.task}", f"budget={a.br_budget}", f"games={a.br_games}", f"num_envs={a.br_envs}", f"seed={a.seed}", "progress=false"]
+    report, _ = run_exploitability(args, out)
+    print(f"  exploitability of {label}: {report['exploitability']:.1f} {report['exploitability_interval']}", flush=True)
+    return {k: report[k] for k in ("exploitability", "exploitability_interval", "br_run", "budget_frames", "games", "wdl")}
+
+
+def table(rep: dict, res, a, wall: float) -> str:
+    bt, elo = rep["bradley_terry"], rep["elo"]
+    lines = [
+        f"Task {a.task}: {a.games} games per pair (both sides equally), cross-play seed {a.seed}; Elo K={a.k:g} over "
+        f"{a.rounds} rounds sampled from the counts; BT with {a.bootstrap} bootstrap resamples; {wall:.0f} s of games; "
+        + (f"best responses: {a.br_budget:,} frames, {a.br_games} games each." if a.br_budget else "no best responses."),
+        "",
+        "| competitor | exploitability (BR) | exploitability in population (pp) | avg win rate | Elo | Bradley-Terry [95 %] | Nash weight |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for i, lab in enumerate(rep["labels"]):
+        avg = rep["average_win_rate"][i]
+        lines.append(
+            f"| {lab} | {_br(rep['exploitability_br'][i])} | {rep['exploitability_in_population'][i]:.1f} | {'n/a' if avg is None else f'{avg:.3f}'} | "
+            f"{elo['ratings'][i]:.0f} | {bt['ratings'][i]:.0f} [{bt['low'][i]:.0f}, {bt['high'][i]:.0f}] | {rep['nash'][i]:.3f} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _br(r) -> str:
+    if r is None:
+        return "n/a"
+    lo, hi = r["exploitability_interval"]
+    return f"{r['exploitability']:.1f} [{lo:.1f}, {hi:.1f}]"
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,59 @@
+"""Payoff entries played by a Ray pool equal those played one after another: the population loop's
+payoff row of a tiny PSRO run, replayed on a local Ray instance from the same member files."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+
+from volleybots.config import ConfigError, load
+from volleybots.population.loop import PopulationLoop
+from volleybots.runner import start
+from volleybots.runs import RunDir
+
+TINY = [
+    "task=1v1", "algo=psro_uniform", "algo.iterations=1", "algo.seed_members=[random,scripted]", "env.num_envs=16",
+    "algo.steps_per_batch=16", "algo.minibatches=2", "algo.epochs=1", "algo.hidden=[32,32]", "algo.min_updates=2",
+    "algo.max_updates=2", "algo.payoff_games=8", "evaluation.episodes=2", "evaluation.every=0", "evaluation.record=false",
+    "checkpoint.every=100000", "total_frames=100000", "progress=false", "threads=1", "seed=4",
+]
+
+
+@pytest.fixture(scope="module")
+def serial_run(tmp_path_factory):
+    run = tmp_path_factory.mktemp("pool") / "serial"
+    start(load(TINY), run)
+    return run
+
+
+def test_a_ray_pool_plays_the_same_payoff_entries_as_serial_play(serial_run, tmp_path, monkeypatch):
+    ray = pytest.importorskip("ray", reason="ray comes with the cluster extra of the test install")
+    monkeypatch.setenv("RAY_AUTH_MODE", "disabled")
+    serial = json.loads((serial_run / "population" / "payoffs.json").read_text())
+    assert serial["members"] == ["random", "scripted", "br1"]
+    assert serial["games"][2][:2] == [8, 8] and serial["games"][1][0] == 8
+    # the same member files, the payoff table played again in Ray tasks
+    copy = tmp_path / "ray"
+    shutil.copytree(serial_run, copy)
+    (copy / "population" / "payoffs.json").unlink()
+    cfg = load([*TINY, "algo.payoff_pool=ray"])
+
+    def here(*args):
+        raise AssertionError("a match was played in this process, not in a Ray worker")
+
+    monkeypatch.setattr("volleybots.eval.pool.head_to_head", here)  # Ray's workers import their own, unpatched
+    try:
+        PopulationLoop(cfg, RunDir(copy))._play_payoffs()
+        assert ray.is_initialized()
+    finally:
+        ray.shutdown()
+    pooled = json.loads((copy / "population" / "payoffs.json").read_text())
+    assert pooled == serial
+    assert sum(map(sum, serial["wins"])) > 0  # decisive games, not an all-draw table
+
+
+def test_an_unknown_pool_is_refused():
+    with pytest.raises(ConfigError, match="unknown algo.payoff_pool 'dask'; allowed: serial, ray"):
+        load([*TINY, "algo.payoff_pool=dask"])

@@ -1,0 +1,377 @@
+"""Cross-play: every pair of competitors plays N games, both sides equally often (spec: evaluation.md).
+
+``crossplay`` fills a ``CrossPlay``: the wins, draws and losses of each row competitor against each
+column one, the game-by-game outcomes (for Elo rounds), and the provenance of every competitor (path,
+file sha256, config) with the seed, the scenario and the package versions. From it: the win rate over
+decisive games with Wilson 95 % intervals, each competitor's average win rate against the others, the
+zero-sum payoff table of the meta-game, a heatmap and a JSON file that ``CrossPlay.load`` reads back.
+
+A competitor is not played against itself: its diagonal cell is empty (to measure a competitor against
+itself, enter it twice under two labels, ``a=PATH b=PATH``).
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+from dataclasses import dataclass, field
+from itertools import combinations
+from pathlib import Path
+
+import numpy as np
+
+from volleybots.config import ConfigError, load, make_env, parse_value, to_dict
+from volleybots.eval.games import DEFAULT_BATCH, check_scenario, play_games
+from volleybots.ratings import wilson_interval
+
+FORMAT = "volleybots.crossplay/1"
+
+
+@dataclass
+class CrossPlay:
+    labels: list[str]
+    wdl: np.ndarray  # [n, n, 3] wins, draws, losses of the row against the column
+    outcomes: dict[str, str] = field(default_factory=dict)  # "i,j" (i < j) -> W/D/L per game from i's side, in play order
+    side_wdl: dict[str, list] = field(default_factory=dict)  # "i,j" -> [2, 3]: i on team 0 / team 1
+    meta: dict = field(default_factory=dict)  # task, games, seed, scenario, competitors' provenance, versions
+
+    @property
+    def n(self) -> int:
+        return len(self.labels)
+
+    def decisive(self) -> np.ndarray:
+        return self.wdl[..., 0] + self.wdl[..., 2]
+
+    def win_rate(self) -> np.ndarray:
+        """[n, n] wins / decisive games of the row against the column (nan where none)."""
+        dec = self.decisive()
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(dec > 0, self.wdl[..., 0] / np.maximum(dec, 1), np.nan)
+
+    def interval(self, confidence: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
+        """Wilson intervals [n, n] of ``win_rate``."""
+        return wilson_interval(self.wdl[..., 0], self.decisive(), confidence)
+
+    def average_win_rate(self) -> np.ndarray:
+        """[n]: each competitor's mean win rate against the others (pairs without a decisive game left out)."""
+        wr = self.win_rate().copy()
+        np.fill_diagonal(wr, np.nan)
+        with np.errstate(invalid="ignore"):
+            return np.array([np.nanmean(r) if np.isfinite(r).any() else np.nan for r in wr])
+
+    def payoffs(self) -> np.ndarray:
+        """[n, n] the zero-sum payoff (wins - losses) / games of the row (spec: populations.md); the
+        diagonal is 0, a competitor's value against itself in a symmetric game."""
+        games = self.wdl.sum(-1)
+        return np.divide(self.wdl[..., 0] - self.wdl[..., 2], games, out=np.zeros(games.shape), where=games > 0)
+
+    # ------------------------------------------------------------------ files
+    def to_dict(self) -> dict:
+        lo, hi = self.interval()
+        return {
+            "format": FORMAT,
+            **self.meta,
+            "labels": self.labels,
+            "wdl": self.wdl.astype(int).tolist(),
+            "side_wdl": self.side_wdl,
+            "win_rate": _nan_to_none(self.win_rate()),
+            "win_rate_low": _nan_to_none(lo),
+            "win_rate_high": _nan_to_none(hi),
+            "average_win_rate": _nan_to_none(self.average_win_rate()),
+            "outcomes": self.outcomes,
+        }
+
+    def save(self, path: Path) -> None:
+        Path(path).write_text(json.dumps(self.to_dict(), indent=1) + "\n")
+
+    @classmethod
+    def load(cls, path) -> CrossPlay:
+        """Read a results file that ``save`` wrote; anything else is a ``ConfigError``."""
+        p = Path(path)
+        if not p.is_file():
+            raise ConfigError(f"cross-play results file {str(path)!r} does not exist")
+        try:
+            data = json.loads(p.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as e:
+            raise ConfigError(f"{str(path)!r} is not a cross-play results file (not JSON: {e.msg if hasattr(e, 'msg') else e})") from None
+        if not isinstance(data, dict) or data.get("format") != FORMAT:
+            raise ConfigError(f"{str(path)!r} is not a cross-play results file (format is not {FORMAT!r})")
+        meta = {k: v for k, v in data.items() if k not in _DERIVED}
+        return cls(list(data["labels"]), np.asarray(data["wdl"], dtype=float), dict(data["outcomes"]), dict(data["side_wdl"]), meta)
+
+
+_DERIVED = ("format", "labels", "wdl", "side_wdl", "win_rate", "win_rate_low", "win_rate_high", "average_win_rate", "outcomes")
+
+
+def _nan_to_none(a: np.ndarray):
+    """JSON has no NaN: a missing rate is null."""
+    return [_nan_to_none(x) for x in a] if np.ndim(a) else (None if np.isnan(a) else float(a))
+
+
+def versions() -> dict:
+    import scipy
+    import tensordict
+    import torch
+    import torchrl
+
+    import volleybots
+
+    return {
+        "volleybots": volleybots.__version__,
+        "python": platform.python_version(),
+        "torch": torch.__version__,
+        "torchrl": torchrl.__version__,
+        "tensordict": tensordict.__version__,
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+    }
+
+
+# options of the cross-play verbs (key=value on the command line) and their types
+OPTIONS = {"games": int, "seed": int, "batch": int, "scenario": str, "deterministic": bool}
+
+
+def split_args(args, options: dict) -> tuple[list[str], dict, list[str]]:
+    """A command line's competitor specs, its ``options`` (typed) and its config overrides
+    (``task=``, ``task.KEY=``, ``env.KEY=``). Anything else is a competitor, ``name=PATH`` included."""
+    specs, opts, overrides = [], {}, []
+    for arg in args:
+        key, eq, value = arg.partition("=")
+        if eq and key in options:
+            v = parse_value(value)
+            kind = options[key]
+            if kind is float and isinstance(v, int) and not isinstance(v, bool):
+                v = float(v)
+            if not isinstance(v, kind) or (kind is int and isinstance(v, bool)):
+                raise ConfigError(f"{key}={value!r} must be {'an integer' if kind is int else 'true or false' if kind is bool else 'a ' + kind.__name__}")
+            opts[key] = v
+        elif eq and (key in ("task", "threads") or key.startswith(("task.", "env."))):
+            overrides.append(arg)
+        else:
+            specs.append(arg)
+    return specs, opts, overrides
+
+
+def resolve_all(specs) -> list:
+    """Competitors from their specs (``volleybots.competitors``); labels must differ."""
+    from volleybots.competitors import resolve_competitor
+
+    comps = [resolve_competitor(s) for s in specs]
+    labels = [c.label for c in comps]
+    dup = sorted({lab for lab in labels if labels.count(lab) > 1})
+    if dup:
+        raise ConfigError(f"two competitors are labelled {dup[0]!r}; label them apart: name=PATH")
+    return comps
+
+
+def match_config(competitors, overrides=()):
+    """The validated config of the match every competitor plays: the task and action space of the
+    trained competitors unless ``task=`` / ``env.action_space=`` say (then they must fit), and the
+    overrides; each competitor builds its team policy once here, so a bad one fails before any game."""
+    keys = {o.partition("=")[0] for o in overrides}
+    trained = [m for c in competitors for m in c.members if m.task is not None]
+    extra = []
+    if "task" not in keys:
+        if not trained:
+            raise ConfigError("name the match the scripted/random competitors play: task=1v1, task=3v3 or task=6v6")
+        extra.append(f"task={trained[0].task}")
+    if "env.action_space" not in keys and trained:
+        extra.append(f"env.action_space={trained[0].action_space}")
+    cfg = load([*extra, *overrides])
+    check_scenario("any", cfg)
+    env = make_env(cfg, num_envs=1, seed=0)
+    obs_dim = env.observation_spec["agents", "observation"].shape[-1]
+    for c in competitors:
+        c.check_fits(cfg.task.name, cfg.env.action_space, obs_dim)
+        c.team_policy(env)
+    return cfg
+
+
+def provenance(competitor, spec: str) -> dict:
+    """What a results file says about a competitor: its spec, members (paths, sha256) and mixture."""
+    return {"label": competitor.label, "spec": spec, "members": competitor.sources, "mixture": [float(x) for x in competitor.mixture]}
+
+
+def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_BATCH, scenario: str = "any", deterministic: bool = False, specs=None, progress=None) -> CrossPlay:
+    """Play ``games`` games for every pair of ``competitors`` on the match task of ``cfg``;
+    ``progress(i, j, games)`` after each pair."""
+    n = len(competitors)
+    if n < 2:
+        raise ConfigError(f"cross-play needs at least two competitors; got {n}")
+    labels = [c.label for c in competitors]
+    wdl = np.zeros((n, n, 3))
+    outcomes, sides, served = {}, {}, {}
+    for i, j in combinations(range(n), 2):
+        g = play_games(cfg, competitors[i], competitors[j], games, seed=seed, batch=batch, scenario=scenario, deterministic=deterministic)
+        wdl[i, j], wdl[j, i] = g.total, g.total[::-1]
+        outcomes[f"{i},{j}"] = g.outcomes
+        sides[f"{i},{j}"] = g.wdl.tolist()
+        served[f"{i},{j}"] = g.served
+        if progress is not None:
+            progress(i, j, g)
+    specs = specs or labels
+    meta = {
+        "task": cfg.task.name,
+        "action_space": cfg.env.action_space,
+        "games_per_pair": games,
+        "seed": seed,
+        "batch": batch,
+        "scenario": scenario,
+        "deterministic": deterministic,
+        "competitors": [provenance(c, s) for c, s in zip(competitors, specs)],
+        "served": served,  # "i,j" -> games in which i served
+        "config": to_dict(cfg),
+        "versions": versions(),
+    }
+    return CrossPlay(labels, wdl, outcomes, sides, meta)
+
+
+def heatmap(result: CrossPlay, path: Path, title: str | None = None) -> None:
+    """A PNG of the win-rate matrix (row against column), each cell with its Wilson interval, and the
+    average win rate per row; the title names the task, games per pair and seed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    wr = result.win_rate()
+    lo, hi = result.interval()
+    n = result.n
+    fig, ax = plt.subplots(figsize=(1.6 * n + 3, 1.2 * n + 1.5))
+    im = ax.imshow(np.ma.masked_invalid(wr), cmap="RdBu", vmin=0, vmax=1)
+    for i in range(n):
+        for j in range(n):
+            w, d, l_ = result.wdl[i, j].astype(int)
+            if np.isfinite(wr[i, j]):
+                colour = "white" if abs(wr[i, j] - 0.5) > 0.3 else "black"
+                ax.text(j, i, f"{wr[i, j]:.2f}\n[{lo[i, j]:.2f}, {hi[i, j]:.2f}]\n{w}/{d}/{l_}", ha="center", va="center", fontsize=8, color=colour)
+            elif i != j:
+                ax.text(j, i, "no decisive\ngame", ha="center", va="center", fontsize=7, color="grey")
+    avg = result.average_win_rate()
+    ax.set_xticks(range(n), result.labels, rotation=30, ha="right")
+    ax.set_yticks(range(n), [f"{lab}  (avg {a:.2f})" for lab, a in zip(result.labels, avg)])
+    ax.set_xlabel("opponent (column); cells: win rate [Wilson 95 %], W/D/L")
+    m = result.meta
+    ax.set_title(title or f"{m.get('task')} cross-play: win rate of row over decisive games\n{m.get('games_per_pair')} games per pair, seed {m.get('seed')}, scenario {m.get('scenario')}", fontsize=9)
+    fig.colorbar(im, ax=ax, fraction=0.046)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def format_table(result: CrossPlay):
+    """A rich table: win rate [interval] (W/D/L) per cell, and the average win rate."""
+    from rich.table import Table
+
+    wr = result.win_rate()
+    lo, hi = result.interval()
+    m = result.meta
+    table = Table(title=f"cross-play on {m.get('task')} ({m.get('games_per_pair')} games per pair, seed {m.get('seed')}): row's win rate over decisive games")
+    table.add_column("")
+    for lab in result.labels:
+        table.add_column(lab, justify="right")
+    table.add_column("avg win rate", justify="right")
+    for i, lab in enumerate(result.labels):
+        cells = []
+        for j in range(result.n):
+            w, d, l_ = result.wdl[i, j].astype(int)
+            if i == j:
+                cells.append("-")
+            elif np.isfinite(wr[i, j]):
+                cells.append(f"{wr[i, j]:.3f} [{lo[i, j]:.2f}, {hi[i, j]:.2f}]\n{w}/{d}/{l_}")
+            else:
+                cells.append(f"n/a\n{w}/{d}/{l_}")
+        table.add_row(lab, *cells, f"{result.average_win_rate()[i]:.3f}")
+    return table
+
+
+# ------------------------------------------------------------------ command line
+RESULTS = "crossplay.json"
+HEATMAP = "crossplay.png"
+
+
+def out_dir(out: Path | None, task: str, verb: str) -> Path:
+    """Where a verb writes: ``out`` or ``outputs/<verb>/<date>_<time>_<task>``; never into a folder
+    that already holds results."""
+    import time
+
+    path = Path(out) if out is not None else Path("outputs") / verb / f"{time.strftime('%Y-%m-%d_%H-%M-%S')}_{task}"
+    if path.exists() and (not path.is_dir() or any(path.iterdir())):
+        raise ConfigError(f"--out {str(path)!r} exists and is not an empty folder; results are never overwritten")
+    return path
+
+
+def setup(args, options: dict, min_competitors: int = 2):
+    """(competitors, specs, options, config) of a cross-play command line, all validated."""
+    specs, opts, overrides = split_args(args, options)
+    if len(specs) < min_competitors:
+        raise ConfigError(f"cross-play needs at least {min_competitors} competitors; got {len(specs)} ({' '.join(specs) or 'none'})")
+    games = opts.get("games", 1000)
+    if "games" in options and (games < 2 or games % 2):
+        raise ConfigError(f"games={games} must be an even number >= 2 (each side plays half of them)")
+    if opts.get("batch", DEFAULT_BATCH) < 1:
+        raise ConfigError(f"batch={opts['batch']} must be >= 1")
+    comps = resolve_all(specs)
+    cfg = match_config(comps, overrides)
+    check_scenario(opts.get("scenario", "any"), cfg)
+    return comps, specs, opts, cfg
+
+
+def run_crossplay(args, out: Path | None = None, progress=None, verb: str = "crossplay") -> tuple[CrossPlay, Path]:
+    """``volleybots eval crossplay``: validate, play every pair, write results JSON and heatmap."""
+    comps, specs, opts, cfg = setup(args, OPTIONS)
+    path = out_dir(out, cfg.task.name, verb)
+    res = crossplay(
+        cfg, comps, opts.get("games", 1000), seed=opts.get("seed", 0), batch=opts.get("batch", DEFAULT_BATCH),
+        scenario=opts.get("scenario", "any"), deterministic=opts.get("deterministic", False), specs=specs, progress=progress,
+    )
+    path.mkdir(parents=True, exist_ok=True)
+    res.save(path / RESULTS)
+    heatmap(res, path / HEATMAP)
+    return res, path
+
+
+REPLAY_OPTIONS = {"seed": int, "scenario": str, "deterministic": bool}
+
+
+def is_competitor_spec(arg: str) -> bool:
+    """A replay argument names a competitor (rather than a config override) when it has no ``=`` or
+    labels a built-in player or an existing path: ``replay A B`` records a match, ``replay A k=v`` one policy."""
+    from volleybots.competitors import BUILTIN
+
+    label, eq, value = arg.partition("=")
+    return not eq or value in BUILTIN or (bool(value) and Path(value).exists())
+
+
+def replay_match(args, out: Path | None, viewer: bool) -> tuple[dict, Path | None, list[str]]:
+    """``volleybots replay A B task=3v3``: one match between two competitors recorded to rerun (team
+    colours, touches, the point and its fault); returns (env 0's statistics, the file, the labels)."""
+    import time
+
+    from volleybots.eval.games import side_env
+    from volleybots.replay import record_match
+    from volleybots.tasks.multi import TeamPolicies
+
+    specs = split_args(args, REPLAY_OPTIONS)[0]
+    if len(specs) != 2:
+        raise ConfigError(f"a match replay takes two competitors; got {len(specs)}: {' '.join(specs)}")
+    comps, specs, opts, cfg = setup(args, REPLAY_OPTIONS)
+    labels = [c.label for c in comps]
+    if out is None and not viewer:
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        name = "_vs_".join(lab.replace("@", "_").replace("/", "_") for lab in labels)
+        out = Path("outputs") / "replays" / f"replay_{cfg.task.name}_{name}_{stamp}.rrd"
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    seed = opts.get("seed", 0)
+    env = side_env(cfg, 0, opts.get("scenario", "any"), 1, seed)  # A is team 0 (blue)
+    gen = torch_generator(seed)
+    policy = TeamPolicies(env, tuple(c.team_policy(env, opts.get("deterministic", False), gen) for c in comps))
+    return record_match(env, policy, tuple(labels), out, viewer=viewer), out, labels
+
+
+def torch_generator(seed: int):
+    import torch
+
+    torch.manual_seed(seed)
+    return torch.Generator().manual_seed(seed)

@@ -1,0 +1,164 @@
+"""Ratings of a cross-play result: the paper's Elo, Bradley-Terry with bootstrap intervals, and the
+Nash mixture of the meta-game with each competitor's exploitability within the population
+(spec: evaluation.md, "Ratings"). The arithmetic lives in ``volleybots.ratings`` and
+``volleybots.population.solvers``; this module applies it to a ``CrossPlay`` and draws the plot.
+
+Elo's games: when the cross-play played at least ``rounds`` games per pair, round r is every pair's
+r-th played game (in a seeded random order of the pairs); otherwise (or with ``sample=True``) each
+round's results are drawn from the pairs' win/draw/loss frequencies, as the paper sampled them.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from volleybots.eval.crossplay import CrossPlay, _nan_to_none
+from volleybots.population.solvers import exploitability, member_exploitability, nash
+from volleybots.ratings import ELO_K, ELO_START, bradley_terry_bootstrap, elo_history, round_robin, sample_round_robin
+
+SCORE = {"W": 1.0, "D": 0.5, "L": 0.0}
+BOOTSTRAP = 1000  # bootstrap resamples of Bradley-Terry
+
+
+def elo_games(result: CrossPlay, rounds: int, rng: np.random.Generator, sample: bool = False) -> tuple[np.ndarray, str]:
+    """The round-robin games [rounds x pairs, 3] for Elo and how they were obtained ("played" or "sampled")."""
+    played = min((len(s) for s in result.outcomes.values()), default=0)
+    if not sample and played >= rounds and len(result.outcomes) == result.n * (result.n - 1) // 2:
+        return round_robin(result.n, rounds, lambda a, b, r: SCORE[result.outcomes[f"{a},{b}"][r]], rng), "played"
+    return sample_round_robin(result.wdl, rounds, rng), "sampled"
+
+
+def ratings(result: CrossPlay, rounds: int = 2000, k: float = ELO_K, seed: int = 0, sample: bool = False, bootstrap: int = BOOTSTRAP) -> dict:
+    """Elo (and its trajectory, one point per round), BT with 95 % intervals, the Nash mixture and
+    the exploitabilities, as a JSON-ready dict."""
+    rng = np.random.default_rng(seed)
+    games, how = elo_games(result, rounds, rng, sample)
+    pairs = result.n * (result.n - 1) // 2
+    history = elo_history(games, result.n, k)
+    points = _trajectory_rounds(rounds)
+    bt, lo, hi = bradley_terry_bootstrap(result.wdl, samples=bootstrap, rng=rng)
+    pay = result.payoffs()
+    mix = nash(pay)
+    return {
+        "labels": result.labels,
+        "elo": {"k": k, "start": ELO_START, "rounds": rounds, "games": how, "seed": seed, "ratings": history[-1].tolist(),
+                "trajectory_rounds": [r + 1 for r in points], "trajectory": history[[(r + 1) * pairs for r in points]].tolist()},
+        "bradley_terry": {"ratings": bt.tolist(), "low": lo.tolist(), "high": hi.tolist(), "bootstrap": bootstrap, "draws": "half a win"},
+        "average_win_rate": _nan_to_none(result.average_win_rate()),
+        "payoffs": pay.tolist(),
+        "nash": mix.tolist(),
+        # percentage points of score, 100 x (score - 0.5), score = (wins + draws / 2) / games
+        "nash_exploitability": 50.0 * exploitability(pay, mix),
+        "exploitability_in_population": (50.0 * member_exploitability(pay)).tolist(),
+        "crossplay": {k: result.meta.get(k) for k in ("task", "action_space", "games_per_pair", "seed", "scenario", "competitors")},
+    }
+
+
+def _trajectory_rounds(rounds: int, points: int = 200) -> list[int]:
+    return sorted({int(r) for r in np.linspace(0, rounds - 1, min(points, rounds))})
+
+
+def plot(report: dict, path: Path) -> None:
+    """Two panels: Elo over the rounds, and the final Elo beside Bradley-Terry with its interval."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    labels = report["labels"]
+    e, bt = report["elo"], report["bradley_terry"]
+    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4))
+    traj = np.asarray(e["trajectory"])
+    for i, lab in enumerate(labels):
+        left.plot(e["trajectory_rounds"], traj[:, i], label=lab)
+    left.set_xlabel("round (every pair meets once)")
+    left.set_ylabel("Elo")
+    left.set_title(f"Elo, K={e['k']:g}, {e['rounds']} rounds of {e['games']} games, seed {e['seed']}", fontsize=9)
+    left.legend(fontsize=8)
+    x = np.arange(len(labels))
+    r, lo, hi = (np.asarray(bt[k]) for k in ("ratings", "low", "high"))
+    right.errorbar(x + 0.1, r, yerr=[r - lo, hi - r], fmt="o", capsize=4, label="Bradley-Terry (95 % bootstrap)")
+    right.plot(x - 0.1, e["ratings"], "s", label="Elo (final)")
+    right.set_xticks(x, labels, rotation=30, ha="right")
+    cp = report["crossplay"]
+    right.set_title(f"{cp['task']}: {cp['games_per_pair']} games per pair, cross-play seed {cp['seed']}", fontsize=9)
+    right.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def format_table(report: dict):
+    from rich.table import Table
+
+    e, bt = report["elo"], report["bradley_terry"]
+    table = Table(title=f"ratings on {report['crossplay']['task']}: Elo K={e['k']:g} over {e['rounds']} rounds ({e['games']} games); BT with 95 % bootstrap intervals")
+    for col in ("competitor", "Elo", "Bradley-Terry [95 %]", "avg win rate", "Nash weight", "exploitability in population (pp)"):
+        table.add_column(col, justify="left" if col == "competitor" else "right")
+    for i, lab in enumerate(report["labels"]):
+        avg = report["average_win_rate"][i]
+        table.add_row(
+            lab,
+            f"{e['ratings'][i]:.0f}",
+            f"{bt['ratings'][i]:.0f} [{bt['low'][i]:.0f}, {bt['high'][i]:.0f}]",
+            "n/a" if avg is None else f"{avg:.3f}",
+            f"{report['nash'][i]:.3f}",
+            f"{report['exploitability_in_population'][i]:.1f}",
+        )
+    return table
+
+
+# ------------------------------------------------------------------ command line
+# options of `volleybots eval elo` besides cross-play's (rounds replaces games)
+ELO_OPTIONS = {"rounds": int, "k": float, "bootstrap": int, "sample": bool, "from": str}
+REPORT = "ratings.json"
+PLOT = "ratings.png"
+
+
+def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
+    """``volleybots eval elo``: ratings of games played now (``rounds`` games per pair) or of a
+    cross-play results file (``from=FILE``, whose competitors must be the ones named, if any)."""
+    from volleybots.config import ConfigError
+    from volleybots.eval.crossplay import HEATMAP, OPTIONS, RESULTS, heatmap, out_dir, resolve_all, run_crossplay, split_args
+
+    options = {**{k: v for k, v in OPTIONS.items() if k != "games"}, **ELO_OPTIONS}
+    specs, opts, _ = split_args(args, options)
+    rounds = opts.get("rounds", 2000)
+    if rounds < 1:
+        raise ConfigError(f"rounds={rounds} must be >= 1")
+    if opts.get("k", ELO_K) <= 0 or opts.get("bootstrap", BOOTSTRAP) < 1:
+        raise ConfigError(f"k={opts.get('k')} must be > 0 and bootstrap={opts.get('bootstrap')} >= 1")
+    source = opts.get("from")
+    if source is not None:
+        result = CrossPlay.load(source)
+        if specs:
+            _check_same_competitors(result, resolve_all(specs), source)
+        path = out_dir(out, result.meta.get("task", "task"), "elo")
+        path.mkdir(parents=True, exist_ok=True)
+        sample = True
+    else:
+        if rounds % 2:
+            raise ConfigError(f"rounds={rounds} must be even: the games of every pair are played half on each side")
+        play = [a for a in args if a.partition("=")[0] not in ELO_OPTIONS] + [f"games={rounds}"]
+        result, path = run_crossplay(play, out, progress, verb="elo")
+        sample = opts.get("sample", False)
+    report = ratings(result, rounds, opts.get("k", ELO_K), opts.get("seed", 0), sample, opts.get("bootstrap", BOOTSTRAP))
+    report["source"] = str(source) if source is not None else str(path / RESULTS)
+    (path / REPORT).write_text(json.dumps(report, indent=1) + "\n")
+    plot(report, path / PLOT)
+    if source is not None:
+        heatmap(result, path / HEATMAP)
+    return report, path
+
+
+def _check_same_competitors(result: CrossPlay, competitors, source) -> None:
+    """The competitors named must be the file's: the same labels and the same member files."""
+    from volleybots.config import ConfigError
+
+    mine = [(c.label, [m.get("sha256") for m in c.sources]) for c in competitors]
+    theirs = [(p["label"], [m.get("sha256") for m in p["members"]]) for p in result.meta.get("competitors", [])]
+    if mine != theirs:
+        raise ConfigError(f"{str(source)!r} holds games of {[t[0] for t in theirs]}, not of the competitors named {[m[0] for m in mine]} (or their files changed)")
