@@ -61,6 +61,17 @@ def jobs(args) -> list[tuple[str, str, str, int]]:
     return out
 
 
+def finished_summary(run_dir: Path) -> dict | None:
+    """The summary of a finished run (not repeated), or None; an interrupted run is removed, to start again."""
+    if (run_dir / "summary.json").is_file():
+        return json.loads((run_dir / "summary.json").read_text())
+    if run_dir.exists():
+        import shutil
+
+        shutil.rmtree(run_dir)
+    return None
+
+
 def run_one(job, args) -> dict:
     """Train and evaluate one run (in a worker process); returns its summary."""
     import torch
@@ -70,12 +81,9 @@ def run_one(job, args) -> dict:
 
     task, space, algo, seed = job
     run_dir = Path(args.out) / f"{task}_{space}_{algo}_s{seed}"
-    if (run_dir / "summary.json").is_file():
-        return json.loads((run_dir / "summary.json").read_text())
-    if run_dir.exists():  # an interrupted run: start it again from scratch
-        import shutil
-
-        shutil.rmtree(run_dir)
+    done = finished_summary(run_dir)
+    if done is not None:
+        return done
     torch.set_num_threads(args.threads)
     overrides = [
         f"task={task}", f"algo={algo}", f"env.action_space={space}", f"env.num_envs={args.num_envs}", f"env.device={args.device}",
@@ -149,14 +157,38 @@ def curves(args, stat: str | None = None) -> dict:
         vals = _smooth([r.get(metric, math.nan) for r in rows], 5)
         for col in SPACES if algo == "dqn" else (space,):
             out.setdefault((task, col), {}).setdefault(algo, []).append((frames, vals))
-    mean = {}
+    return mean_over_seeds(out)
+
+
+def mean_over_seeds(out: dict) -> dict:
+    """{panel: {algo: [(frames, values) of each seed]}} -> {panel: {algo: (frames, mean over seeds)}},
+    over the batches every seed reached."""
+    mean: dict = {}
     for key, by_algo in out.items():
         for algo, runs in by_algo.items():
             n = min(len(f) for f, _ in runs)
-            frames = runs[0][0][:n]
-            vals = [_nanmean([v[i] for _, v in runs]) for i in range(n)]
-            mean.setdefault(key, {})[algo] = (frames, vals)
+            mean.setdefault(key, {})[algo] = (runs[0][0][:n], [_nanmean([v[i] for _, v in runs]) for i in range(n)])
     return mean
+
+
+def draw_panel(ax, curves_by_algo: dict, colors: dict, title: str, ylabel: str, label=str.upper) -> None:
+    """One panel of learning curves (env steps on x), one line per algorithm."""
+    for algo, (frames, vals) in sorted(curves_by_algo.items()):
+        ax.plot(frames, vals, color=colors.get(algo), label=label(algo))
+    ax.set_title(title, fontsize=10)
+    ax.set_xlabel("env steps")
+    ax.set_ylabel(ylabel)
+    ax.grid(alpha=0.3)
+
+
+def save_figure(fig, axes, path: Path, title: str) -> None:
+    import matplotlib.pyplot as plt
+
+    axes[0][0].legend(fontsize=8)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def _nanmean(xs):
@@ -187,45 +219,37 @@ def plot(args, path: Path, stat: str | None = None) -> None:
     colors = {"dqn": "tab:red", "ddpg": "tab:blue", "td3": "tab:green", "sac": "tab:purple", "ppo": "tab:orange"}
     for j, task in enumerate(args.tasks):
         for i, space in enumerate(SPACES):
-            ax = axes[i][j]
-            for algo, (frames, vals) in sorted(data.get((task, space), {}).items()):
-                label = f"{algo.upper()}{' (discrete)' if algo == 'dqn' else ''}"
-                ax.plot(frames, vals, color=colors.get(algo), label=label)
-            ax.set_title(f"{TITLES[task]} ({space.upper()})", fontsize=10)
-            ax.set_xlabel("env steps")
-            ax.set_ylabel(f"train episodes: {stat or ENVS[task].metric}")
-            ax.grid(alpha=0.3)
-    axes[0][0].legend(fontsize=8)
-    fig.suptitle(f"{int(args.frames):,} env steps x {len(args.seeds)} seeds, {args.num_envs} envs (mean over seeds, last 5 batches)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+            draw_panel(
+                axes[i][j], data.get((task, space), {}), colors, f"{TITLES[task]} ({space.upper()})",
+                f"train episodes: {stat or ENVS[task].metric}", label=lambda a: f"{a.upper()}{' (discrete)' if a == 'dqn' else ''}",
+            )
+    save_figure(fig, axes, path, f"{int(args.frames):,} env steps x {len(args.seeds)} seeds, {args.num_envs} envs (mean over seeds, last 5 batches)")
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--tasks", type=_csv, default=list(TASKS), help="comma-separated tasks")
-    ap.add_argument("--algos", type=_csv, default=list(ALGOS), help="comma-separated algorithms")
-    ap.add_argument("--spaces", type=_csv, default=list(SPACES), help="comma-separated continuous action spaces")
-    ap.add_argument("--seeds", type=lambda s: [int(x) for x in _csv(s)], default=[0, 1], help="comma-separated seeds")
-    ap.add_argument("--frames", type=float, default=1e5, help="env steps per run")
+def add_run_args(ap, seeds, frames: float, eval_episodes: int, out: str) -> None:
+    """The options of a benchmark's runs (budget, seeds, off-policy scaling, device, parallelism)."""
+    ap.add_argument("--seeds", type=lambda s: [int(x) for x in _csv(s)], default=seeds, help="comma-separated seeds")
+    ap.add_argument("--frames", type=float, default=frames, help="env steps per run")
     ap.add_argument("--num-envs", type=int, default=64, help="parallel envs per run")
     ap.add_argument("--batch-size", type=int, default=1024, help="off-policy sampling batch (paper: 4096)")
     ap.add_argument("--tau", type=float, default=0.05, help="off-policy target Polyak factor (paper: 0.005, see the docstring)")
-    ap.add_argument("--target-update-interval", type=int, default=1, help="off-policy gradient steps between target updates (paper: 4)")
-    ap.add_argument("--eval-episodes", type=int, default=32, help="final deterministic evaluation episodes per run")
+    ap.add_argument("--eval-episodes", type=int, default=eval_episodes, help="final deterministic evaluation episodes per run")
     ap.add_argument("--device", default="cpu", help="torch device of env and networks")
     ap.add_argument("--threads", type=int, default=1, help="torch threads per run")
     ap.add_argument("--jobs", type=int, default=1, help="runs trained at the same time (processes)")
-    ap.add_argument("--out", default="outputs/table1", help="folder of the runs and the results")
-    args = ap.parse_args(argv)
-    for name, given, allowed in (("task", args.tasks, TASKS), ("algo", args.algos, ALGOS), ("space", args.spaces, SPACES)):
+    ap.add_argument("--out", default=out, help="folder of the runs and the results")
+
+
+def check_choices(ap, choices) -> None:
+    """Stop with the argument parser's error on the first ``(name, given, allowed)`` not allowed."""
+    for name, given, allowed in choices:
         bad = [g for g in given if g not in allowed]
         if bad:
             ap.error(f"unknown {name} {bad[0]!r}; allowed: {', '.join(allowed)}")
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    todo = jobs(args)
+
+
+def run_all(run_one, todo, args) -> None:
+    """``run_one(job, args)`` for every job, ``args.jobs`` processes at a time."""
     print(f"# {len(todo)} runs of {int(args.frames):,} env steps, {args.num_envs} envs, {args.jobs} at a time", file=sys.stderr)
     if args.jobs > 1:
         with ProcessPoolExecutor(args.jobs, mp_context=get_context("spawn")) as pool:
@@ -233,6 +257,20 @@ def main(argv=None) -> int:
     else:
         for job in todo:
             run_one(job, args)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--tasks", type=_csv, default=list(TASKS), help="comma-separated tasks")
+    ap.add_argument("--algos", type=_csv, default=list(ALGOS), help="comma-separated algorithms")
+    ap.add_argument("--spaces", type=_csv, default=list(SPACES), help="comma-separated continuous action spaces")
+    add_run_args(ap, seeds=[0, 1], frames=1e5, eval_episodes=32, out="outputs/table1")
+    ap.add_argument("--target-update-interval", type=int, default=1, help="off-policy gradient steps between target updates (paper: 4)")
+    args = ap.parse_args(argv)
+    check_choices(ap, (("task", args.tasks, TASKS), ("algo", args.algos, ALGOS), ("space", args.spaces, SPACES)))
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    run_all(run_one, jobs(args), args)
     res, returns = collect_results(args), collect_results(args, "return")
     table, table_returns = format_table(res, args), format_table(returns, args)
     (out / "table1.json").write_text(json.dumps({"args": vars(args), "metric": res, "return": returns}, indent=1) + "\n")

@@ -104,6 +104,16 @@ def test_psro_run_grows_the_population_and_fills_the_payoffs(tmp_path):
     # the run is a competitor: its members with the final meta-strategy
     comp = resolve_competitor(f"pop={tmp_path / 'run'}")
     assert len(comp.members) == 3 and comp.mixture == meta[-1]["mixture"]
+    # a finished run is refused untouched; more iterations continue it
+    before = (tmp_path / "run" / "config.yaml").read_text()
+    with pytest.raises(ConfigError, match="has finished .*raise algo.iterations"):
+        resume(tmp_path / "run")
+    with pytest.raises(ConfigError, match="cannot change 'algo.solver'"):
+        resume(tmp_path / "run", ["algo.solver=uniform"])
+    assert (tmp_path / "run" / "config.yaml").read_text() == before
+    resume(tmp_path / "run", ["algo.iterations=3"])
+    meta, pay, members = _read(tmp_path / "run")
+    assert [m["iteration"] for m in meta] == [0, 1, 2, 3] and pay["members"] == ["random", "br1", "br2", "br3"]
 
 
 def test_fsp_learner_starts_from_the_previous_one(tmp_path, monkeypatch):

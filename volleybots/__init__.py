@@ -13,9 +13,11 @@ def make_env(task: str, num_envs: int = 1, action_space: str = "prt", physics: s
     Further keywords go to the task (``reward_shaping``, ``substeps``, ``drone``, ``episode_len``, ...);
     ``compile=True`` compiles the physics sub-step with ``torch.compile`` (static shapes).
     """
+    from volleybots.config import check_env_args
     from volleybots.physics import ACTION_SPACES, BACKENDS
     from volleybots.tasks import TASKS
 
+    check_env_args(num_envs=num_envs, seed=seed, **task_overrides)  # a ValueError naming the key
     if task not in TASKS:
         raise ValueError(f"unknown task {task!r}; allowed: {sorted(TASKS)}")
     if action_space not in ACTION_SPACES:

@@ -1,8 +1,9 @@
 """The ``volleybots`` command line: train, eval, replay, list, bench.
 
-Bad input (an unknown name or key, a wrong type, an algorithm that cannot act in the chosen action
-space, a missing or mismatched checkpoint, an output file that exists) prints one line naming the bad
-value and the allowed ones, exits with code 2 and writes nothing.
+Bad input (an unknown name, key, verb or option, a wrong type or an out-of-range value, an algorithm
+that cannot act in the chosen action space, a missing or mismatched checkpoint, an output file that
+exists or cannot be written, a run directory in use) prints one line naming the bad value and the
+allowed ones, exits with code 2 and writes nothing. docs/usage.md lists the guarantees.
 """
 
 from __future__ import annotations
@@ -18,10 +19,51 @@ from typing import List, Optional
 import typer
 from typer.core import TyperGroup
 
+try:  # typer >= 0.2x carries its own copy of click
+    from typer._click import exceptions as click_errors
+except ImportError:
+    from click import exceptions as click_errors
+
 import volleybots
-from volleybots.config import ConfigError
+from volleybots.errors import ConfigError
+
+
+class _Verbs(TyperGroup):
+    """Click's own usage errors (a missing argument, an unknown verb or option, an option without its
+    value) as one line and exit code 2, like every other bad input, not a boxed usage message."""
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        try:
+            rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        except click_errors.ClickException as e:
+            if not standalone_mode:
+                raise
+            if type(e).__name__ == "NoArgsIsHelpError":  # bare `volleybots`: the help, as Click does
+                typer.echo(e.format_message())
+            else:
+                typer.echo(f"error: {_usage_message(self, e)}", err=True)
+            sys.exit(2 if isinstance(e, click_errors.UsageError) else e.exit_code)
+        except typer.Abort:
+            if not standalone_mode:
+                raise
+            typer.echo("error: aborted", err=True)
+            sys.exit(1)
+        if standalone_mode:
+            sys.exit(rv if isinstance(rv, int) else 0)
+        return rv
+
+
+def _usage_message(group, e) -> str:
+    msg = " ".join(e.format_message().split()).rstrip(".")
+    ctx = getattr(e, "ctx", None)
+    where = ctx.command_path if ctx is not None else "volleybots"
+    if msg.startswith("No such command"):
+        msg += f"; allowed: {', '.join(group.commands)}"
+    return f"{msg[:1].lower()}{msg[1:]} (see: {where} --help)"
+
 
 app = typer.Typer(
+    cls=_Verbs,
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
@@ -81,14 +123,42 @@ def _jobs(overrides: list[str], multirun: bool) -> list[list[str]]:
     return [list(c) for c in itertools.product(*choices)] or [[]]
 
 
-def _check_run_dir(overrides: list[str]) -> None:
-    """Refuse an explicit ``hydra.run.dir`` that already holds a run (Hydra would write into it)."""
-    from volleybots.runs import RunDir
+_DIR_KEYS = {False: "hydra.run.dir", True: "hydra.sweep.dir"}
+_NONEMPTY = ("resume", "hydra.run.dir", "hydra.sweep.dir", "hydra.sweep.subdir", "hydra.job.name")
 
+
+def _refuse_flags(args: list[str], allowed: str) -> None:
+    """An option Click passed through (the verbs take Hydra overrides after them) is a misspelt one."""
+    flags = [a for a in args if a.startswith("-")]
+    if flags:
+        raise ConfigError(f"unknown option {flags[0]!r}; allowed: {allowed}")
+
+
+def _refuse_empty(overrides: list[str]) -> None:
+    """``resume=`` or ``hydra.run.dir=`` with nothing after the '=' would silently mean "none" / "here"."""
     for o in overrides:
-        key, _, value = o.partition("=")
-        if key == "hydra.run.dir" and RunDir(value).has_results():
-            raise ConfigError(f"{value} already holds a run; choose another hydra.run.dir or continue it with resume={value}")
+        key, eq, value = o.partition("=")
+        if eq and key.lstrip("+") in _NONEMPTY and not value.strip():
+            raise ConfigError(f"{key}= is empty; give it a value ({key}=DIR) or leave it out")
+
+
+def _claim_dir(job: list[str], overrides: list[str], multirun: bool) -> str:
+    """Resolve the run directory (the sweep's with -m) that Hydra would use and lock it for this
+    process; the default, time-stamped one gets a suffix when taken (two starts in one second)."""
+    from volleybots.config import compose
+    from volleybots.runs import claim_run_dir
+
+    key = _DIR_KEYS[multirun]
+    cfg = compose(job, hydra_node=True)
+    path = str(cfg.hydra.sweep.dir if multirun else cfg.hydra.run.dir)
+    if not path.strip():
+        raise ConfigError(f"{key} is empty; give it a directory")
+    explicit = any(o.partition("=")[0].lstrip("+") == key for o in overrides)
+    return str(claim_run_dir(path, unique=not explicit, sweep=multirun))
+
+
+def _hydra_quote(value: str) -> str:
+    return "'" + value.replace("\\", "\\\\").replace("'", "\\'") + "'"
 
 
 def _run_hydra(overrides: list[str], multirun: bool, extra: list[str]) -> None:
@@ -145,9 +215,8 @@ def train(
 ) -> None:
     """Train a policy; writes a run directory (config, metrics.csv, checkpoints, summary.json, recordings)."""
     overrides = list(overrides or [])
-    flags = [o for o in overrides if o.startswith("-")]
-    if flags:
-        raise ConfigError(f"unknown option {flags[0]!r}; allowed: -m/--multirun, --cfg job|hydra|all, --help")
+    _refuse_flags(overrides, "-m/--multirun, --cfg job|hydra|all, --help")
+    _refuse_empty(overrides)
     if show is not None and show not in ("job", "hydra", "all"):
         raise ConfigError(f"unknown --cfg {show!r}; allowed: job, hydra, all")
     if show is not None and multirun:
@@ -156,7 +225,7 @@ def train(
 
     check_launcher(overrides)
     resume_dir = next((o.partition("=")[2] for o in overrides if o.startswith("resume=")), None)
-    if resume_dir is not None and resume_dir not in ("", "null"):
+    if resume_dir is not None and resume_dir != "null":
         from volleybots.runner import resume
 
         if multirun or show:
@@ -164,7 +233,7 @@ def train(
         summary = resume(resume_dir, [o for o in overrides if not o.startswith("resume=")])
         _echo_summary(summary, resume_dir)
         return
-    from volleybots.config import compose, validate
+    from volleybots.config import check_memory, compose, validate
 
     jobs = _jobs(overrides, multirun)
     cfgs = [validate(compose(job)) for job in jobs]
@@ -174,9 +243,20 @@ def train(
         if len(algos) > 1:
             raise ConfigError(f"the swept tasks train with different default algorithms ({', '.join(algos)}); name one with algo=NAME")
         overrides = [*overrides, f"algo={algos[0]}"]
-    if show is None:
-        _check_run_dir(overrides)
-    _run_hydra(overrides, multirun, [] if show is None else ["--cfg", show])
+    if show is not None:
+        _run_hydra(overrides, multirun, ["--cfg", show])
+        return
+    for cfg in cfgs:
+        check_memory(cfg)
+    from volleybots.runs import unlock
+
+    key = _DIR_KEYS[multirun]
+    run_dir = _claim_dir(_jobs(overrides, multirun)[0], overrides, multirun)
+    try:
+        pinned = [o for o in overrides if o.partition("=")[0].lstrip("+") != key]
+        _run_hydra([*pinned, f"{key}={_hydra_quote(run_dir)}"], multirun, [])
+    finally:
+        unlock(run_dir)
 
 
 # ------------------------------------------------------------------------------------ eval, replay
@@ -210,6 +290,7 @@ def eval_cmd(
     """Play N episodes (episodes=100) and report the task metric's mean / std and every per-term return."""
     from volleybots.eval import evaluate, format_table
 
+    _refuse_flags([target, *(overrides or [])], "--json, --help")
     result = evaluate(target, list(overrides or []))
     if as_json:
         typer.echo(json.dumps(result, indent=2))
@@ -301,11 +382,15 @@ def replay(
     """Record one episode to a rerun file: court, net, drones, ball trail, hits / violations, rewards; for two
     competitors, one match with each team's colour, the touches and the fault that ended the rally."""
     from volleybots.replay import has_display
+    from volleybots.runs import check_writable
 
+    _refuse_flags(args, "--out FILE.rrd, --no-viewer, --help")
     if out is not None and out.suffix != ".rrd":
         raise ConfigError(f"--out {str(out)!r} must end in .rrd")
-    if out is not None and out.exists():
+    if out is not None and (out.exists() or out.is_symlink()):
         raise ConfigError(f"--out {str(out)!r} exists; choose another file (replays never overwrite)")
+    if out is not None:
+        check_writable(out.parent, "the folder of --out")
     viewer = not no_viewer and has_display()
     from volleybots.eval.crossplay import is_competitor_spec, replay_match
 
@@ -322,14 +407,16 @@ def _replay_one(target: str, overrides: list[str], out: Path | None, viewer: boo
     from volleybots.config import make_env
     from volleybots.eval import resolve_target
     from volleybots.replay import record_episode
+    from volleybots.runs import check_writable, make_dir
 
     t = resolve_target(target, overrides)
     if out is None and not viewer:
         stamp = time.strftime("%Y%m%d-%H%M%S")
         base = Path(target) if Path(target).is_dir() else Path("outputs") / "replays"
+        check_writable(base, "the replay folder (choose another with --out)")
         out = _free_path(base / f"replay_{t.cfg.task.name}_{t.label.replace('@', '_')}_{stamp}.rrd")
     if out is not None:
-        out.parent.mkdir(parents=True, exist_ok=True)
+        make_dir(out.parent, "the folder of --out")
     env = make_env(t.cfg, num_envs=1, seed=t.cfg.seed)
     stats = record_episode(env, t.make_policy(env), out, viewer=viewer)
     where = str(out) if out is not None else "the viewer"
@@ -397,7 +484,7 @@ def bench(
         from volleybots.bench import format_table, run_bench
     except ImportError:
         raise ConfigError("the benchmark module volleybots.bench is not available in this install") from None
-    from volleybots.config import parse_value
+    from volleybots.config import check_bench_options, parse_value
 
     allowed = [p for p in inspect.signature(run_bench).parameters if p != "progress"]
     kwargs = {"compile": True} if compile else {}
@@ -406,6 +493,7 @@ def bench(
         if not eq or key not in allowed:
             raise ConfigError(f"unknown bench option {key!r}; allowed: {', '.join(allowed)}")
         kwargs[key] = parse_value(value)
+    kwargs = check_bench_options(kwargs)
     try:
         rows = run_bench(**kwargs, progress=lambda row: typer.echo(f"  measured {row.get('task')} {row.get('kind', 'env')} {row.get('backend')} x{row.get('num_envs')}: {row.get('env_steps_per_s', 0):,.0f}/s", err=True))
     except ValueError as e:

@@ -14,37 +14,38 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import math
 import types
 import typing
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
-from omegaconf import MISSING, DictConfig, OmegaConf
+from omegaconf import MISSING, DictConfig, ListConfig, OmegaConf
 from omegaconf.errors import ConfigKeyError, OmegaConfBaseException, ValidationError
 
+from volleybots.errors import ConfigError, Range, check_device, field_range, ranged
 from volleybots.paths import conf_dir
 
 GROUPS = ("task", "algo", "env")  # config groups selected by `group=option`
 LOGGERS = ("csv", "wandb")
 WANDB_MODES = ("offline", "online", "disabled")
 # constructor arguments of a task that come from the env config (or the run), not the task's YAML
-ENV_ARGS = ("num_envs", "action_space", "physics", "device", "seed", "substeps", "drone", "ball_drag", "downwash", "compile")
+ENV_ARGS = ("num_envs", "action_space", "physics", "device", "seed", "substeps", "drone", "ball_drag", "downwash", "compile", "compile_physics")
+MAX_SEED = 2**63 - 1  # torch generators take 64-bit seeds; evaluation adds an offset to the run's
+MAX_THREADS = 1024  # more torch CPU threads than this is never useful, and a typo of it hangs the machine
 
 
-class ConfigError(ValueError):
-    """A bad user input (unknown name or key, wrong type, incompatible choice): one line, exit code 2."""
-
-
+# Every numeric key carries its valid range (``ranged``); ``validate`` checks them all in one place.
 @dataclass
 class EnvConfig:
     physics: str = "torch"
     action_space: str = "prt"
-    num_envs: int = 256
+    num_envs: int = ranged(256, ge=1)
     device: str = "cpu"
-    substeps: int = 4
+    substeps: int = ranged(4, ge=1)
     drone: str = "iris"
     compile: bool = False
-    ball_drag: float = 0.0
+    ball_drag: float = ranged(0.0, ge=0)
     downwash: bool = True
 
 
@@ -56,14 +57,14 @@ class WandbConfig:
 
 @dataclass
 class CheckpointConfig:
-    every: int = 2_000_000
-    keep: int = 3
+    every: int = ranged(2_000_000, ge=0)
+    keep: int = ranged(3, ge=1)
 
 
 @dataclass
 class EvaluationConfig:
-    every: int = 2_000_000
-    episodes: int = 16
+    every: int = ranged(2_000_000, ge=0)
+    episodes: int = ranged(16, ge=1)
     record: bool = True
 
 
@@ -72,10 +73,10 @@ class Config:
     task: Any = MISSING  # checked against task_schema(task.name)
     algo: Any = MISSING  # checked against the algorithm's config dataclass
     env: EnvConfig = field(default_factory=EnvConfig)
-    seed: int = 0
-    threads: int = 0
-    total_frames: int = 1_000_000
-    time_limit: float = 0.0
+    seed: int = ranged(0, ge=0, le=MAX_SEED)
+    threads: int = ranged(0, ge=0, le=MAX_THREADS)
+    total_frames: int = ranged(1_000_000, ge=1)
+    time_limit: float = ranged(0.0, ge=0)
     resume: Optional[str] = None
     opponent: Optional[str] = None
     opponent_deterministic: bool = False
@@ -84,8 +85,19 @@ class Config:
     wandb: WandbConfig = field(default_factory=WandbConfig)
     checkpoint: CheckpointConfig = field(default_factory=CheckpointConfig)
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
-    episodes: int = 100
+    episodes: int = ranged(100, ge=1)
     deterministic: bool = True
+
+
+# The ranges of the tasks' numeric constructor arguments (the task schemas are derived from the
+# constructors, so their ranges live here, by argument name; a test fails for a numeric one missing).
+TASK_RANGES: dict[str, Range] = {
+    "episode_len": Range(low=1),  # control steps (null: the task's own)
+    "hit_reward": Range(),
+    "height_reward": Range(),
+    "serve": Range(low=0, high=1),  # the serving team (null: random)
+    "target": Range(length=3),  # a fixed hover target, x y z in m (null: random)
+}
 
 
 # ---------------------------------------------------------------------------------------- schemas
@@ -130,7 +142,8 @@ def task_schema(name: str) -> type:
             tp = _omegaconf_type(hints.get(p.name, Any))
             if default is None and tp in (int, float, bool, str):
                 tp = Optional[tp]
-            fields_[p.name] = (tp, dataclasses.field(default=default))
+            meta = {"range": TASK_RANGES[p.name]} if p.name in TASK_RANGES else {}
+            fields_[p.name] = (tp, dataclasses.field(default=default, metadata=meta))
     return dataclasses.make_dataclass(f"{cls.__name__}Config", [(k, t, f) for k, (t, f) in fields_.items()])
 
 
@@ -143,9 +156,15 @@ def _coerce_ints(schema: type, node: dict) -> dict:
         tp, val = hints.get(f.name), node[f.name]
         if dataclasses.is_dataclass(tp) and isinstance(val, dict):
             _coerce_ints(tp, val)
-        elif tp in (int, Optional[int]) and isinstance(val, float) and val.is_integer():
+        elif tp in (int, Optional[int]) and _integral(val):
             node[f.name] = int(val)
+        elif tp in (list[int], Optional[list[int]]) and isinstance(val, list):
+            node[f.name] = [int(v) if _integral(v) else v for v in val]
     return node
+
+
+def _integral(v) -> bool:
+    return isinstance(v, float) and v.is_integer()
 
 
 def _typed(schema: type, node, prefix: str) -> DictConfig:
@@ -169,8 +188,6 @@ def validate(cfg) -> DictConfig:
     """Check a composed config (DictConfig or dict) against the schemas and the registries.
 
     Returns a typed, resolved DictConfig without the ``hydra`` node. Raises ``ConfigError``."""
-    import torch
-
     from volleybots.algos import ALGOS
     from volleybots.physics import ACTION_SPACES, BACKENDS
     from volleybots.tasks import TASKS
@@ -186,12 +203,16 @@ def validate(cfg) -> DictConfig:
         raise ConfigError(f"the config has no algo; choose one with algo=NAME, allowed: {', '.join(ALGOS)}")
     if algo["name"] not in ALGOS:
         raise ConfigError(f"unknown algo {algo['name']!r}; allowed: {', '.join(ALGOS)}")
-    typed_task = _typed(task_schema(task["name"]), task, "task.")
+    task_cls_schema = task_schema(task["name"])
+    typed_task = _typed(task_cls_schema, task, "task.")
     algo_cls = ALGOS[algo["name"]]
     typed_algo = _typed(algo_cls.config_cls, algo, "algo.")
     rest = _typed(Config, {k: v for k, v in data.items() if k not in ("task", "algo")}, "")
     rest.task, rest.algo = typed_task, typed_algo
 
+    check_values(Config, rest, "")
+    check_values(task_cls_schema, typed_task, "task.")
+    check_values(algo_cls.config_cls, typed_algo, "algo.")
     env = rest.env
     for value, allowed, what in (
         (env.action_space, ACTION_SPACES, "env.action_space"),
@@ -202,26 +223,7 @@ def validate(cfg) -> DictConfig:
     ):
         if value not in allowed:
             raise ConfigError(f"unknown {what} {value!r}; allowed: {', '.join(allowed)}")
-    for key, val, low in (
-        ("env.num_envs", env.num_envs, 1),
-        ("env.substeps", env.substeps, 1),
-        ("total_frames", rest.total_frames, 1),
-        ("episodes", rest.episodes, 1),
-        ("checkpoint.keep", rest.checkpoint.keep, 1),
-        ("evaluation.episodes", rest.evaluation.episodes, 1),
-        ("checkpoint.every", rest.checkpoint.every, 0),
-        ("threads", rest.threads, 0),
-        ("time_limit", rest.time_limit, 0),
-        ("evaluation.every", rest.evaluation.every, 0),
-    ):
-        if val < low:
-            raise ConfigError(f"bad value for {key!r}: {val} (must be >= {low})")
-    try:
-        dev = torch.device(env.device)
-    except (RuntimeError, ValueError):
-        raise ConfigError(f"bad value for 'env.device': {env.device!r} is not a torch device (cpu, cuda, cuda:1, ...)") from None
-    if dev.type == "cuda" and not torch.cuda.is_available():
-        raise ConfigError(f"env.device={env.device!r} but no CUDA device is available here; use env.device=cpu")
+    check_device("env.device", env.device)
     if rest.logger == "wandb":
         import importlib.util
 
@@ -231,6 +233,43 @@ def validate(cfg) -> DictConfig:
     if rest.opponent is not None:
         _check_opponent(rest, TASKS[typed_task.name], algo_cls)
     return rest
+
+
+def check_values(schema: type, node, prefix: str) -> None:
+    """The one range check: every numeric field of ``schema`` (nested dataclasses included) against
+    the range in its metadata (``volleybots.errors.ranged``), and no string field empty. Floats
+    without a declared range must still be finite. Raises ``ConfigError`` naming the key."""
+    hints = typing.get_type_hints(schema)
+    for f in dataclasses.fields(schema):
+        if f.name not in node:
+            continue
+        value, key = node[f.name], prefix + f.name
+        if dataclasses.is_dataclass(hints.get(f.name)):
+            check_values(hints[f.name], value, key + ".")
+            continue
+        value = OmegaConf.to_container(value) if isinstance(value, (DictConfig, ListConfig)) else value
+        check_range(key, value, field_range(schema, f.name) or (Range() if isinstance(value, float) else None))
+        if isinstance(value, str) and not value.strip():
+            raise ConfigError(f"bad value for {key!r}: it is empty")
+
+
+def check_range(key: str, value, rng: Range | None) -> None:
+    """Raise ``ConfigError`` naming ``key`` unless ``value`` (None: unset) is in ``rng`` (None: any)."""
+    if rng is None or value is None or rng.holds(value):
+        return
+    each = " each" if isinstance(value, list) and rng.length is None else ""
+    finite = "finite and " if isinstance(value, float) and not math.isfinite(value) and rng.length is None else ""
+    raise ConfigError(f"bad value for {key!r}: {value!r} (must be {finite}{rng}{each})")
+
+
+def check_env_args(**kwargs) -> None:
+    """``volleybots.make_env``'s keywords against the ranges of the config's env and task keys (and
+    ``seed``), so that ``make_env(..., substeps=0)`` is a clear error rather than a ZeroDivisionError."""
+    ranges = {f.name: field_range(s, f.name) for s in (EnvConfig, Config) for f in dataclasses.fields(s)}
+    ranges.update(TASK_RANGES)
+    for key, value in kwargs.items():
+        value = value.tolist() if hasattr(value, "tolist") else list(value) if isinstance(value, tuple) else value
+        check_range(key, value, ranges.get(key))
 
 
 OPPONENT_LEARNERS = ("mappo",)  # learners that can play one team (MAPPO over one drone is PPO)
@@ -420,7 +459,127 @@ def make_env(cfg, num_envs: int | None = None, seed: int | None = None):
     )
 
 
+# --------------------------------------------------------------------------------------- resources
+def check_memory(cfg, worlds: int | None = None) -> None:
+    """Refuse a batch, replay buffer or episode count that cannot fit in memory, before anything is
+    written: a training run (``worlds=None``) holds a batch of ``env.num_envs x algo.steps_per_batch``
+    env steps, its replay buffer and the evaluation's ``evaluation.episodes`` worlds; ``eval`` holds
+    ``worlds`` (its episodes) worlds.
+
+    The need is a lower bound measured on a one-world probe env (the bytes of one env step's
+    tensordict), so a refusal is certain; counts that pass can still run out of memory in the
+    update, which the CLI reports as one line too."""
+    probe = make_env(cfg, num_envs=1, seed=cfg.seed)
+    step_bytes, obs_dim = _step_bytes(probe), int(probe.obs_dim)
+    if worlds is not None:
+        needs = [(worlds * step_bytes, f"episodes={worlds} ({step_bytes} bytes per world)", "episodes", cfg.env.device)]
+    else:
+        a = cfg.algo
+        needs = [
+            (cfg.env.num_envs * a.steps_per_batch * step_bytes,
+             f"env.num_envs={cfg.env.num_envs} x algo.steps_per_batch={a.steps_per_batch} ({step_bytes} bytes per world and step)",
+             "env.num_envs or algo.steps_per_batch", cfg.env.device),
+            (cfg.evaluation.episodes * step_bytes, f"evaluation.episodes={cfg.evaluation.episodes} ({step_bytes} bytes per world)", "evaluation.episodes", cfg.env.device),
+        ]
+        if "buffer_size" in a:  # flat per-drone transitions: observation, next observation, action, reward, flags
+            per = 4 * (2 * obs_dim + max(1, probe.actions.dim if probe.actions.continuous else 1) + 3)
+            needs.append((a.buffer_size * per, f"algo.buffer_size={a.buffer_size} ({per} bytes per transition)", "algo.buffer_size", a.buffer_device or cfg.env.device))
+    check_fits(needs)
+
+
+def check_fits(needs) -> None:
+    """``needs``: (bytes, what needs them, the keys to lower, device); their sums per device must fit."""
+    per_device: dict[str, int] = {}
+    for n, _, _, device in needs:
+        per_device[str(device)] = per_device.get(str(device), 0) + n
+    for device, total in per_device.items():
+        free = available_memory(device)
+        if free is not None and total > free:
+            n, what, keys, _ = max((x for x in needs if str(x[3]) == device), key=lambda x: x[0])
+            raise ConfigError(
+                f"{what} needs at least {_gib(n)} of memory but {device} has {_gib(free)} available; lower {keys}"
+            )
+
+
+def available_memory(device) -> int | None:
+    """Bytes that can still be allocated on ``device`` (RAM plus free swap for the CPU); None if unknown."""
+    import torch
+
+    dev = torch.device(device)
+    if dev.type == "cuda":
+        return int(torch.cuda.mem_get_info(dev)[0])
+    if dev.type != "cpu":
+        return None
+    try:
+        import psutil
+    except ImportError:
+        return None
+    return int(psutil.virtual_memory().available + psutil.swap_memory().free)
+
+
+def _gib(n: int) -> str:
+    return f"{n / 2**30:,.1f} GiB"
+
+
+def _step_bytes(probe) -> int:
+    """The bytes of one step of a one-world ``probe`` env (closed afterwards): the tensordict of
+    observations, actions, rewards, flags and statistics that a batch holds per world and step."""
+    n = int(probe.rand_step(probe.reset()).bytes())
+    close = getattr(probe.physics, "close", None)
+    if close is not None:
+        close()
+    return n
+
+
+@dataclass
+class BenchOptions:
+    """The options of ``volleybots bench`` (the keywords of ``volleybots.bench.run_bench``), typed and
+    ranged like the config; a scalar where a list is expected is taken as a list of one."""
+
+    tasks: Optional[list[str]] = None
+    backends: Optional[list[str]] = None
+    num_envs: Optional[list[int]] = ranged(None, ge=1)
+    devices: Optional[list[str]] = None
+    compile: Any = None  # a bool, or a list of bools to measure both ways
+    repeats: int = ranged(3, ge=1)
+    steps: Optional[int] = ranged(None, ge=1)
+    action_space: str = "prt"
+    threads: Optional[int] = ranged(None, ge=0, le=MAX_THREADS)
+
+
+def check_bench_options(options: dict) -> dict:
+    """The ``volleybots bench`` options ``options`` checked (types, names, ranges, memory) and as
+    plain values; raises ``ConfigError`` naming the first bad one. Only the given keys are returned."""
+    import volleybots
+    from volleybots.physics import ACTION_SPACES, BACKENDS
+    from volleybots.tasks import TASKS
+
+    lists = ("tasks", "backends", "num_envs", "devices")
+    data = {k: (v if isinstance(v, list) or k not in lists else [v]) for k, v in options.items()}
+    for k in lists:
+        if data.get(k) == []:
+            raise ConfigError(f"bad value for {k!r}: an empty list measures nothing")
+    typed = _typed(BenchOptions, data, "")
+    check_values(BenchOptions, typed, "")
+    out = {k: to_dict(typed)[k] for k in data}
+    for key, allowed in (("tasks", sorted(TASKS)), ("backends", list(BACKENDS)), ("action_space", list(ACTION_SPACES))):
+        given = out.get(key)
+        for v in given if isinstance(given, list) else [given] if given is not None else []:
+            if v not in allowed:
+                raise ConfigError(f"unknown {key} {v!r}; allowed: {', '.join(allowed)}")
+    comp = out.get("compile")
+    if comp is not None and not all(isinstance(c, bool) for c in (comp if isinstance(comp, list) else [comp])):
+        raise ConfigError(f"bad value for 'compile': {comp!r} (must be true, false or a list of them)")
+    for d in out.get("devices") or ():
+        check_device("devices", d)
+    n = max(out.get("num_envs") or [1])
+    for task in out.get("tasks") or ["solo_bump"]:
+        step_bytes = _step_bytes(volleybots.make_env(task, num_envs=1, action_space=out.get("action_space", "prt")))
+        check_fits([(n * step_bytes, f"num_envs={n} ({task}, {step_bytes} bytes per world)", "num_envs", d) for d in out.get("devices") or ["cpu"]])
+    return out
+
+
 __all__ = [
     "Config", "ConfigError", "EnvConfig", "algo_action_space", "apply_overrides", "compose", "parse_value", "group_options", "load", "make_env", "task_kwargs",
-    "task_schema", "to_dict", "validate",
+    "task_schema", "to_dict", "validate", "check_values", "check_memory", "check_bench_options", "BenchOptions", "available_memory",
 ]

@@ -14,8 +14,12 @@ def start(cfg, run_dir) -> dict:
     """Start a new run of the validated config ``cfg`` in ``run_dir``."""
     if is_population(cfg):
         from volleybots.population.loop import start as start_population
+        from volleybots.runs import unlock
 
-        return start_population(cfg, run_dir)
+        try:
+            return start_population(cfg, run_dir)
+        finally:
+            unlock(run_dir)  # taken by RunDir.create
     from volleybots.train import train
 
     return train(cfg, run_dir)
@@ -25,10 +29,9 @@ def resume(run_dir, overrides=()) -> dict:
     """Continue the run in ``run_dir`` (``train resume=DIR``)."""
     from volleybots.runs import RunDir
     from volleybots.train import resume as resume_learner
-    from volleybots.train import resume_config
 
     if not is_population(RunDir(run_dir).load_config()):
         return resume_learner(run_dir, overrides)
     from volleybots.population.loop import resume as resume_population
 
-    return resume_population(run_dir, resume_config(run_dir, overrides))
+    return resume_population(run_dir, overrides)

@@ -9,6 +9,12 @@ Layout of a run::
     curves.rrd             the training curves as a rerun recording (rebuilt from metrics.csv)
     eval_<frames>.rrd      one recorded evaluation episode per periodic evaluation
     .hydra/                Hydra's own record of the overrides (when started by `volleybots train`)
+    .lock                  locked (``fcntl.flock``) by the process training in the directory
+
+A directory is used by one process at a time: the one holding the lock on ``.lock``. The operating
+system drops the lock when that process ends, however it ends, so a killed run never leaves its
+directory stuck. A directory whose run wrote no checkpoint (killed or crashed early) holds nothing
+worth keeping: a new run or ``resume=`` starts it afresh.
 
 Checkpoints hold tensors, numbers, strings and plain containers only, so that
 ``torch.load(path, weights_only=True)`` reads them.
@@ -16,20 +22,31 @@ Checkpoints hold tensors, numbers, strings and plain containers only, so that
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import itertools
 import json
 import math
 import os
 import re
+import socket
+import sys
 from pathlib import Path
 
 import torch
 from omegaconf import OmegaConf
 
-from volleybots.config import ConfigError, to_dict, validate
+from volleybots.config import to_dict, validate
+from volleybots.errors import ConfigError
+
+try:
+    import fcntl
+except ImportError:  # not on Windows: run directories are then not locked
+    fcntl = None
 
 CKPT_FORMAT = 1
 _CKPT = re.compile(r"ckpt_(\d+)\.pt$")
+LOCK_NAME = ".lock"
 
 
 class RunDir:
@@ -50,16 +67,77 @@ class RunDir:
         """Whether a run already wrote here (starting another one would overwrite it)."""
         return any(p.exists() for p in (self.config_path, self.metrics_path, self.ckpt_dir, self.summary_path))
 
+    def has_checkpoint(self) -> bool:
+        return bool(self.periodic_checkpoints()) or self.final_path.is_file()
+
+    def checkpoint_stamp(self) -> tuple:
+        """The checkpoints' names and modification times: a change means another process trained here."""
+        paths = [*self.periodic_checkpoints(), *([self.final_path] if self.final_path.is_file() else [])]
+        return tuple((p.name, p.stat().st_mtime_ns) for p in paths)
+
     def create(self, cfg) -> None:
-        if self.has_results():
+        """Write the config of a new run, holding the directory's lock (``train`` releases it). A run
+        killed before its first checkpoint is cleared first; one with a checkpoint is refused."""
+        make_dir(self.path, "the run directory")
+        lock(self.path)
+        if self.has_checkpoint():
+            unlock(self.path)
             raise ConfigError(f"{self.path} already holds a run; choose another hydra.run.dir or continue it with resume={self.path}")
-        self.path.mkdir(parents=True, exist_ok=True)
-        self.config_path.write_text(OmegaConf.to_yaml(OmegaConf.create(to_dict(cfg))))
+        if self.has_results():
+            self.clear_unfinished()
+        self.write_config(cfg)
+
+    def write_config(self, cfg) -> None:
+        """config.yaml, replaced at once (a reader never sees half of it)."""
+        tmp = self.config_path.with_suffix(".yaml.tmp")
+        tmp.write_text(OmegaConf.to_yaml(OmegaConf.create(to_dict(cfg))))
+        os.replace(tmp, self.config_path)
+
+    def clear_unfinished(self) -> None:
+        """Remove what a run killed before its first checkpoint left (nothing of it can be resumed),
+        saying so on stderr; Hydra's records and user files stay."""
+        rows = max(0, sum(1 for _ in self.metrics_path.open()) - 1) if self.metrics_path.is_file() else 0
+        note(f"{self.path} held a run that wrote no checkpoint ({rows} metrics rows): starting it afresh")
+        stale = [self.config_path, self.metrics_path, self.summary_path, self.curves_path, *self.path.glob("eval_*.rrd")]
+        stale += list(self.ckpt_dir.glob("*.tmp")) if self.ckpt_dir.is_dir() else []
+        for p in stale:
+            p.unlink(missing_ok=True)
+        if self.ckpt_dir.is_dir() and not any(self.ckpt_dir.iterdir()):
+            self.ckpt_dir.rmdir()
 
     def load_config(self):
+        """The run's validated config; a damaged or hand-broken config.yaml is one line naming it."""
         if not self.is_run():
             raise ConfigError(f"{self.path} is not a run directory (no config.yaml)")
-        return validate(OmegaConf.to_container(OmegaConf.load(self.config_path), resolve=True))
+        try:
+            data = OmegaConf.to_container(OmegaConf.load(self.config_path), resolve=True)
+        except Exception as e:  # noqa: BLE001 - YAML and OmegaConf errors alike: the file is damaged
+            raise ConfigError(f"{self.config_path} is damaged ({' '.join(str(e).split())[:200]}); restore it or start a new run") from None
+        if not isinstance(data, dict):
+            raise ConfigError(f"{self.config_path} is damaged (not a mapping of config keys); restore it or start a new run")
+        try:
+            return validate(data)
+        except ConfigError as e:
+            raise ConfigError(f"{self.config_path}: {e}") from None
+
+    def check_metrics(self) -> None:
+        """Refuse a damaged metrics.csv before a resume rewrites it. Its last row may be cut short
+        (a kill while writing): the resume drops it anyway, with every row after the checkpoint."""
+        if not self.metrics_path.is_file():
+            return
+        try:
+            with self.metrics_path.open(newline="") as f:
+                reader = csv.DictReader(f)
+                if "frames" not in (reader.fieldnames or []):
+                    raise ValueError("no 'frames' column in the header")
+                rows = list(reader)
+        except (ValueError, csv.Error, UnicodeDecodeError) as e:
+            raise ConfigError(f"{self.metrics_path} is damaged ({e}); move it away to resume without the old rows") from None
+        for i, r in enumerate(rows[:-1], start=2):
+            if not _is_number(r.get("frames")):
+                raise ConfigError(
+                    f"{self.metrics_path} is damaged (line {i}: frames {r.get('frames')!r} is not a number); move it away to resume without the old rows"
+                )
 
     # ---------------------------------------------------------------------------- checkpoints
     def periodic_checkpoints(self) -> list[Path]:
@@ -67,13 +145,19 @@ class RunDir:
         return [p for _, p in sorted(found)]
 
     def latest_checkpoint(self) -> Path | None:
-        """The checkpoint with the most frames (final.pt included)."""
+        """The checkpoint with the most frames (final.pt included); a damaged one is a ConfigError naming it."""
         cands = self.periodic_checkpoints()
         if self.final_path.is_file():
             cands.append(self.final_path)
         if not cands:
             return None
-        return max(cands, key=lambda p: read_checkpoint(p)["frames"])
+        return max(cands, key=self._frames_of)
+
+    def _frames_of(self, path: Path) -> int:
+        try:
+            return int(read_checkpoint(path)["frames"])
+        except ConfigError as e:
+            raise ConfigError(f"{e}; move it out of {self.ckpt_dir} to use the run's other checkpoints") from None
 
     def save_checkpoint(self, state: dict, final: bool = False, keep: int = 3) -> Path:
         self.ckpt_dir.mkdir(parents=True, exist_ok=True)
@@ -115,12 +199,28 @@ def _to_device(state, device):
     return state
 
 
-def load_algo_state(algo, state: dict, what: str, cfg) -> None:
-    """Load a checkpoint's algorithm state into ``algo``; a mismatch is a user error naming ``what``."""
+def load_algo_state(algo, state: dict, what: str, cfg, side: str = "run") -> None:
+    """Load a checkpoint's algorithm state into ``algo``; a mismatch is a user error naming ``what``
+    and both sides: "checkpoint is solo_bump (obs 32, prt, ppo), run is hover (obs 26, prt, ppo)"."""
+    saved = state.get("config") or {}
+    theirs = (state.get("task"), state.get("obs_dim"), state.get("action_space"), (saved.get("algo") or {}).get("name"))
+    mine = (cfg.task.name, algo.obs_dim, cfg.env.action_space, cfg.algo.name)
+    # what the checkpoint does not record (an older or a population member's) is not compared
+    mine = tuple(m if t is not None else None for m, t in zip(mine, theirs))
+    theirs, mine = _describe(*theirs), _describe(*mine)
+    if theirs != mine:
+        raise ConfigError(f"{what} does not match: checkpoint is {theirs}, {side} is {mine}")
     try:
         algo.load_state_dict(_to_device(state["algo"], algo.device))
     except (RuntimeError, KeyError, ValueError) as e:
-        raise ConfigError(f"{what} does not match algo {cfg.algo.name!r} on task {cfg.task.name!r}: {str(e).splitlines()[0]}") from None
+        lines = [" ".join(line.split()) for line in str(e).splitlines() if line.strip()]
+        detail = (lines[1] if len(lines) > 1 else lines[0] if lines else type(e).__name__).rstrip(".")
+        raise ConfigError(f"{what} does not match the networks of the {side} ({theirs}): {detail}") from None
+
+
+def _describe(task, obs_dim, action_space, algo) -> str:
+    detail = ", ".join(str(x) for x in (f"obs {obs_dim}" if obs_dim is not None else None, action_space, algo) if x is not None)
+    return f"{task or '?'} ({detail})"
 
 
 class MetricsLog:
@@ -133,7 +233,8 @@ class MetricsLog:
             with self.path.open(newline="") as f:
                 reader = csv.DictReader(f)
                 self.fields = list(reader.fieldnames or [])
-                rows = [r for r in reader if float(r["frames"]) <= keep_until_frames]
+                # a row cut short by a kill has no number in frames (RunDir.check_metrics allows it last)
+                rows = [r for r in reader if _is_number(r["frames"]) and float(r["frames"]) <= keep_until_frames]
             with self.path.open("w", newline="") as f:
                 w = csv.DictWriter(f, self.fields)
                 w.writeheader()
@@ -166,7 +267,7 @@ def read_metrics(path) -> list[dict[str, float | str]]:
     return out
 
 
-def _is_number(v: str) -> bool:
+def _is_number(v) -> bool:
     try:
         float(v)
     except (TypeError, ValueError):
@@ -190,6 +291,148 @@ def write_curves(metrics_csv, out_path) -> None:
                 if k in ("frames", "phase") or not isinstance(v, float) or math.isnan(v):
                     continue
                 rec.log(f"{phase}/{k}", rr.Scalars(v))
+
+
+# ------------------------------------------------------------------------------ locks and directories
+_HELD: dict[str, list] = {}  # resolved path -> [lock file descriptor, times locked by this process]
+
+
+class InUseError(ConfigError):
+    """The directory is locked by another process."""
+
+
+def lock(path) -> None:
+    """Take the exclusive lock of the directory ``path`` for this process (again: counted), or raise
+    ``ConfigError`` naming the process that holds it. ``fcntl.flock`` locks die with their process."""
+    key = str(Path(path).resolve())
+    if key in _HELD:
+        _HELD[key][1] += 1
+        return
+    if fcntl is None:
+        return
+    lock_path = Path(key) / LOCK_NAME
+    try:
+        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as e:
+        raise ConfigError(f"cannot lock {str(path)!r}: {e.strerror} ({lock_path})") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        holder = os.read(fd, 200).decode(errors="replace").strip() or "another process"
+        os.close(fd)
+        raise InUseError(f"{path} is in use by {holder}; wait for it to finish or choose another directory") from None
+    os.ftruncate(fd, 0)
+    os.write(fd, f"process {os.getpid()} on {socket.gethostname()}\n".encode())
+    _HELD[key] = [fd, 1]
+
+
+def unlock(path) -> None:
+    key = str(Path(path).resolve())
+    held = _HELD.get(key)
+    if held is None:
+        return
+    held[1] -= 1
+    if held[1] == 0:
+        del _HELD[key]
+        os.close(held[0])  # closing the descriptor drops the flock
+
+
+@contextlib.contextmanager
+def locked(path):
+    lock(path)
+    try:
+        yield
+    finally:
+        unlock(path)
+
+
+def check_writable(path, what: str) -> None:
+    """Raise ``ConfigError`` unless the directory ``path`` exists and is writable or can be created:
+    no file in the way and permission to write in its nearest existing ancestor. Writes nothing."""
+    path = Path(path).absolute()
+    probe = path
+    while not probe.exists() and probe != probe.parent:
+        if probe.is_symlink():  # a dangling link: mkdir would fail on it
+            raise ConfigError(f"{what} {str(path)!r} cannot be created: {probe} is a broken link")
+        probe = probe.parent
+    if not probe.is_dir():
+        raise ConfigError(f"{what} {str(path)!r} cannot be created: {probe} is a file, not a directory")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise ConfigError(f"{what} {str(path)!r} cannot be written: no permission to write in {probe}")
+
+
+def make_dir(path, what: str) -> Path:
+    """Create the directory ``path`` (with its parents) or raise ``ConfigError`` naming it."""
+    check_writable(path, what)
+    try:
+        Path(path).mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise ConfigError(f"{what} {str(path)!r} cannot be created: {e.strerror}") from None
+    return Path(path)
+
+
+def claim_run_dir(path, unique: bool, sweep: bool = False) -> Path:
+    """Lock a directory for a new run (or, with ``sweep``, a ``-m`` sweep's parent) and return it.
+
+    With ``unique`` (Hydra's time-stamped default) the first free one of ``path``, ``path_2``,
+    ``path_3``, ... is taken, so runs started in the same second never share one. Otherwise ``path``
+    itself, refused while another process uses it or while it holds a run with a checkpoint (a run
+    killed before its first checkpoint is cleared by ``RunDir.create``)."""
+    path = Path(path)
+    for n in itertools.count(1):
+        cand = path if n == 1 else path.with_name(f"{path.name}_{n}")
+        if _taken(cand, unique, sweep):  # checked before locking too: a refusal writes nothing
+            continue
+        make_dir(cand, "hydra.sweep.dir" if sweep else "the run directory")
+        try:
+            lock(cand)
+        except InUseError:
+            if unique:
+                continue
+            raise
+        try:
+            free = not _taken(cand, unique, sweep)  # again under the lock: another process may have been first
+        except ConfigError:
+            unlock(cand)
+            raise
+        if free:
+            return cand
+        unlock(cand)
+    raise AssertionError("unreachable")
+
+
+def _taken(path: Path, unique: bool, sweep: bool) -> bool:
+    """Whether a new run may not use ``path``: it holds a run with a checkpoint (refused unless
+    ``unique``, which moves on to the next name), or with ``unique`` anything of a run at all."""
+    if not path.is_dir():
+        return False
+    runs = [RunDir(c) for c in path.iterdir() if c.is_dir()] if sweep else [RunDir(path)]
+    done = [r.path for r in runs if r.has_checkpoint()]
+    if unique:
+        return bool(done) or any(r.has_results() for r in runs)
+    if done and sweep:
+        raise ConfigError(f"{path} already holds runs ({done[0]}); choose another hydra.sweep.dir")
+    if done:
+        raise ConfigError(f"{path} already holds a run; choose another hydra.run.dir or continue it with resume={path}")
+    return False
+
+
+@contextlib.contextmanager
+def memory_errors_as(what: str):
+    """Turn an out-of-memory error of torch (CPU or CUDA) or Python into one ``ConfigError`` line
+    naming ``what`` (the counts that asked for the memory): ``check_memory`` only knows a lower bound."""
+    try:
+        yield
+    except (MemoryError, RuntimeError) as e:
+        oom = isinstance(e, (MemoryError, torch.OutOfMemoryError)) or any(s in str(e) for s in ("can't allocate memory", "out of memory"))
+        if not oom:
+            raise
+        raise ConfigError(f"ran out of memory with {what}; lower them ({' '.join(str(e).split())[:160]})") from None
+
+
+def note(msg: str) -> None:
+    """A line on stderr for what the user should know but that is no error (a run started afresh)."""
+    print(f"note: {msg}", file=sys.stderr, flush=True)
 
 
 class WandbLogger:

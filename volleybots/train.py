@@ -29,9 +29,13 @@ import torch
 
 import volleybots
 from volleybots.algos.base import AgentSpec
-from volleybots.config import ConfigError, apply_overrides, make_env, to_dict
+from volleybots.config import apply_overrides, check_memory, make_env, to_dict
+from volleybots.errors import ConfigError
 from volleybots.eval import run_episodes, summarize
-from volleybots.runs import CKPT_FORMAT, MetricsLog, RunDir, WandbLogger, load_algo_state, read_checkpoint, write_curves
+from volleybots.runs import (
+    CKPT_FORMAT, MetricsLog, RunDir, WandbLogger, check_writable, load_algo_state, lock, memory_errors_as, read_checkpoint, unlock,
+    write_curves,
+)
 
 # keys a resumed run may change: how long it goes on and how it reports, not what it learns
 RESUME_KEYS = ("total_frames", "time_limit", "progress", "threads", "logger", "wandb", "checkpoint", "evaluation", "env.device")
@@ -379,29 +383,58 @@ class _progress:
 
 
 def train(cfg, run_dir) -> dict:
-    """Start a new run of the validated config ``cfg`` in ``run_dir``."""
+    """Start a new run of the validated config ``cfg`` in ``run_dir``, holding its lock while it trains."""
+    check_memory(cfg)
     run = RunDir(run_dir)
     run.create(cfg)
-    return Trainer(cfg, run).fit()
+    try:
+        with memory_errors_as(_counts(cfg)):
+            return Trainer(cfg, run).fit()
+    finally:
+        unlock(run.path)
 
 
-def resume_config(run_dir, overrides=()):
-    """The saved config of the run in ``run_dir`` with the overrides a resume may make."""
+def resume_config(run_dir, overrides=(), keys=RESUME_KEYS):
+    """The saved config of the run in ``run_dir`` with the overrides a resume may make (``keys``)."""
     base = RunDir(run_dir).load_config()
-    return apply_overrides(to_dict(base), overrides, RESUME_KEYS, f"run {str(run_dir)!r} (resume)")
+    return apply_overrides(to_dict(base), overrides, keys, f"run {str(run_dir)!r} (resume)")
 
 
 def resume(run_dir, overrides=()) -> dict:
-    """Continue the run in ``run_dir`` from its latest checkpoint (``train resume=DIR``)."""
+    """Continue the run in ``run_dir`` from its latest checkpoint (``train resume=DIR``); a run killed
+    before its first checkpoint starts afresh, saying so.
+
+    Everything is checked before anything is written (the config and overrides, the checkpoint
+    against the run's task and networks, metrics.csv, memory); the run's lock is then taken, so a
+    second resume of the same run is refused."""
+    if not str(run_dir).strip():
+        raise ConfigError("resume= needs a run directory: resume=RUN_DIR")
     run = RunDir(run_dir)
     cfg = resume_config(run_dir, overrides)
+    check_writable(run.path, "the run directory")
     ckpt = run.latest_checkpoint()
-    if ckpt is None:
-        raise ConfigError(f"run {str(run_dir)!r} has no checkpoint to resume from")
-    done = int(read_checkpoint(ckpt)["frames"])
-    if done >= cfg.total_frames:
-        raise ConfigError(f"run {str(run_dir)!r} already has {done} frames >= total_frames={cfg.total_frames}; raise total_frames to continue it")
-    from omegaconf import OmegaConf
+    stamp = run.checkpoint_stamp()
+    if ckpt is not None:
+        done = int(read_checkpoint(ckpt)["frames"])
+        if done >= cfg.total_frames:
+            raise ConfigError(f"run {str(run_dir)!r} already has {done} frames >= total_frames={cfg.total_frames}; raise total_frames to continue it")
+        run.check_metrics()
+    check_memory(cfg)
+    with memory_errors_as(_counts(cfg)):
+        trainer = Trainer(cfg, run, checkpoint=ckpt)  # a checkpoint that does not fit the run fails here
+        lock(run.path)
+        try:
+            if run.checkpoint_stamp() != stamp:
+                raise ConfigError(f"run {str(run_dir)!r} was trained by another process while this one checked it; run the command again")
+            if ckpt is None:
+                run.clear_unfinished()
+            run.write_config(cfg)
+            return trainer.fit()
+        finally:
+            unlock(run.path)
 
-    run.config_path.write_text(OmegaConf.to_yaml(OmegaConf.create(to_dict(cfg))))
-    return Trainer(cfg, run, checkpoint=ckpt).fit()
+
+def _counts(cfg) -> str:
+    """The config's counts that decide the memory a run takes, for an out-of-memory message."""
+    buffer = f", algo.buffer_size={cfg.algo.buffer_size}" if "buffer_size" in cfg.algo else ""
+    return f"env.num_envs={cfg.env.num_envs}, algo.steps_per_batch={cfg.algo.steps_per_batch}, evaluation.episodes={cfg.evaluation.episodes}{buffer}"

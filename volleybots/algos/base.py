@@ -15,10 +15,11 @@ from typing import Any, Callable, ClassVar
 from tensordict import TensorDictBase
 from torch import nn
 
-from volleybots.config import ConfigError
+from volleybots.errors import ConfigError
 from volleybots.physics import ACTION_SPACES
 
 ACTIVATIONS = {"elu": nn.ELU, "relu": nn.ReLU, "tanh": nn.Tanh, "leaky_relu": nn.LeakyReLU}
+TASK_KINDS = ("single", "cooperative", "competitive")  # one drone; several drones in one team; two teams
 
 
 @dataclass(frozen=True)
@@ -44,6 +45,8 @@ class Algorithm(ABC):
     config_cls: ClassVar[type]
     action_spaces: ClassVar[tuple[str, ...]] = ACTION_SPACES  # action spaces it can act in
     multi_agent: ClassVar[bool] = False  # whether it trains tasks with several drones
+    # the kinds of task (TASK_KINDS) it trains; None: "single", and every kind when ``multi_agent``
+    task_kinds: ClassVar[tuple[str, ...] | None] = None
 
     def __init__(self, cfg, env):
         """``env`` is the env it trains on or an ``AgentSpec`` (a team of a match)."""
@@ -71,6 +74,19 @@ class Algorithm(ABC):
 
             multi = [n for n, a in ALGOS.items() if a.multi_agent]
             raise ConfigError(f"algo {cls.name!r} trains one drone but task {task_cls.name!r} has {n_drones}; use one of: {', '.join(multi)}")
+        kind, kinds = task_kind(task_cls), cls.supported_kinds()
+        if kind not in kinds:
+            from volleybots.tasks import TASKS
+
+            allowed = [n for n, t in TASKS.items() if task_kind(t) in kinds]
+            raise ConfigError(f"algo {cls.name!r} trains {' or '.join(kinds)} tasks but task {task_cls.name!r} is {kind}; allowed tasks: {', '.join(allowed)}")
+
+    @classmethod
+    def supported_kinds(cls) -> tuple[str, ...]:
+        """The kinds of task (``TASK_KINDS``) this algorithm trains."""
+        if cls.task_kinds is not None:
+            return cls.task_kinds
+        return TASK_KINDS if cls.multi_agent else ("single",)
 
     @property
     def steps_per_batch(self) -> int:
@@ -93,11 +109,11 @@ class Algorithm(ABC):
         ...
 
 
-def check_at_least(cfg, keys, low=1) -> None:
-    """Raise ``ConfigError`` naming the first ``algo.<key>`` below ``low``."""
-    for key in keys:
-        if getattr(cfg, key) < low:
-            raise ConfigError(f"bad value for 'algo.{key}': {getattr(cfg, key)} (must be >= {low})")
+def task_kind(task_cls) -> str:
+    """``single`` (one drone), ``cooperative`` (several drones, one team) or ``competitive`` (two teams)."""
+    if class_attr(task_cls, "n_drones") == 1:
+        return "single"
+    return "competitive" if class_attr(task_cls, "competitive") else "cooperative"
 
 
 def class_attr(cls, name: str):

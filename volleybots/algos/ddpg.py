@@ -4,7 +4,6 @@ with smooth-L1 TD(0) loss, target actor and critic, Gaussian exploration noise o
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
 
 import torch
 from tensordict.nn import TensorDictModule
@@ -13,19 +12,19 @@ from torchrl.modules import ValueOperator
 from torchrl.objectives import DDPGLoss
 
 from volleybots.algos.offpolicy import OffPolicy, OffPolicyConfig, QNet, net
+from volleybots.errors import ranged
 
 
 @dataclass
 class DDPGConfig(OffPolicyConfig):
     name: str = "ddpg"
-    exploration_noise: float = 0.1
+    exploration_noise: float = ranged(0.1, ge=0)
 
 
 class DDPG(OffPolicy):
     name = "ddpg"
     config_cls = DDPGConfig
     info_keys = ("q_pred", "q_target")
-    limits: ClassVar[dict] = {**OffPolicy.limits, "exploration_noise": (0, None)}
 
     def build(self) -> None:
         cfg = self.cfg

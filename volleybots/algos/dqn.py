@@ -5,24 +5,24 @@ the online network's argmax valued by the target network."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import ClassVar
+from dataclasses import dataclass
 
 import torch
 from torchrl.modules import QValueActor
 from torchrl.objectives import DQNLoss
 
 from volleybots.algos.offpolicy import OffPolicy, OffPolicyConfig, net
+from volleybots.errors import ranged
 
 
 @dataclass
 class DQNConfig(OffPolicyConfig):
     name: str = "dqn"
-    hidden: list[int] = field(default_factory=lambda: [256, 128])
+    hidden: list[int] = ranged(factory=lambda: [256, 128], ge=1)
     double_q: bool = False
-    eps_start: float = 1.0
-    eps_end: float = 0.05
-    eps_anneal_frames: int = 200_000
+    eps_start: float = ranged(1.0, ge=0, le=1)
+    eps_end: float = ranged(0.05, ge=0, le=1)
+    eps_anneal_frames: int = ranged(200_000, ge=0)
 
 
 class DQN(OffPolicy):
@@ -30,7 +30,6 @@ class DQN(OffPolicy):
     config_cls = DQNConfig
     action_spaces = ("discrete",)
     info_keys = ("q_max",)
-    limits: ClassVar[dict] = {**OffPolicy.limits, "eps_start": (0, 1), "eps_end": (0, 1), "eps_anneal_frames": (0, None)}
 
     def build(self) -> None:
         self.qnet = net(self.obs_dim, self.action_dim, self.cfg).to(self.device)

@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import math
 from abc import abstractmethod
-from dataclasses import dataclass, field
 from typing import ClassVar
+from dataclasses import dataclass
 
 import torch
 from tensordict import TensorDict, TensorDictBase
@@ -31,7 +31,7 @@ from torchrl.modules import MLP
 from torchrl.objectives import LossModule, SoftUpdate
 
 from volleybots.algos.base import ACTIVATIONS, Algorithm
-from volleybots.config import ConfigError
+from volleybots.errors import ConfigError, check_device, ranged
 
 OBS = ("agents", "observation")
 ACTION = ("agents", "action")
@@ -42,37 +42,40 @@ CRITIC_LOSSES = ("smooth_l1", "l2", "l1")  # TorchRL's distance losses; smooth_l
 @dataclass
 class OffPolicyConfig:
     name: str = ""
-    steps_per_batch: int = 64
-    lr: float = 5e-4
-    max_grad_norm: float = 10.0
-    buffer_size: int = 1_000_000
+    steps_per_batch: int = ranged(64, ge=1)
+    lr: float = ranged(5e-4, gt=0)
+    max_grad_norm: float = ranged(10.0, gt=0)
+    buffer_size: int = ranged(1_000_000, ge=1)
     buffer_device: str | None = None
-    batch_size: int = 4096
-    warmup_batches: int = 4
+    batch_size: int = ranged(4096, ge=1)
+    warmup_batches: int = ranged(4, ge=1)
     random_warmup: bool = True
-    replay_ratio: float = 8.0
-    gamma: float = 0.95
+    replay_ratio: float = ranged(8.0, gt=0)
+    gamma: float = ranged(0.95, gt=0, le=1)
     critic_loss: str = "smooth_l1"
-    reward_scale: float = 1.0
-    tau: float = 0.005
-    target_update_interval: int = 4
-    hidden: list[int] = field(default_factory=lambda: [256, 128, 128])
+    reward_scale: float = ranged(1.0, gt=0)
+    tau: float = ranged(0.005, gt=0, le=1)
+    target_update_interval: int = ranged(4, ge=1)
+    hidden: list[int] = ranged(factory=lambda: [256, 128, 128], ge=1)
     activation: str = "elu"
     layer_norm: bool = True
     checkpoint_buffer: bool = False
 
 
+def net_kwargs(cfg) -> dict:
+    """TorchRL ``MLP`` / ``MultiAgentMLP`` keywords of every actor and critic here: ``cfg.hidden``
+    cells, optional LayerNorm after each hidden layer (the reference's choice for these methods)."""
+    return {
+        "num_cells": list(cfg.hidden),
+        "activation_class": ACTIVATIONS[cfg.activation],
+        "norm_class": nn.LayerNorm if cfg.layer_norm else None,
+        "norm_kwargs": [{"normalized_shape": h} for h in cfg.hidden] if cfg.layer_norm else None,
+    }
+
+
 def net(in_dim: int, out_dim: int, cfg) -> MLP:
-    """The MLP of every actor and critic here: ``cfg.hidden`` cells, optional LayerNorm after each
-    hidden layer (the reference's choice for these methods)."""
-    return MLP(
-        in_features=in_dim,
-        out_features=out_dim,
-        num_cells=list(cfg.hidden),
-        activation_class=ACTIVATIONS[cfg.activation],
-        norm_class=nn.LayerNorm if cfg.layer_norm else None,
-        norm_kwargs=[{"normalized_shape": h} for h in cfg.hidden] if cfg.layer_norm else None,
-    )
+    """The MLP of every single-agent actor and critic here (``net_kwargs``)."""
+    return MLP(in_features=in_dim, out_features=out_dim, **net_kwargs(cfg))
 
 
 class QNet(nn.Module):
@@ -111,6 +114,38 @@ def transitions(batch: TensorDictBase) -> TensorDict:
     ).reshape(-1)
 
 
+def joint_transitions(batch: TensorDictBase) -> TensorDict:
+    """A collected batch [N, T] as joint transitions [N, T] that keep all drones of a step together
+    under ``("agents", ...)`` (what a centralised critic or a mixer needs). ``done``/``terminated``
+    stay shared at the root and are also given per drone, for TorchRL's per-agent TD targets."""
+    obs = batch.get(OBS)
+    shape = obs.shape[:-1]  # N, T, A
+
+    def per_agent(key):
+        return batch.get(("next", key)).unsqueeze(-2).expand(*shape, 1)
+
+    nxt = batch.get("next")
+    return TensorDict(
+        {
+            "agents": TensorDict({"observation": obs, "action": batch.get(ACTION)}, batch_size=shape),
+            "next": {
+                "agents": TensorDict(
+                    {
+                        "observation": batch.get(("next", *OBS)),
+                        "reward": batch.get(("next", *REWARD)),
+                        "done": per_agent("done"),
+                        "terminated": per_agent("terminated"),
+                    },
+                    batch_size=shape,
+                ),
+                "done": nxt.get("done"),
+                "terminated": nxt.get("terminated"),
+            },
+        },
+        batch_size=shape[:-1],
+    )
+
+
 class OffPolicy(Algorithm):
     """Replay buffer, warm-up, gradient steps, target updates and checkpoints of the four methods."""
 
@@ -119,36 +154,21 @@ class OffPolicy(Algorithm):
     loss: LossModule
     optims: dict[str, tuple[torch.optim.Optimizer, list[nn.Parameter]]]
     info_keys: tuple[str, ...] = ()  # the diagnostics ``losses`` returns besides the losses
+    reward_key: ClassVar[tuple[str, ...]] = ("next", "reward")  # the reward of a replay item (``reward_scale``)
 
-    # the numeric config keys' allowed ranges, (low, high) with None for no bound; a method adds its own
-    limits: ClassVar[dict[str, tuple[float | None, float | None]]] = {
-        "steps_per_batch": (1, None), "buffer_size": (1, None), "batch_size": (1, None), "warmup_batches": (1, None),
-        "target_update_interval": (1, None), "tau": (0, 1), "gamma": (0, 1), "lr": (0, None), "max_grad_norm": (0, None),
-        "replay_ratio": (0, None), "reward_scale": (0, None),
-    }
-    positive: ClassVar[tuple[str, ...]] = ("tau", "lr", "max_grad_norm", "replay_ratio", "reward_scale")  # > 0, not >= 0
 
     @classmethod
     def check(cls, cfg, task_cls, action_space):
         super().check(cfg, task_cls, action_space)
         if cfg.critic_loss not in CRITIC_LOSSES:
             raise ConfigError(f"unknown algo.critic_loss {cfg.critic_loss!r}; allowed: {', '.join(CRITIC_LOSSES)}")
-        for key, (low, high) in cls.limits.items():
-            value = getattr(cfg, key)
-            strict = key in cls.positive
-            if (low is not None and (value <= low if strict else value < low)) or (high is not None and value > high):
-                rng = f"{'>' if strict else '>='} {low}" if high is None else f"in {'(' if strict else '['}{low}, {high}]"
-                raise ConfigError(f"bad value for 'algo.{key}': {value} (must be {rng})")
         if cfg.warmup_batches * cfg.batch_size > cfg.buffer_size:
             raise ConfigError(
                 f"bad value for 'algo.warmup_batches': {cfg.warmup_batches} x algo.batch_size {cfg.batch_size} "
                 f"must fit in algo.buffer_size = {cfg.buffer_size}"
             )
         if cfg.buffer_device is not None:
-            try:
-                torch.device(cfg.buffer_device)
-            except (RuntimeError, ValueError):
-                raise ConfigError(f"bad value for 'algo.buffer_device': {cfg.buffer_device!r} is not a torch device") from None
+            check_device("algo.buffer_device", cfg.buffer_device)
 
     def __init__(self, cfg, env, seed: int = 0):
         super().__init__(cfg, env)
@@ -163,7 +183,7 @@ class OffPolicy(Algorithm):
         self.buffer = TensorDictReplayBuffer(
             storage=LazyTensorStorage(cfg.buffer_size, device=buffer_device), batch_size=cfg.batch_size, generator=self.rb_gen
         )
-        self.frames = 0  # transitions written to the buffer so far
+        self.frames = 0  # env steps collected so far (summed over envs)
         self.grad_steps = 0
 
     # ------------------------------------------------------------------ to be written by a method
@@ -225,17 +245,22 @@ class OffPolicy(Algorithm):
         groups = [f"{k}_{g}" for g in self.optims for k in ("loss", "grad_norm")]
         return ["buffer_size", "grad_steps", *groups, *self.info_keys]
 
+    def replay_items(self, batch: TensorDictBase) -> TensorDict:
+        """What one collection [N, T] writes to the replay buffer, one item per first index: per-drone
+        transitions here; a multi-agent method keeps a step's drones (or a whole chunk) together."""
+        return transitions(batch)
+
     def update(self, batch: TensorDictBase) -> dict[str, float]:
-        data = transitions(batch)
+        data = self.replay_items(batch)
         if self.cfg.reward_scale != 1.0:
-            data["next", "reward"] = data["next", "reward"] * self.cfg.reward_scale
+            data[self.reward_key] = data[self.reward_key] * self.cfg.reward_scale
         self.buffer.extend(data.to(self.buffer.storage.device))
-        self.frames += data.numel()
+        self.frames += batch.numel()  # env steps (epsilon schedules anneal over these)
         logs = dict.fromkeys(self.log_keys(), math.nan)
         if not self.warming_up:
             sums: dict[str, float] = {}
             counts: dict[str, int] = {}
-            for _ in range(self.gradient_steps(data.numel())):
+            for _ in range(self.gradient_steps(len(data))):
                 for k, v in self.train_step(self.buffer.sample().to(self.device)).items():
                     sums[k] = sums.get(k, 0.0) + v
                     counts[k] = counts.get(k, 0) + 1
@@ -278,9 +303,11 @@ class OffPolicy(Algorithm):
         }
         if self.cfg.checkpoint_buffer:
             n = len(self.buffer)
+            data = self.buffer.storage[:n]
             state["buffer"] = {
-                "data": self.buffer.storage[:n].to("cpu").to_dict() if n else {},
+                "data": data.to("cpu").to_dict() if n else {},
                 "cursor": torch.tensor(self.buffer._writer._cursor),
+                "batch_dims": torch.tensor(data.batch_dims if n else 1),  # items of QMIX's chunks are [T]
             }
         return state
 
@@ -294,9 +321,9 @@ class OffPolicy(Algorithm):
         self.buffer.empty()
         saved = state.get("buffer")
         if saved and saved["data"]:
-            data = TensorDict(saved["data"]).auto_batch_size_(batch_dims=1)
+            data = TensorDict(saved["data"]).auto_batch_size_(batch_dims=int(saved.get("batch_dims", 1)))
             self.buffer.extend(data.to(self.buffer.storage.device))
             self.buffer._writer._cursor = int(saved["cursor"])
 
 
-__all__ = ["OffPolicy", "OffPolicyConfig", "QNet", "net", "transitions"]
+__all__ = ["OffPolicy", "OffPolicyConfig", "QNet", "joint_transitions", "net", "net_kwargs", "transitions"]

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 from volleybots.algos.base import class_attr
 from volleybots.algos.ppo import MAPPO, MAPPOConfig, PPO
-from volleybots.config import ConfigError
+from volleybots.errors import ConfigError, ranged
 
 INITS = ("scratch", "last")
 
@@ -23,13 +23,13 @@ class PopulationConfig(MAPPOConfig):
     solver: str = "nash"
     learner_init: str = "scratch"
     self_play: bool = False
-    iterations: int = 10
-    min_updates: int = 20
-    max_updates: int = 300
-    win_window: int = 10
-    win_mean: float = 0.9
-    win_std: float = 0.05
-    payoff_games: int = 100
+    iterations: int = ranged(10, ge=1)
+    min_updates: int = ranged(20, ge=1)
+    max_updates: int = ranged(300, ge=1)
+    win_window: int = ranged(10, ge=1)
+    win_mean: float = ranged(0.9, ge=0, le=1)
+    win_std: float = ranged(0.05, ge=0)
+    payoff_games: int = ranged(100, ge=1)
     seed_members: list[str] = field(default_factory=lambda: ["random"])
     opponent_deterministic: bool = False
     eval_opponent: str = "random"
@@ -64,6 +64,7 @@ class PopulationMethod(PPO):
     name = "psro_nash"
     config_cls = PopulationConfig
     multi_agent = True
+    task_kinds = ("competitive",)
     population = True
     learner_cls = MAPPO
 
@@ -87,9 +88,6 @@ class PopulationMethod(PPO):
         from volleybots.eval.pool import check_pool
 
         check_pool(cfg.payoff_pool, "algo.payoff_pool")
-        for key in ("iterations", "min_updates", "max_updates", "win_window", "payoff_games"):
-            if getattr(cfg, key) < 1:
-                raise ConfigError(f"bad value for 'algo.{key}': {getattr(cfg, key)} (must be >= 1)")
         if cfg.max_updates < cfg.min_updates:
             raise ConfigError(f"algo.max_updates={cfg.max_updates} is below algo.min_updates={cfg.min_updates}")
         if not cfg.self_play and not cfg.seed_members:

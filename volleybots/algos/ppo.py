@@ -12,7 +12,7 @@ clips to [-1, 1] (the log-probability is that of the unclipped sample); ``discre
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import torch
 from tensordict import TensorDictBase
@@ -23,8 +23,8 @@ from torchrl.modules import IndependentNormal, PopArtValueNorm, ProbabilisticAct
 from torchrl.objectives.multiagent import MAPPOLoss
 from torchrl.objectives.utils import ValueEstimators
 
-from volleybots.algos.base import Algorithm, check_at_least, mlp
-from volleybots.config import ConfigError
+from volleybots.algos.base import Algorithm, mlp
+from volleybots.errors import ConfigError, ranged
 
 OBS = ("agents", "observation")
 OBS_NORM = ("agents", "observation_norm")
@@ -36,24 +36,24 @@ VALUE = ("agents", "state_value")
 @dataclass
 class PPOConfig:
     name: str = "ppo"
-    steps_per_batch: int = 64
-    epochs: int = 4
-    minibatches: int = 16
-    actor_lr: float = 5e-4
-    critic_lr: float = 5e-4
-    max_grad_norm: float = 10.0
-    clip_epsilon: float = 0.1
-    entropy_coeff: float = 0.001
-    critic_coeff: float = 1.0
-    huber_delta: float = 10.0
-    gamma: float = 0.995
-    gae_lambda: float = 0.95
+    steps_per_batch: int = ranged(64, ge=1)
+    epochs: int = ranged(4, ge=1)
+    minibatches: int = ranged(16, ge=1)
+    actor_lr: float = ranged(5e-4, gt=0)
+    critic_lr: float = ranged(5e-4, gt=0)
+    max_grad_norm: float = ranged(10.0, gt=0)
+    clip_epsilon: float = ranged(0.1, gt=0, lt=1)
+    entropy_coeff: float = ranged(0.001, ge=0)
+    critic_coeff: float = ranged(1.0, ge=0)
+    huber_delta: float = ranged(10.0, gt=0)
+    gamma: float = ranged(0.995, gt=0, le=1)
+    gae_lambda: float = ranged(0.95, ge=0, le=1)
     normalize_advantage: bool = True
     value_norm: bool = True
     obs_norm: bool = False
-    hidden: list[int] = field(default_factory=lambda: [256, 128, 128])
+    hidden: list[int] = ranged(factory=lambda: [256, 128, 128], ge=1)
     activation: str = "elu"
-    init_log_std: float = 0.0
+    init_log_std: float = ranged(0.0, ge=-20, le=20)  # beyond, exp() of it under/overflows in float32
     centralised_critic: bool = False
 
 
@@ -106,6 +106,41 @@ class Critic(nn.Module):
         return v if self.value_norm is None else self.value_norm.denormalize(v)
 
 
+class Scaled(nn.Sequential):
+    """``net`` followed by a state-independent Gaussian scale, for a ``net`` of any number of inputs."""
+
+    def forward(self, *inputs):
+        return self[1](self[0](*inputs))
+
+
+def make_actor(net: nn.Module, in_keys, action_dim: int, cfg, continuous: bool, group: tuple[str, ...] = ("agents",)):
+    """The policy over ``net``'s output (reading ``in_keys``): a Gaussian with a state-independent
+    standard deviation (continuous) or a Categorical over logits (discrete). Writes the action and
+    its log-probability under ``group``. Returns the actor and the scale module (None if discrete)."""
+
+    def key(name):
+        return (*group, name) if group else name
+
+    if continuous:
+        std = AddStateIndependentNormalScale(action_dim, init_value=cfg.init_log_std)
+        head = TensorDictModule(Scaled(net, std), in_keys, [key("loc"), key("scale")])
+        dist_keys, dist_cls = [key("loc"), key("scale")], IndependentNormal
+    else:
+        std = None
+        head = TensorDictModule(net, in_keys, [key("logits")])
+        dist_keys, dist_cls = [key("logits")], torch.distributions.Categorical
+    actor = ProbabilisticActor(
+        head, in_keys=dist_keys, out_keys=[key("action")], distribution_class=dist_cls, return_log_prob=True, log_prob_key=key("action_log_prob")
+    )
+    return actor, std
+
+
+def add_logs(sums: dict[str, float], logs: dict) -> None:
+    """Add a step's scalars (tensors or numbers) to running sums."""
+    for k, v in logs.items():
+        sums[k] = sums.get(k, 0.0) + float(v.detach().mean() if isinstance(v, torch.Tensor) else v)
+
+
 class PPO(Algorithm):
     name = "ppo"
     config_cls = PPOConfig
@@ -113,7 +148,6 @@ class PPO(Algorithm):
     @classmethod
     def check(cls, cfg, task_cls, env_cfg):
         super().check(cfg, task_cls, env_cfg)
-        check_at_least(cfg, ("steps_per_batch", "epochs", "minibatches"))
         frames = env_cfg.num_envs * cfg.steps_per_batch
         if frames < cfg.minibatches:
             raise ConfigError(
@@ -125,24 +159,10 @@ class PPO(Algorithm):
         dev = self.device
         self.obs_norm = TensorDictModule(ObsNorm(self.obs_dim), [OBS], [OBS_NORM]).to(dev) if cfg.obs_norm else None
         obs_in = self._obs_in = OBS_NORM if cfg.obs_norm else OBS
-        if self.continuous:
-            net = nn.Sequential(
-                mlp(self.obs_dim, self.action_dim, cfg.hidden, cfg.activation, out_gain=0.01),
-                AddStateIndependentNormalScale(self.action_dim, init_value=cfg.init_log_std),
-            )
-            head = TensorDictModule(net, [obs_in], [("agents", "loc"), ("agents", "scale")])
-            self._std = net[1]
-            dist_keys, dist_cls = [("agents", "loc"), ("agents", "scale")], IndependentNormal
-        else:
-            net = mlp(self.obs_dim, self.action_dim, cfg.hidden, cfg.activation, out_gain=0.01)
-            head = TensorDictModule(net, [obs_in], [("agents", "logits")])
-            self._std = None
-            dist_keys, dist_cls = [("agents", "logits")], torch.distributions.Categorical
-        self.actor = ProbabilisticActor(
-            head, in_keys=dist_keys, out_keys=[ACTION], distribution_class=dist_cls, return_log_prob=True, log_prob_key=LOG_PROB
-        ).to(dev)
+        self.actor, self._std = self.build_actor(obs_in)
+        self.actor.to(dev)
         self.value_norm = PopArtValueNorm(shape=1, device=dev) if cfg.value_norm else None
-        self.critic = TensorDictModule(Critic(self.obs_dim, self.n_agents, cfg, self.value_norm), [obs_in], [VALUE]).to(dev)
+        self.critic = self.build_critic(obs_in).to(dev)
         self.loss = HuberMAPPOLoss(
             self.actor,
             self.critic,
@@ -152,21 +172,37 @@ class PPO(Algorithm):
             huber_delta=cfg.huber_delta,
             critic_coeff=cfg.critic_coeff,
             normalize_advantage=cfg.normalize_advantage,
+            **self.loss_options,
         )
         self.loss.set_keys(
             action=ACTION, sample_log_prob=LOG_PROB, value=VALUE, reward=("agents", "reward"), done="done", terminated="terminated"
         )
-        self.loss.make_value_estimator(ValueEstimators.MAGAE, gamma=cfg.gamma, lmbda=cfg.gae_lambda)
-        self.optim = torch.optim.Adam(
-            [
-                {"params": list(self.actor.parameters()), "lr": cfg.actor_lr},
-                {"params": list(self.critic.parameters()), "lr": cfg.critic_lr},
-            ]
-        )
+        self.loss.make_value_estimator(ValueEstimators.MAGAE, gamma=cfg.gamma, lmbda=cfg.gae_lambda, **self.value_options)
+        self.optim = torch.optim.Adam(self.param_groups())
         self.gen = torch.Generator(device=dev)  # minibatch shuffling, checkpointed with the rest
         self.gen.manual_seed(seed)
         self._policy = TensorDictSequential(self.obs_norm, self.actor) if self.obs_norm is not None else self.actor
 
+    # ------------------------------------------------------------ what a variant (happo, mat) replaces
+    loss_options: dict = {}  # extra keywords of the loss (a network shared by actor and critic: functional=False)
+    value_options: dict = {}  # extra keywords of TorchRL's multi-agent GAE
+
+    def build_actor(self, obs_in):
+        """One actor shared by all drones: (policy module, Gaussian scale module or None)."""
+        net = mlp(self.obs_dim, self.action_dim, self.cfg.hidden, self.cfg.activation, out_gain=0.01)
+        return make_actor(net, [obs_in], self.action_dim, self.cfg, self.continuous)
+
+    def build_critic(self, obs_in):
+        return TensorDictModule(Critic(self.obs_dim, self.n_agents, self.cfg, self.value_norm), [obs_in], [VALUE])
+
+    def param_groups(self) -> list[dict]:
+        """Adam's parameter groups; each is also gradient-clipped on its own."""
+        return [
+            {"params": list(self.actor.parameters()), "lr": self.cfg.actor_lr},
+            {"params": list(self.critic.parameters()), "lr": self.cfg.critic_lr},
+        ]
+
+    # ------------------------------------------------------------------------------------ shared
     def policy(self, deterministic: bool = False):
         mode = ExplorationType.DETERMINISTIC if deterministic else ExplorationType.RANDOM
 
@@ -176,41 +212,55 @@ class PPO(Algorithm):
 
         return act
 
-    def update(self, batch: TensorDictBase) -> dict[str, float]:
-        cfg = self.cfg
+    def prepare(self, batch: TensorDictBase) -> TensorDictBase:
+        """GAE advantages and value targets of a collected batch [N, T], flattened to [N * T] with
+        only what the losses read (so that minibatch indexing copies no more than it must)."""
         batch = batch.exclude("stats", ("next", "stats"))
         with torch.no_grad():
             if self.obs_norm is not None:
                 self.obs_norm(batch["next"])  # the same statistics the rollout used
             self.loss.value_estimator(batch)
-        # only what the loss reads, so that minibatch indexing copies no more than it must
-        flat = batch.select(self._obs_in, ACTION, LOG_PROB, VALUE, "advantage", "value_target").reshape(-1)
-        n = flat.numel()
-        size = n // cfg.minibatches
-        sums: dict[str, float] = {}
-        actor_params = list(self.actor.parameters())
-        critic_params = list(self.critic.parameters())
-        for _ in range(cfg.epochs):
-            perm = torch.randperm(n, generator=self.gen, device=self.gen.device).to(flat.device)
-            for i in range(cfg.minibatches):
-                out = self.loss(flat[perm[i * size : (i + 1) * size]])
-                loss = out["loss_objective"] + out["loss_critic"] + out.get("loss_entropy", 0.0)
-                self.optim.zero_grad(set_to_none=True)
-                loss.backward()
-                gn_a = nn.utils.clip_grad_norm_(actor_params, cfg.max_grad_norm)
-                gn_c = nn.utils.clip_grad_norm_(critic_params, cfg.max_grad_norm)
-                self.optim.step()
-                logs = {k: out[k] for k in ("loss_objective", "loss_critic", "loss_entropy", "entropy", "kl_approx", "clip_fraction", "explained_variance") if k in out.keys()}
-                logs.update(grad_norm_actor=gn_a, grad_norm_critic=gn_c)
-                for k, v in logs.items():
-                    sums[k] = sums.get(k, 0.0) + float(v.detach().mean())
+        return batch.select(self._obs_in, ACTION, LOG_PROB, VALUE, "advantage", "value_target").reshape(-1)
+
+    def minibatches(self, n: int):
+        """Index tensors of ``epochs`` x ``minibatches`` shuffled minibatches of ``n`` samples."""
+        size = n // self.cfg.minibatches
+        for _ in range(self.cfg.epochs):
+            perm = torch.randperm(n, generator=self.gen, device=self.gen.device).to(self.device)
+            for i in range(self.cfg.minibatches):
+                yield perm[i * size : (i + 1) * size]
+
+    def step(self, loss: torch.Tensor, groups) -> list[torch.Tensor]:
+        """One Adam step on ``loss``; each parameter list of ``groups`` is clipped to ``max_grad_norm``
+        on its own. Returns the gradient norms before clipping."""
+        self.optim.zero_grad(set_to_none=True)
+        loss.backward()
+        norms = [nn.utils.clip_grad_norm_(params, self.cfg.max_grad_norm) for params in groups]
+        self.optim.step()
+        return norms
+
+    def finish_update(self, batch: TensorDictBase, sums: dict[str, float], steps: int) -> dict[str, float]:
+        """Update the observation statistics after learning; the mean of the summed logs."""
         if self.obs_norm is not None:
             self.obs_norm.module.stats.update(batch["next"][OBS])
-        steps = cfg.epochs * cfg.minibatches
         logs = {k: v / steps for k, v in sums.items()}
         if self._std is not None:
             logs["action_std"] = float(self._std.state_independent_scale.detach().exp().mean())
         return logs
+
+    def update(self, batch: TensorDictBase) -> dict[str, float]:
+        cfg = self.cfg
+        flat = self.prepare(batch)
+        sums: dict[str, float] = {}
+        groups = [g["params"] for g in self.optim.param_groups]  # actor, critic
+        for idx in self.minibatches(flat.numel()):
+            out = self.loss(flat[idx])
+            loss = out["loss_objective"] + out["loss_critic"] + out.get("loss_entropy", 0.0)
+            gn_a, gn_c = self.step(loss, groups)
+            logs = {k: out[k] for k in ("loss_objective", "loss_critic", "loss_entropy", "entropy", "kl_approx", "clip_fraction", "explained_variance") if k in out.keys()}
+            logs.update(grad_norm_actor=gn_a, grad_norm_critic=gn_c)
+            add_logs(sums, logs)
+        return self.finish_update(batch, sums, cfg.epochs * cfg.minibatches)
 
     def state_dict(self) -> dict:
         return {

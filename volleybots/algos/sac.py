@@ -5,7 +5,6 @@ policy's entropy toward ``target_entropy_scale x action_dim``."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
 
 import torch
 from tensordict.nn import NormalParamExtractor, TensorDictModule
@@ -14,22 +13,21 @@ from torchrl.modules import ProbabilisticActor, TanhNormal, ValueOperator
 from torchrl.objectives import SACLoss
 
 from volleybots.algos.offpolicy import OffPolicy, OffPolicyConfig, QNet, net
+from volleybots.errors import ranged
 
 
 @dataclass
 class SACConfig(OffPolicyConfig):
     name: str = "sac"
-    alpha_init: float = 0.1
-    alpha_lr: float = 5e-4
-    target_entropy_scale: float = -0.5
+    alpha_init: float = ranged(0.1, gt=0)
+    alpha_lr: float = ranged(5e-4, gt=0)
+    target_entropy_scale: float = ranged(-0.5, ge=-10, le=10)  # x action_dim: the entropy the temperature aims at
 
 
 class SAC(OffPolicy):
     name = "sac"
     config_cls = SACConfig
     info_keys = ("alpha", "entropy")
-    limits: ClassVar[dict] = {**OffPolicy.limits, "alpha_init": (0, None), "alpha_lr": (0, None)}
-    positive: ClassVar[tuple] = (*OffPolicy.positive, "alpha_init", "alpha_lr")
 
     def build(self) -> None:
         cfg = self.cfg

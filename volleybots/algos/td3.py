@@ -5,25 +5,24 @@ and an actor updated every ``policy_delay`` critic updates."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
 
 from torchrl.objectives import TD3Loss
 
 from volleybots.algos.ddpg import DDPG, DDPGConfig
+from volleybots.errors import ranged
 
 
 @dataclass
 class TD3Config(DDPGConfig):
     name: str = "td3"
-    policy_delay: int = 2
-    target_noise: float = 0.1
-    noise_clip: float = 0.2
+    policy_delay: int = ranged(2, ge=1)
+    target_noise: float = ranged(0.1, ge=0)
+    noise_clip: float = ranged(0.2, ge=0)
 
 
 class TD3(DDPG):
     name = "td3"
     config_cls = TD3Config
-    limits: ClassVar[dict] = {**DDPG.limits, "policy_delay": (1, None), "target_noise": (0, None), "noise_clip": (0, None)}
 
     def make_loss(self, actor, critic):
         return TD3Loss(

@@ -19,8 +19,9 @@ import torch
 from torchrl.envs.utils import step_mdp
 
 from volleybots.competitors import scripted_policy
-from volleybots.config import ConfigError, apply_overrides, load, make_env, to_dict
-from volleybots.runs import RunDir, load_algo_state, read_checkpoint
+from volleybots.config import apply_overrides, check_memory, load, make_env, to_dict
+from volleybots.errors import ConfigError
+from volleybots.runs import RunDir, load_algo_state, memory_errors_as, read_checkpoint
 
 POLICY_NAMES = ("scripted", "random", "hierarchical")  # hierarchical: 3v3, the hierarchical team on both sides
 # keys of a checkpoint's config that evaluation may change; the rest fix what the policy was trained on
@@ -106,7 +107,7 @@ def resolve_target(target: str, overrides=()) -> Target:
         algo_cls = getattr(algo_cls, "learner_cls", algo_cls)  # a population method's learner
         # built for the agents it learned for (a team's learner acts for every drone alike: its actor is per drone)
         algo = algo_cls(cfg.algo, AgentSpec.of(env, int(state.get("n_agents", env.n_drones))), seed=cfg.seed)
-        load_algo_state(algo, state, f"checkpoint {str(ckpt)!r}", cfg)
+        load_algo_state(algo, state, f"checkpoint {str(ckpt)!r}", cfg, side="its config")
         return algo.policy(deterministic=cfg.deterministic)
 
     return Target(f"{cfg.algo.name}@{int(state['frames'])}", cfg, Path(ckpt), make_policy)
@@ -126,9 +127,10 @@ def evaluate(target: str, overrides=(), episodes: int | None = None) -> dict:
     """Play ``episodes`` (default: the config's ``episodes``) and summarise them."""
     t = resolve_target(target, overrides)
     n = int(episodes or t.cfg.episodes)
-    env = make_env(t.cfg, num_envs=n, seed=t.cfg.seed)
-    policy = t.make_policy(env)
-    res = run_episodes(env, policy)
+    check_memory(t.cfg, worlds=n)
+    with memory_errors_as(f"episodes={n}"):
+        env = make_env(t.cfg, num_envs=n, seed=t.cfg.seed)
+        res = run_episodes(env, t.make_policy(env))
     out = summarize(res, env.metric)
     out.update(
         target=t.label,

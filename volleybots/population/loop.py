@@ -33,7 +33,6 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from omegaconf import OmegaConf
 
 import volleybots
 from volleybots.competitors import (
@@ -43,8 +42,9 @@ from volleybots.config import ConfigError, to_dict, validate
 from volleybots.eval.pool import head_to_heads
 from volleybots.population.payoffs import PayoffTable, plot, write_atomic
 from volleybots.population.solvers import SOLVERS
-from volleybots.runs import CKPT_FORMAT, RunDir, read_checkpoint
-from volleybots.train import SelfPlay, Trainer, Versus
+from volleybots.runs import CKPT_FORMAT, RunDir, check_writable, locked, read_checkpoint
+from volleybots.train import RESUME_KEYS as TRAIN_RESUME_KEYS
+from volleybots.train import SelfPlay, Trainer, Versus, resume_config
 
 ITERATION_SEED = 1_000  # iteration i runs with seed + i * ITERATION_SEED
 GAMES_SEED = 500_000  # payoff games of member k against j use seed + GAMES_SEED + 1000 k + j
@@ -288,8 +288,29 @@ def start(cfg, run_dir) -> dict:
     return PopulationLoop(cfg, run).fit()
 
 
-def resume(run_dir, cfg) -> dict:
-    """Continue a population run whose (validated, possibly extended) config is ``cfg``."""
+RESUME_KEYS = (*TRAIN_RESUME_KEYS, "algo.iterations")  # a population run may also be given more iterations
+
+
+def resume(run_dir, overrides=()) -> dict:
+    """Continue a population run (``train resume=DIR``, overrides within ``RESUME_KEYS``).
+
+    Everything is checked before anything is written: the config and overrides, that the run dir is
+    writable, that its member files and meta-strategies read back, and that something is left to do;
+    then the run's lock is taken (a second resume is refused) and the config written."""
     run = RunDir(run_dir)
-    run.config_path.write_text(OmegaConf.to_yaml(OmegaConf.create(to_dict(cfg))))
-    return PopulationLoop(cfg, run).fit()
+    cfg = resume_config(run_dir, overrides, RESUME_KEYS)
+    check_writable(run.path, "the run directory")
+    loop = PopulationLoop(cfg, run)
+    for path in population_members(run.path):
+        read_checkpoint(path)  # a damaged member is one line naming it
+    metas = loop.metas()
+    done = sum(1 for m in metas if m["iteration"] >= 1)
+    frames = metas[-1]["frames"] if metas else 0
+    if done >= cfg.algo.iterations or frames >= cfg.total_frames:
+        raise ConfigError(
+            f"run {str(run_dir)!r} has finished ({done} iteration(s), {frames} frames); "
+            f"raise algo.iterations (now {cfg.algo.iterations}) or total_frames (now {cfg.total_frames}) to continue it"
+        )
+    with locked(run.path):
+        run.write_config(cfg)
+        return loop.fit()

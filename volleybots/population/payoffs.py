@@ -96,6 +96,8 @@ def plot(table: PayoffTable, mixture, path: Path, title: str = "") -> None:
     ax.set_title("payoff of row vs column\n(wins - losses) / games", fontsize=8)
     fig.colorbar(im, ax=ax, fraction=0.046)
     bx.barh(range(n), mixture)
+    for i, w in enumerate(mixture):
+        bx.text(min(w + 0.03, 0.7), i, f"{w:.2f}", va="center", fontsize=7)
     bx.set_yticks(range(n), [""] * n)
     bx.invert_yaxis()
     bx.set_xlim(0, 1)
