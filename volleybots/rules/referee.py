@@ -232,7 +232,6 @@ class Referee:
         """Rally faults with blame: drone faults on the drone's team, ball faults on the last hitter's
         team (the serving team if nobody hit yet is handled by last_hitter = -1 -> nobody), a ball
         landing in a half on that half's team. Both teams faulting in one step is a draw."""
-        n = self.num_envs
         team_oh = torch.nn.functional.one_hot(self.team, 2).bool()  # [D, 2]
 
         def per_team(flags):  # [N, D] -> [N, 2]

@@ -37,7 +37,7 @@ from torchrl.envs import EnvBase
 from volleybots.physics import WorldParams, make_action_space, make_physics
 from volleybots.physics.math import quat_axes, quat_rotate
 from volleybots.physics.params import BallParams, DroneParams
-from volleybots.physics.torch_backend import masked_select
+from volleybots.physics.torch_backend import compile_options
 from volleybots.rules import Referee
 from volleybots.tasks.layout import ObsLayout, for_action_space, root_layout
 
@@ -143,7 +143,7 @@ class VolleyEnv(EnvBase):
         self.compiled = bool(compile_physics) and physics == "torch"  # MuJoCo steps in its own native code
         self._step_fn, self._reset_fn = self._step_core, self._reset_core
         if self.compiled:
-            opts = dict(dynamic=False, fullgraph=True, backend=COMPILE_BACKEND)
+            opts = compile_options(COMPILE_BACKEND)
             self._step_fn = torch.compile(self._step_core, **opts)
             self._reset_fn = torch.compile(self._reset_core, **opts)
 
