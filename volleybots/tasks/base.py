@@ -39,6 +39,7 @@ from volleybots.physics.math import quat_axes, quat_rotate
 from volleybots.physics.params import BallParams, DroneParams
 from volleybots.physics.torch_backend import compile_options
 from volleybots.rules import Referee
+from volleybots.tasks.layout import ObsLayout, for_action_space, root_layout
 
 PARKED_BALL = (-100.0, 0.0, 0.1)  # where tasks without a ball keep it, resting on the ground far away
 COMPILE_BACKEND = "inductor"  # torch.compile backend of compile=True (tests use "eager": same guards, no codegen)
@@ -82,13 +83,24 @@ class VolleyEnv(EnvBase):
     n_drones: int = 1
     teams: tuple[int, ...] = (0,)
     episode_len: int = 800
-    obs_dim_prt: int = 0  # observation size with rotor throttles; CTBR drops 4
+    obs_parts: tuple[tuple[str, int], ...] = ()  # the observation's named parts in order, root (23) first (layout.py)
+    obs_dim_prt: int = 0  # observation size with rotor throttles (the parts' sum); CTBR drops 4
     reward_terms: tuple[str, ...] = ()
     shaping_terms: tuple[str, ...] = ()  # zeroed by reward_shaping=False
     metric: str = ""  # the task's headline metric, a key of the stats
     extra_stats: tuple[str, ...] = ()  # further per-episode statistics besides the metric
     competitive: bool = False  # two teams play against each other (the matches)
     default_algo: str = "ppo"  # what `volleybots train task=...` trains when no algo is named
+
+    def __init_subclass__(cls, **kw):
+        super().__init_subclass__(**kw)
+        if "obs_parts" in cls.__dict__:  # declared once: the size follows from the parts
+            cls.obs_dim_prt = for_action_space(cls.obs_parts, True).size
+
+    @classmethod
+    def obs_layout(cls, with_throttle: bool = True) -> ObsLayout:
+        """The named layout of this task's observation (``with_throttle``: PRT and discrete; CTBR not)."""
+        return for_action_space(cls.obs_parts, with_throttle)
 
     def __init__(
         self,
@@ -120,6 +132,8 @@ class VolleyEnv(EnvBase):
         self.actions = make_action_space(action_space, self.params, num_envs, self.n_drones, self.device)
         self.action_space_name = action_space
         self.with_throttle = action_space != "ctbr"
+        self.layout = self.obs_layout(self.with_throttle)
+        self._root_layout = root_layout(self.with_throttle)
         self.referee = Referee(self.referee_config(), num_envs, list(self.teams), self.device)
         self.rng = torch.Generator(device=self.device)
         self.t = torch.zeros(num_envs, dtype=torch.long, device=self.device)
@@ -164,10 +178,10 @@ class VolleyEnv(EnvBase):
         """[N, D, 23] (19 without throttles): pos, quat, vel, world angular vel, heading, up, throttle."""
         s = self.physics.state
         heading, up = quat_axes(s.quat)
-        parts = [s.pos, s.quat, s.vel, quat_rotate(s.quat, s.omega), heading, up]
+        parts = dict(pos=s.pos, quat=s.quat, vel=s.vel, omega=quat_rotate(s.quat, s.omega), heading=heading, up=up)
         if self.with_throttle:
-            parts.append(s.throttle * 2.0 - 1.0)
-        return torch.cat(parts, -1)
+            parts["throttle"] = s.throttle * 2.0 - 1.0
+        return self._root_layout.build(**parts)
 
     def uniform(self, low, high, shape) -> torch.Tensor:
         """Uniform in [low, high] (per component of the last dimension), ``shape`` (num_envs, ...),

@@ -25,6 +25,12 @@ ANCHOR_COEF = 0.05
 DIST_COEF = 0.05
 
 
+def coop_parts(n_turn: int) -> tuple[tuple[str, int], ...]:
+    """The cooperative observation: root, drone minus anchor, drone minus ball, ball velocity, other
+    drone minus self, turn one-hot (``n_turn``), id one-hot (2)."""
+    return (("root", 23), ("anchor", 3), ("ball", 3), ("ball_vel", 3), ("other", 3), ("turn", n_turn), ("id", 2))
+
+
 def _shared(x: torch.Tensor, n_drones: int = 2) -> torch.Tensor:
     """[N] -> [N, A]: the same value for every drone."""
     return x.float().unsqueeze(-1).expand(-1, n_drones)
@@ -65,17 +71,14 @@ class _CoopTask(MultiDroneTask):
         s = self.physics.state
         n = self.num_envs
         other = s.pos.flip(1) - s.pos
-        return torch.cat(
-            (
-                self.root_state(),
-                s.pos - self.anchors,
-                s.pos - s.ball_pos.unsqueeze(1),
-                s.ball_vel.unsqueeze(1).expand(-1, 2, -1),
-                other,
-                self.turn_obs().unsqueeze(1).expand(-1, 2, -1),
-                self._ids.expand(n, 2, 2),
-            ),
-            -1,
+        return self.layout.build(
+            root=self.root_state(),
+            anchor=s.pos - self.anchors,
+            ball=s.pos - s.ball_pos.unsqueeze(1),
+            ball_vel=s.ball_vel.unsqueeze(1).expand(-1, 2, -1),
+            other=other,
+            turn=self.turn_obs().unsqueeze(1).expand(-1, 2, -1),
+            id=self._ids.expand(n, 2, 2),
         )
 
     def anchor_term(self) -> torch.Tensor:
@@ -97,7 +100,7 @@ class BumpAndPass(_CoopTask):
 
     name = "bump_and_pass"
     anchors_xyz = ((4.5, -2.5, 2.0), (4.5, 2.5, 2.0))
-    obs_dim_prt = 39  # root 23, anchor 3, ball 3, ball vel 3, other 3, turn 2, id 2
+    obs_parts = coop_parts(2)
     reward_terms = ("success_hit", "success_cross", "dist_to_anchor", "ball_misbehave", "drone_misbehave", "wrong_hit", "hit_direction", "dist_to_ball")
     shaping_terms = ("hit_direction", "dist_to_ball")
     metric = "bumps"  # longest run of consecutive successful bumps
@@ -174,7 +177,7 @@ class _SetAndSpike(_CoopTask):
     """Setter (drone 0) sets, attacker (drone 1) spikes down into the -x half."""
 
     anchors_xyz = ((2.0, -2.5, 2.5), (2.0, 2.5, 3.5))
-    obs_dim_prt = 40  # as Bump and Pass with a 3-value turn one-hot (setter, attacker, done)
+    obs_parts = coop_parts(3)  # the turn one-hot over (setter, attacker, done)
     n_turn = 3
     metric = "success_rate"  # mean of the four components below
     goal = ""  # the fourth component: "in_target" (Easy) or "success_spike" (Hard)

@@ -21,10 +21,13 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 
 from volleybots.tasks.base import VolleyEnv
+from volleybots.tasks.layout import root_layout
 
-# indices of the world-frame x, y components inside the 23 (19) value root state:
-# pos 0:3, quat 3:7, vel 7:10, angular velocity 10:13, heading 13:16, up 16:19, throttle 19:23
-_ROOT_XY = (0, 1, 7, 8, 10, 11, 13, 14, 16, 17)
+_ROOT = root_layout(True)
+# indices of the world-frame x, y components inside the root state (the throttles come last, so
+# the same indices serve the 19 values of CTBR)
+_ROOT_XY = tuple(_ROOT.slice(p).start + k for p in ("pos", "vel", "omega", "heading", "up") for k in (0, 1))
+_QUAT = _ROOT.slice("quat")
 
 
 def canonical_quat(q: torch.Tensor) -> torch.Tensor:
@@ -53,8 +56,8 @@ def mirror_root(root: torch.Tensor, flip: torch.Tensor) -> torch.Tensor:
     out = root.clone()
     idx = torch.tensor(_ROOT_XY, device=root.device)
     out[..., idx] = torch.where(flip.unsqueeze(-1), -root[..., idx], root[..., idx])
-    quat = root[..., 3:7]
-    out[..., 3:7] = canonical_quat(torch.where(flip.unsqueeze(-1), rotate_quat_z180(quat), quat))
+    quat = root[..., _QUAT]
+    out[..., _QUAT] = canonical_quat(torch.where(flip.unsqueeze(-1), rotate_quat_z180(quat), quat))
     return out
 
 

@@ -28,7 +28,7 @@ class Hover(VolleyEnv):
 
     name = "hover"
     episode_len = 500
-    obs_dim_prt = 26  # root (23) + drone minus target (3)
+    obs_parts = (("root", 23), ("target", 3))  # target: drone minus target
     reward_terms = ("pose", "up", "spin", "crash")
     shaping_terms = ("up", "spin")
     metric = "distance"  # mean distance to the target over the episode, m (lower is better)
@@ -55,8 +55,7 @@ class Hover(VolleyEnv):
         self.referee.reset(mask, self.physics.state.ball_pos)
 
     def observe(self):
-        rel = self.physics.state.pos - self.target.unsqueeze(1)
-        return torch.cat((self.root_state(), rel), -1)
+        return self.layout.build(root=self.root_state(), target=self.physics.state.pos - self.target.unsqueeze(1))
 
     def evaluate(self, ev):
         s = self.physics.state
@@ -77,7 +76,7 @@ class Hover(VolleyEnv):
 
 class BackAndForth(VolleyEnv):
     name = "back_and_forth"
-    obs_dim_prt = 26  # root (23) + drone minus current target (3)
+    obs_parts = (("root", 23), ("target", 3))  # target: drone minus the current target
     reward_terms = ("target_stay", "dist_to_target", "misbehave")
     metric = "targets"  # targets reached (5 consecutive steps within 0.6 m)
 
@@ -107,7 +106,7 @@ class BackAndForth(VolleyEnv):
         return self.anchors[self.target_idx]
 
     def observe(self):
-        return torch.cat((self.root_state(), self.physics.state.pos - self.target.unsqueeze(1)), -1)
+        return self.layout.build(root=self.root_state(), target=self.physics.state.pos - self.target.unsqueeze(1))
 
     def evaluate(self, ev):
         s = self.physics.state
@@ -132,7 +131,8 @@ class _BallDrill(VolleyEnv):
     """Shared by Hit the Ball and Solo Bump: reset around the anchor, ball at rest above it, and the
     observation root, drone minus anchor, drone minus ball, ball velocity (32 / 28)."""
 
-    obs_dim_prt = 32
+    # anchor: drone minus anchor; ball: drone minus ball; ball_vel: the ball's velocity
+    obs_parts = (("root", 23), ("anchor", 3), ("ball", 3), ("ball_vel", 3))
     ball_start = (4.5, 0.0, 4.0)
 
     def __init__(self, *args, **kw):
@@ -150,9 +150,7 @@ class _BallDrill(VolleyEnv):
 
     def observe(self):
         s = self.physics.state
-        return torch.cat(
-            (self.root_state(), s.pos - self.anchor, s.pos - s.ball_pos.unsqueeze(1), s.ball_vel.unsqueeze(1)), -1
-        )
+        return self.layout.build(root=self.root_state(), anchor=s.pos - self.anchor, ball=s.pos - s.ball_pos.unsqueeze(1), ball_vel=s.ball_vel.unsqueeze(1))
 
 
 class HitTheBall(_BallDrill):
