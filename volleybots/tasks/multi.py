@@ -108,10 +108,14 @@ class MultiDroneTask(VolleyEnv):
         idx = self.team_index(team)
         for key in sub.keys(include_nested=True, leaves_only=True):
             val = sub.get(key)
-            if key not in agents.keys(include_nested=True, leaves_only=True):
-                spec_shape = (agents.batch_size[0], agents.batch_size[1], *val.shape[2:])
-                agents.set(key, torch.zeros(spec_shape, dtype=val.dtype, device=val.device))
-            agents.get(key)[:, idx] = val
+            if key in agents.keys(include_nested=True, leaves_only=True):
+                # a new tensor, never a write into the old one: the old one may be the previous step's
+                # (the env carries the last action into the next step's tensordict), already collected
+                full = agents.get(key).clone()
+            else:
+                full = torch.zeros((agents.batch_size[0], agents.batch_size[1], *val.shape[2:]), dtype=val.dtype, device=val.device)
+            full[:, idx] = val
+            agents.set(key, full)
         return td
 
     # ---------------------------------------------------------------- shared pieces
