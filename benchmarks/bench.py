@@ -2,6 +2,7 @@
 
     python benchmarks/bench.py                                   # solo_bump, torch + mujoco, 1/256/4096 envs
     python benchmarks/bench.py --tasks solo_bump,3v3 --num-envs 4096 --compile --json out.json
+    python benchmarks/bench.py --tasks solo_bump,3v3 --num-envs 4096 --both --train   # + PPO / MAPPO frames/s
 
 Prints a Markdown table (docs/performance.md holds the measured one); ``--json`` also writes the rows.
 """
@@ -34,6 +35,8 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=3, help="timed repeats per row (median reported)")
     ap.add_argument("--steps", type=int, default=None, help="env steps per repeat (default scales with env count)")
     ap.add_argument("--threads", type=int, default=None, help="torch intra-op threads (default: torch's)")
+    ap.add_argument("--train", action="store_true", help="also measure training frames/s: PPO on solo_bump, MAPPO on 3v3")
+    ap.add_argument("--train-batches", type=int, default=3, help="timed training batches per training row")
     ap.add_argument("--json", default=None, help="also write the rows to this JSON file")
     args = ap.parse_args(argv)
 
@@ -42,8 +45,8 @@ def main(argv=None) -> int:
     print(f"# torch {torch.__version__}, {torch.get_num_threads()} threads, {os.cpu_count()} CPUs", file=sys.stderr)
     rows = run_bench(
         args.tasks, args.backends, args.num_envs, args.devices, compile=(False, True) if args.both else args.compile, repeats=args.repeats,
-        steps=args.steps, action_space=args.action_space, threads=args.threads,
-        progress=lambda r: print(f"  {r['task']} {r['backend']} {r['device']} x{r['num_envs']}: {r['env_steps_per_s']:,.0f} env-steps/s", file=sys.stderr, flush=True),
+        steps=args.steps, action_space=args.action_space, threads=args.threads, train=args.train, train_batches=args.train_batches,
+        progress=lambda r: print(f"  {r['task']} {r['kind']} {r['backend']} {r['device']} compile={r['compile']} x{r['num_envs']}: {r['env_steps_per_s']:,.0f}/s", file=sys.stderr, flush=True),
     )
     print(format_table(rows))
     if args.json:

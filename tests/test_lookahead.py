@@ -13,11 +13,9 @@ STEPS = 60  # the dropped ball meets the setter's racket about 0.6 s in
 
 def setter_view(td, pol):
     """The setter's (drone 0's) state, the ball and its home, from the observation."""
-    obs = td["agents", "observation"][:, 0]
-    drone = DroneObs.from_obs(obs, True)
-    task_obs = obs[..., drone.root_dim :]
-    ball_p, ball_v = pol.ball(drone, task_obs)
-    return drone, ball_p, ball_v, drone.pos - task_obs[..., 0:3]
+    drone, parts = pol.parts(td["agents", "observation"][:, 0])
+    ball_p, ball_v = pol.ball(drone, parts)
+    return drone, ball_p, ball_v, drone.pos - parts["anchor"]
 
 
 def free_flight(p, v):

@@ -13,5 +13,5 @@ def test_run_bench_rows_and_table():
     ratio = speed_ratios(rows)[("hover", 2, "cpu", False)]
     assert ratio == rows[0]["env_steps_per_s"] / rows[1]["env_steps_per_s"]
     table = format_table(rows).splitlines()
-    assert len(table) == 4 and table[2].startswith("| hover | 1 | torch | cpu | no | 1 | 2 |")
+    assert len(table) == 4 and table[2].startswith("| hover | env | 1 | torch | cpu | no | 1 | 2 |")
     assert table[2].endswith(f"| {ratio:.1f}x |") and table[3].endswith("|  |")

@@ -214,3 +214,20 @@ def test_a_learner_trains_against_a_named_opponent_and_learns_from_its_team_only
                        (["task=3v3", "algo=mappo", f"opponent={tmp_path / 'missing'}"], "does not exist")):
         with pytest.raises(ConfigError, match=words):
             load(bad)
+
+
+def test_a_learners_batch_holds_each_steps_own_actions_and_their_log_probabilities(tmp_path):
+    """The learner's slice of a collected batch: every step's own sampled action, with the log-probability
+    of that action under the acting policy (a write into a tensor the env carries from step to step
+    would leave every step holding the last one)."""
+    from volleybots.train import Trainer
+
+    cfg = load(["task=1v1", "opponent=random", "env.num_envs=8", "algo.steps_per_batch=8", "progress=false"])
+    tr = Trainer(cfg, RunDir(tmp_path / "unused"))
+    batch, _ = collect(tr.env, tr.seat.policy(tr.env, tr.algo.policy()), tr.env.reset(), 8)
+    view = tr.seat.view(tr.env, batch)
+    action = view["agents", "action"]
+    assert not torch.equal(action[:, 0], action[:, 1])
+    with torch.no_grad():
+        lp = tr.algo.actor.get_dist(view.select(("agents", "observation")).clone()).log_prob(action)
+    assert torch.allclose(lp, view["agents", "action_log_prob"], atol=1e-5)

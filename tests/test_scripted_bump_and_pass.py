@@ -38,8 +38,9 @@ def test_bump_and_pass_pair_keeps_passing_for_the_whole_episode():
     first = done.float().argmax(-1)  # the step each env's first episode ends
     envs = torch.arange(done.shape[0])
     bumps = td["next", "stats", "bumps"].squeeze(-1)[envs, first]
-    # seed 2: every episode runs the full 16 s; 14 bumps in five envs, 13 in the three others (two
-    # whose opening did not count, one with a pass that did not)
+    # seed 2: every episode runs the full 16 s; 14 bumps in four envs (five before the downwash was
+    # held per control step, docs/physics.md: a 1e-5 change that the 16 s rally amplifies), 13 in
+    # the others (openings or passes that did not count)
     assert (first == 799).all()
     assert bumps.mean() >= 13.5
-    assert (bumps >= 14).sum() >= 5
+    assert (bumps >= 14).sum() >= 4

@@ -11,7 +11,7 @@ def make_env(task: str, num_envs: int = 1, action_space: str = "prt", physics: s
     ``action_space``: "prt" (per-rotor thrust), "ctbr" (collective thrust + body rates) or
     "discrete" (16 rotor on/off actions). ``physics``: a backend of ``volleybots.physics.BACKENDS``.
     Further keywords go to the task (``reward_shaping``, ``substeps``, ``drone``, ``episode_len``, ...);
-    ``compile=True`` compiles the physics sub-step with ``torch.compile`` (static shapes).
+    ``compile=True`` compiles the whole env step and reset with ``torch.compile`` (static shapes, torch backend).
     """
     from volleybots.config import check_env_args
     from volleybots.physics import ACTION_SPACES, BACKENDS
@@ -25,7 +25,7 @@ def make_env(task: str, num_envs: int = 1, action_space: str = "prt", physics: s
     if physics not in BACKENDS:
         raise ValueError(f"unknown physics {physics!r}; allowed: {list(BACKENDS)}")
     # TorchRL's EnvBase metaclass consumes a ``compile`` keyword itself (compiling the whole step,
-    # which recompiles for every partial reset): route ours to the physics instead.
+    # generically): route ours to the env's own static-shape step and reset instead.
     if "compile" in task_overrides:
         task_overrides["compile_physics"] = task_overrides.pop("compile")
     return TASKS[task](num_envs=num_envs, action_space=action_space, physics=physics, device=device, seed=seed, **task_overrides)

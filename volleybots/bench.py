@@ -2,9 +2,11 @@
 
 ``run_bench`` measures full TorchRL env steps (physics, referee, rewards, observations and automatic
 partial resets through ``step_and_maybe_reset``, as a collector does), excluding warm-up and
-compilation, and reports the median over repeats. ``format_table`` renders the rows as Markdown with
-the torch/MuJoCo speed ratio of each task measured in the same run. ``benchmarks/bench.py`` and the
-``volleybots bench`` verb are thin front ends to these two functions.
+compilation, and reports the median over repeats; with ``train=True`` it adds the end-to-end training
+rate (collection + updates, frames/s) of PPO on Solo Bump and MAPPO on 3 vs 3 (``TRAIN_CASES``).
+``format_table`` renders the rows as Markdown with the torch/MuJoCo speed ratio of each task measured
+in the same run. ``benchmarks/bench.py`` and the ``volleybots bench`` verb are thin front ends to
+these two functions.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import torch
 
 DEFAULT_TASKS = ("solo_bump",)
 DEFAULT_NUM_ENVS = (1, 256, 4096)
+TRAIN_CASES = (("solo_bump", "ppo"), ("3v3", "mappo"))  # (task, algorithm) of the training rows
 
 
 def default_devices() -> tuple[str, ...]:
@@ -94,6 +97,53 @@ def measure(
         "env_steps_per_cpu_s": statistics.median(cpu_rates),
         "setup_s": setup_s,
         "threads": torch.get_num_threads(),
+        "kind": "env",  # "train ALGO" for the rows of measure_training
+    }
+
+
+def measure_training(
+    task: str, algo: str, num_envs: int, device: str = "cpu", compile: bool = False, batches: int = 3, backend: str = "torch", seed: int = 0
+) -> dict:
+    """End-to-end training frames/s of ``algo`` on ``task``: collection (policy + env steps) and the
+    algorithm's update, as ``volleybots train`` runs them, over ``batches`` batches after a first one
+    that warms up (and compiles). The algorithm's own config (steps per batch, epochs) is the default."""
+    from volleybots.algos import ALGOS
+    from volleybots.config import load, make_env
+    from volleybots.train import collect
+
+    cfg = load([f"task={task}", f"algo={algo}", f"env.num_envs={num_envs}", f"env.device={device}", f"env.physics={backend}",
+                f"env.compile={str(bool(compile and backend == 'torch')).lower()}", f"seed={seed}"])
+    t0 = time.perf_counter()
+    torch.manual_seed(seed)
+    env = make_env(cfg)
+    learner = ALGOS[cfg.algo.name](cfg.algo, env, seed=seed)
+    policy = learner.policy()
+    td = env.reset()
+    frames = num_envs * learner.steps_per_batch
+
+    def one_batch(td):
+        batch, td = collect(env, policy, td, learner.steps_per_batch)
+        learner.update(batch)
+        return td
+
+    td = one_batch(td)
+    _sync(device)
+    setup_s = time.perf_counter() - t0
+    start, cpu_start = time.perf_counter(), time.process_time()
+    for _ in range(batches):
+        td = one_batch(td)
+    _sync(device)
+    wall, cpu = time.perf_counter() - start, time.process_time() - cpu_start
+    close = getattr(env.physics, "close", None)
+    if close is not None:
+        close()
+    rate = frames * batches / wall
+    return {
+        "task": task, "backend": backend, "device": str(device), "compile": bool(compile and backend == "torch"),
+        "num_envs": int(num_envs), "n_drones": int(env.n_drones), "action_space": cfg.env.action_space, "kind": f"train {algo}",
+        "steps": int(learner.steps_per_batch), "repeats": int(batches), "env_steps_per_s": rate, "step_ms": 1e3 * num_envs / rate,
+        "all_env_steps_per_s": [rate], "env_steps_per_cpu_s": frames * batches / max(cpu, 1e-9), "setup_s": setup_s,
+        "threads": torch.get_num_threads(),
     }
 
 
@@ -108,6 +158,8 @@ def run_bench(
     action_space: str = "prt",
     progress: Callable[[dict], None] | None = None,
     threads: int | None = None,
+    train: bool = False,
+    train_batches: int = 3,
 ) -> list[dict]:
     """Measure env-steps/s for every combination of task, backend, env count and device.
 
@@ -126,6 +178,10 @@ def run_bench(
         progress: called with each row as soon as it is measured (for printing).
         threads: torch intra-op threads for the run (``torch.set_num_threads``); default unchanged.
             On a machine shared with other work, 1 thread is often much faster than 2.
+        train: also measure end-to-end training frames/s (``measure_training``) of each
+            ``TRAIN_CASES`` (task, algorithm) whose task is in ``tasks``, for every env count, device and
+            compile mode, on the torch backend.
+        train_batches: timed training batches per training row.
 
     Returns:
         One dict per measurement with keys ``task, backend, device, compile, num_envs, n_drones,
@@ -137,14 +193,17 @@ def run_bench(
     if threads:
         torch.set_num_threads(threads)
     try:
-        return _run(tuple(tasks), tuple(backends), tuple(num_envs), devices, compile, repeats, steps, action_space, progress)
+        rows = _run(tuple(tasks), tuple(backends), tuple(num_envs), devices, compile, repeats, steps, action_space, progress)
+        if train:
+            rows += _run_training(tuple(tasks), tuple(num_envs), devices, compile, train_batches, progress)
+        return rows
     finally:
         torch.set_num_threads(before)
 
 
 def _run(tasks, backends, num_envs, devices, compile, repeats, steps, action_space, progress) -> list[dict]:
     devices = tuple(devices) if devices is not None else default_devices()
-    modes = (bool(compile),) if isinstance(compile, bool) else tuple(bool(c) for c in compile)
+    modes = _modes(compile)
     rows = []
     for task in tasks:
         for n in num_envs:
@@ -161,12 +220,32 @@ def _run(tasks, backends, num_envs, devices, compile, repeats, steps, action_spa
     return rows
 
 
+def _modes(compile) -> tuple[bool, ...]:
+    return (bool(compile),) if isinstance(compile, bool) else tuple(bool(c) for c in compile)
+
+
+def _run_training(tasks, num_envs, devices, compile, batches, progress) -> list[dict]:
+    devices = tuple(devices) if devices is not None else default_devices()
+    rows = []
+    for task, algo in TRAIN_CASES:
+        if task not in tasks:
+            continue
+        for n in num_envs:
+            for device in devices:
+                for comp in _modes(compile):
+                    rows.append(measure_training(task, algo, n, device, compile=comp, batches=batches))
+                    if progress is not None:
+                        progress(rows[-1])
+    return rows
+
+
 def speed_ratios(rows: Sequence[dict]) -> dict[tuple[str, int, str, bool], float]:
     """(task, num_envs, torch device, compiled) -> torch env-steps/s over MuJoCo's, same task and env count."""
-    mj = {(r["task"], r["num_envs"]): r["env_steps_per_s"] for r in rows if r["backend"] == "mujoco"}
+    env_rows = [r for r in rows if r.get("kind", "env") == "env"]
+    mj = {(r["task"], r["num_envs"]): r["env_steps_per_s"] for r in env_rows if r["backend"] == "mujoco"}
     return {
         (r["task"], r["num_envs"], r["device"], r["compile"]): r["env_steps_per_s"] / mj[(r["task"], r["num_envs"])]
-        for r in rows
+        for r in env_rows
         if r["backend"] == "torch" and (r["task"], r["num_envs"]) in mj
     }
 
@@ -180,16 +259,18 @@ def _rate(x: float) -> str:
 
 
 def format_table(rows: Sequence[dict]) -> str:
-    """Markdown table of ``run_bench`` rows; torch rows show their speed-up over MuJoCo (same run)."""
+    """Markdown table of ``run_bench`` rows; torch env rows show their speed-up over MuJoCo (same run);
+    training rows (``kind`` "train ALGO") give frames/s, collection and updates together."""
     ratios = speed_ratios(rows)
     lines = [
-        "| task | drones | backend | device | compile | threads | envs | env-steps/s | per CPU-s | ms / step | torch / MuJoCo |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| task | measures | drones | backend | device | compile | threads | envs | env-steps/s | per CPU-s | ms / step | torch / MuJoCo |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        ratio = ratios.get((r["task"], r["num_envs"], r["device"], r["compile"])) if r["backend"] == "torch" else None
+        kind = r.get("kind", "env")
+        ratio = ratios.get((r["task"], r["num_envs"], r["device"], r["compile"])) if r["backend"] == "torch" and kind == "env" else None
         lines.append(
-            f"| {r['task']} | {r['n_drones']} | {r['backend']} | {r['device']} | {'yes' if r['compile'] else 'no'} | {r['threads']} "
+            f"| {r['task']} | {kind} | {r['n_drones']} | {r['backend']} | {r['device']} | {'yes' if r['compile'] else 'no'} | {r['threads']} "
             f"| {r['num_envs']} | {_rate(r['env_steps_per_s'])} | {_rate(r['env_steps_per_cpu_s'])} | {r['step_ms']:.2f} "
             f"| {'' if ratio is None else f'{ratio:.1f}x'} |"
         )

@@ -474,9 +474,15 @@ def _fits(algo: str, task: str) -> bool:
 @app.command(context_settings=_PASS_THROUGH)
 @_user_errors
 def bench(
-    options: Optional[List[str]] = typer.Argument(None, help="key=value arguments of volleybots.bench.run_bench, e.g. tasks=[solo_bump] num_envs=[256,4096] backends=[torch]."),
+    options: Optional[List[str]] = typer.Argument(
+        None,
+        help="key=value arguments of volleybots.bench.run_bench: tasks=[solo_bump,3v3] num_envs=[256,4096] backends=[torch,mujoco] "
+        "devices=[cpu] threads=1 repeats=3 steps=100 train=true (adds PPO / MAPPO training frames/s).",
+    ),
+    compile: bool = typer.Option(False, "--compile", help="Compile the torch env step (static shapes); same as compile=true."),
+    as_json: bool = typer.Option(False, "--json", help="Print the measured rows as JSON instead of a table."),
 ) -> None:
-    """Measure env-steps/s (volleybots.bench) and print the table."""
+    """Measure env-steps/s (and with train=true training frames/s) per task, backend, env count and device; print the table."""
     import inspect
 
     try:
@@ -486,7 +492,7 @@ def bench(
     from volleybots.config import check_bench_options, parse_value
 
     allowed = [p for p in inspect.signature(run_bench).parameters if p != "progress"]
-    kwargs = {}
+    kwargs = {"compile": True} if compile else {}
     for o in options or []:
         key, eq, value = o.partition("=")
         if not eq or key not in allowed:
@@ -494,10 +500,10 @@ def bench(
         kwargs[key] = parse_value(value)
     kwargs = check_bench_options(kwargs)
     try:
-        rows = run_bench(**kwargs, progress=lambda row: typer.echo(f"  measured {row.get('task')} {row.get('backend')} x{row.get('num_envs')}: {row.get('env_steps_per_s', 0):,.0f} env-steps/s", err=True))
+        rows = run_bench(**kwargs, progress=lambda row: typer.echo(f"  measured {row.get('task')} {row.get('kind', 'env')} {row.get('backend')} x{row.get('num_envs')}: {row.get('env_steps_per_s', 0):,.0f}/s", err=True))
     except ValueError as e:
         raise ConfigError(str(e).splitlines()[0]) from None
-    typer.echo(format_table(rows))
+    typer.echo(json.dumps(rows, indent=1) if as_json else format_table(rows))
 
 
 # ------------------------------------------------------------------------------------------ report

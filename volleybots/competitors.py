@@ -1,6 +1,8 @@
 """Competitors: whatever can play one side of a match (spec: evaluation.md, populations.md).
 
-A competitor is ``scripted``, ``random``, a checkpoint file, a run directory (its final policy) or a
+A competitor is ``scripted``, ``random``, ``hierarchical`` (3v3 only: drills under an event-driven high
+level, ``volleybots.scripted.hierarchical``; a ``*.yaml`` file ``hierarchical: {drill: checkpoint}``
+gives it trained drills), a checkpoint file, a run directory (its final policy) or a
 population run (its members and final meta-strategy); ``name=PATH`` gives it a label. Its
 ``team_policy(env)`` acts for one team: it reads a team's ``("agents", "observation")`` [N, A_t]
 (already mirrored, so one policy plays either side) and writes ``("agents", "action")``. A competitor
@@ -29,7 +31,8 @@ from tensordict import TensorDictBase
 from volleybots.config import ConfigError, validate
 from volleybots.runs import RunDir, load_algo_state, read_checkpoint
 
-BUILTIN = ("scripted", "random")
+BUILTIN = ("scripted", "random", "hierarchical")  # hierarchical: 3v3 only (drills under a rule-based high level)
+HIERARCHICAL_TASK = "3v3"
 POPULATION_DIR = "population"
 META_FILE = "meta.jsonl"
 
@@ -149,10 +152,43 @@ def scripted_policy(env, action_space: str) -> Callable[[TensorDictBase], Tensor
     return lambda td: _acted(pol, td)
 
 
-def builtin_member(name: str) -> Member:
+def hierarchical_policy(env, drills: dict | None = None, deterministic: bool = False) -> Callable[[TensorDictBase], TensorDictBase]:
+    """The hierarchical 3v3 team (``volleybots.scripted.hierarchical``): scripted drills, or the
+    trained checkpoints of ``drills`` (drill name -> checkpoint file or run dir)."""
+    from volleybots.scripted.hierarchical import make_hierarchical
+
+    try:
+        return make_hierarchical(env, drills, deterministic)
+    except ValueError as e:
+        raise ConfigError(f"competitor 'hierarchical': {e}") from None
+
+
+def hierarchical_member(drills: dict | None = None, label: str = "hierarchical") -> Member:
+    """The hierarchical team as a member; its source names the drills' checkpoints (with hashes)."""
+    drills = {k: str(v) for k, v in (drills or {}).items()}
+    files = {k: {"path": v, "sha256": sha256(v)} for k, v in drills.items() if Path(v).is_file()}
+    source = {"kind": "hierarchical", "drills": drills, "drill_files": files}
+    return Member(label, lambda env, deterministic=False: hierarchical_policy(env, drills, deterministic), source, HIERARCHICAL_TASK)
+
+
+def builtin_member(name: str, drills: dict | None = None) -> Member:
     if name == "random":
         return Member("random", lambda env, deterministic=False: random_policy(env), {"kind": "random"})
+    if name == "hierarchical":
+        return hierarchical_member(drills)
     return Member("scripted", lambda env, deterministic=False: scripted_policy(env, env.action_space_name), {"kind": "scripted"})
+
+
+def read_drills_file(path: Path) -> dict:
+    """A hierarchical team's drill checkpoints from a YAML file ``hierarchical: {drill: path}``
+    (relative paths are relative to the file)."""
+    from omegaconf import OmegaConf
+
+    data = OmegaConf.to_container(OmegaConf.load(path))
+    drills = data.get("hierarchical") if isinstance(data, dict) else None
+    if not isinstance(drills, dict):
+        raise ConfigError(f"{str(path)!r} is no hierarchical team: expected a mapping 'hierarchical: {{drill: checkpoint}}'")
+    return {k: str((Path(path).parent / v) if not Path(v).is_absolute() else v) for k, v in drills.items()}
 
 
 # ------------------------------------------------------------------------------- trained policies
@@ -162,7 +198,7 @@ def checkpoint_member(path, label: str | None = None) -> Member:
     path = Path(path)
     state = read_checkpoint(path)
     if "builtin" in state:
-        m = builtin_member(state["builtin"])
+        m = builtin_member(state["builtin"], state.get("drills"))
         m.label = label or m.label
         return m
     cfg = validate(state["config"])
@@ -198,7 +234,8 @@ def population_members(run_path: Path) -> list[Path]:
 
 
 def resolve_competitor(spec: str) -> Competitor:
-    """``scripted``, ``random``, a checkpoint, a run dir or a population run; ``name=PATH`` labels it."""
+    """``scripted``, ``random``, ``hierarchical``, a checkpoint, a run dir, a population run or a
+    hierarchical team's drills file (``*.yaml``: ``hierarchical: {drill: checkpoint}``); ``name=PATH`` labels it."""
     label, eq, target = spec.partition("=")
     if not eq:
         label, target = "", spec
@@ -207,6 +244,8 @@ def resolve_competitor(spec: str) -> Competitor:
     if target in BUILTIN:
         return Competitor(label or target, [builtin_member(target)])
     path = Path(target)
+    if path.is_file() and path.suffix in (".yaml", ".yml"):
+        return Competitor(label or path.stem, [hierarchical_member(read_drills_file(path), label or path.stem)])
     if path.is_file():
         m = checkpoint_member(path)
         return Competitor(label or m.label, [m])
@@ -224,6 +263,7 @@ def resolve_competitor(spec: str) -> Competitor:
 
 
 __all__ = [
-    "BUILTIN", "Competitor", "Member", "MixturePolicy", "builtin_member", "checkpoint_member", "member_path",
+    "BUILTIN", "Competitor", "Member", "MixturePolicy", "builtin_member", "checkpoint_member", "hierarchical_member",
+    "hierarchical_policy", "member_path", "read_drills_file",
     "population_members", "random_policy", "read_meta", "resolve_competitor", "scripted_policy", "sha256",
 ]

@@ -546,6 +546,8 @@ class BenchOptions:
     steps: Optional[int] = ranged(None, ge=1)
     action_space: str = "prt"
     threads: Optional[int] = ranged(None, ge=0, le=MAX_THREADS)
+    train: bool = False  # also measure PPO (solo_bump) / MAPPO (3v3) training frames/s
+    train_batches: int = ranged(3, ge=1)  # timed training batches per training row
 
 
 def check_bench_options(options: dict) -> dict:

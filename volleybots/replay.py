@@ -1,5 +1,6 @@
 """Episodes as rerun recordings: court, net, drones (pose, racket, team colour), the ball with a trail,
-the referee's hits and violations as events, and per-step rewards and per-term returns as scalars.
+the referee's hits and violations as events, per-step rewards and per-term returns as scalars, and a
+hierarchical team's decisions (which drill each drone runs: ``decisions`` lines, ``drill/drone_<k>``).
 
 ``EpisodeRecorder`` follows one env of a batch through ``volleybots.eval.run_episodes`` (its
 ``on_step`` hook) until that env's first episode ends. ``record`` plays one episode of a target to a
@@ -86,6 +87,7 @@ class EpisodeRecorder:
         if len(self.trail) > 1:
             rec.log(self._p("world/ball_trail"), rr.LineStrips3D([np.stack(self.trail)], colors=[BALL_COLOUR]))
         self._events(env, ball)
+        self._decisions(td)
         reward = nxt["agents", "reward"][i].reshape(-1).detach().cpu()
         for k, r in enumerate(reward.tolist()):
             rec.log(self._p(f"reward/drone_{k}"), rr.Scalars(r))
@@ -96,6 +98,26 @@ class EpisodeRecorder:
             why = "terminated" if bool(nxt["terminated"][i]) else "truncated"
             rec.log(self._p("events"), rr.TextLog(f"step {self.step}: episode {why}", level="INFO"))
             self.done = True
+
+    def _decisions(self, td) -> None:
+        """A hierarchical team's high level (``("agents", "drill")``, codes of
+        ``scripted.hierarchical.DRILL_LABELS``): each drone's drill as a scalar, and a line whenever
+        one changes."""
+        import rerun as rr
+
+        if ("agents", "drill") not in td.keys(include_nested=True):
+            return
+        from volleybots.scripted.hierarchical import DRILL_LABELS
+
+        codes = td.get(("agents", "drill"))[self.i].reshape(-1).tolist()
+        last = getattr(self, "_last_drills", None)
+        for k, c in enumerate(codes):
+            if c == 0:  # a drone no high level drives
+                continue
+            self.rec.log(self._p(f"drill/drone_{k}"), rr.Scalars(float(c)))
+            if last is None or last[k] != c:
+                self.rec.log(self._p("decisions"), rr.TextLog(f"step {self.step}: drone {k} -> {DRILL_LABELS[c]}", level="INFO"))
+        self._last_drills = codes
 
     def _events(self, env, ball) -> None:
         import rerun as rr

@@ -1,7 +1,8 @@
 """Evaluation of single-agent and cooperative policies (spec: evaluation.md, last section).
 
 A *target* is what plays: a run directory (its final or latest checkpoint), a checkpoint file,
-``scripted`` (``volleybots.scripted.make_scripted_policy``) or ``random`` (uniform actions).
+``scripted`` (``volleybots.scripted.make_scripted_policy``), ``random`` (uniform actions) or, for 3v3,
+``hierarchical`` (the hierarchical team on both sides).
 ``evaluate`` plays E episodes, one per env of a batch of E worlds, and reports the task metric's mean
 and standard deviation with every per-term return.
 """
@@ -22,7 +23,7 @@ from volleybots.config import apply_overrides, check_memory, load, make_env, to_
 from volleybots.errors import ConfigError
 from volleybots.runs import RunDir, load_algo_state, memory_errors_as, read_checkpoint
 
-POLICY_NAMES = ("scripted", "random")
+POLICY_NAMES = ("scripted", "random", "hierarchical")  # hierarchical: 3v3, the hierarchical team on both sides
 # keys of a checkpoint's config that evaluation may change; the rest fix what the policy was trained on
 EVAL_KEYS = ("episodes", "deterministic", "seed", "progress", "threads", "env.device", "env.physics", "env.compile", "env.num_envs")
 
@@ -80,6 +81,8 @@ def resolve_target(target: str, overrides=()) -> Target:
         cfg = load(list(overrides))
         if target == "random":
             return Target("random", cfg, None, lambda env: (lambda td: env.rand_action(td)))
+        if target == "hierarchical":
+            return Target("hierarchical", cfg, None, lambda env: hierarchical_both_sides(env))
         return Target("scripted", cfg, None, lambda env: scripted_policy(env, cfg.env.action_space))
     path = Path(target)
     if path.is_dir():
@@ -106,6 +109,16 @@ def resolve_target(target: str, overrides=()) -> Target:
         return algo.policy(deterministic=cfg.deterministic)
 
     return Target(f"{cfg.algo.name}@{int(state['frames'])}", cfg, Path(ckpt), make_policy)
+
+
+def hierarchical_both_sides(env):
+    """The hierarchical team (``competitors.hierarchical_policy``) playing both teams of a 3v3 env."""
+    from volleybots.competitors import hierarchical_policy
+    from volleybots.tasks.multi import TeamPolicies
+
+    if env.name != "3v3":
+        raise ConfigError(f"the hierarchical policy plays task 3v3 only, not {env.name!r}")
+    return TeamPolicies(env, (hierarchical_policy(env), hierarchical_policy(env)))
 
 
 def evaluate(target: str, overrides=(), episodes: int | None = None) -> dict:

@@ -175,8 +175,9 @@ def match_config(competitors, overrides=()):
         if not trained:
             raise ConfigError("name the match the scripted/random competitors play: task=1v1, task=3v3 or task=6v6")
         extra.append(f"task={trained[0].task}")
-    if "env.action_space" not in keys and trained:
-        extra.append(f"env.action_space={trained[0].action_space}")
+    spaces = [m.action_space for m in trained if m.action_space is not None]  # a hierarchical team fits any
+    if "env.action_space" not in keys and spaces:
+        extra.append(f"env.action_space={spaces[0]}")
     cfg = load([*extra, *overrides])
     check_scenario("any", cfg)
     env = make_env(cfg, num_envs=1, seed=0)

@@ -40,6 +40,15 @@ class ActionSpace(ABC):
     def reset(self, mask: torch.Tensor) -> None:
         pass
 
+    def check(self, action: torch.Tensor) -> None:
+        """Raise ``ValueError`` for an action no policy may send (eager, before the compiled step)."""
+
+    def sanitize(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(action with every non-finite drone action zeroed, [N] envs where one was) - a masked
+        select on fixed shapes: the env treats such an action as a crash of its drone (docs/physics.md)."""
+        finite = torch.isfinite(action).all(-1)  # [N, D]
+        return torch.where(finite.unsqueeze(-1), action, 0.0), ~finite.all(-1)
+
     @abstractmethod
     def command_fn(self, action: torch.Tensor):
         """Return ``fn(state) -> rotor commands [N, D, 4]``, called once per physics sub-step."""
@@ -61,6 +70,20 @@ class Discrete(ActionSpace):
     def __init__(self, params, num_envs, n_drones, device, dtype=torch.float32):
         super().__init__(params, num_envs, n_drones, device, dtype)
         self.table = discrete_table(device, dtype)
+
+    def check(self, action):
+        """The actions are the integers 0..15: a float that is not an integer, a negative value (which
+        indexing would wrap around) or 16 and above is refused, naming the first bad value."""
+        if action.dtype.is_floating_point:
+            bad = ~((action >= 0) & (action < self.n) & (action == action.round()))
+        else:
+            bad = (action < 0) | (action >= self.n)
+        if bool(bad.any()):
+            value = action[bad][0].item()
+            raise ValueError(f"discrete action {value!r} is out of range: allowed integers 0..{self.n - 1}")
+
+    def sanitize(self, action):
+        return action, torch.zeros(action.shape[0], dtype=torch.bool, device=action.device)
 
     def command_fn(self, action):
         cmd = self.table[action.long()]

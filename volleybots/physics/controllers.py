@@ -37,9 +37,10 @@ class RateController:
         if mask is None:
             self.integral.zero_()
             self.prev_err.zero_()
-        else:
-            self.integral[mask] = 0.0
-            self.prev_err[mask] = 0.0
+        else:  # a masked select, not boolean indexing: static shapes for the compiled env step
+            m = mask.reshape(-1, *(1,) * (self.integral.dim() - 1))
+            self.integral = torch.where(m, 0.0, self.integral)
+            self.prev_err = torch.where(m, 0.0, self.prev_err)
 
     @classmethod
     def scale_action(cls, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

@@ -15,8 +15,8 @@ What is shared with the torch backend, and why the step is split the way it is:
   live in torch (the same functions as the torch backend) and MuJoCo receives thrusts in newtons.
 * Velocity damping (dv/dt = -0.2 v, dw/dt = -0.2 w per body axis) and downwash are explicit forces in
   the torch backend. MuJoCo's joint damping is one coefficient per joint and integrated implicitly, so
-  both go through ``xfrc_applied``, computed in torch from the sub-step's initial state exactly as
-  the torch backend does.
+  both go through ``xfrc_applied``, computed in torch exactly as the torch backend does (damping from
+  each sub-step's initial state, downwash once per control step).
 * MuJoCo's Euler integrator is semi-implicit like ``substep`` (velocity first, then position with the
   new velocity; quaternion by the exponential map of the body rate), and a free joint's angular
   velocity is in the body frame, the layout of ``PhysicsState.omega``.
@@ -45,7 +45,7 @@ from volleybots.physics.torch_backend import (
     Contacts,
     PhysicsState,
     TorchPhysics,
-    downwash_force,
+    control_step_downwash,
     rotor_thrusts,
     throttle_target,
 )
@@ -274,15 +274,15 @@ class MujocoPhysics(TorchPhysics):
             ball_vel=qvel[:, d, :3].clone(),
         )
 
-    def _controls(self, s: PhysicsState, throttle: torch.Tensor) -> None:
-        """Fill ``self._ctrl``: rotor thrusts (N) then the external wrench of every body (world frame)."""
+    def _controls(self, s: PhysicsState, throttle: torch.Tensor, wash: torch.Tensor | None) -> None:
+        """Fill ``self._ctrl``: rotor thrusts (N) then the external wrench of every body (world frame);
+        ``wash`` is the control step's downwash acceleration, as in the torch backend."""
         c = self.consts
         n, d = self.num_envs, self.n_drones
         thrust = rotor_thrusts(throttle, c.kf)
-        _, up = quat_axes(s.quat)
         force = -c.lin_damp * c.mass * s.vel
-        if c.downwash and d > 1:
-            force = force + downwash_force(s.pos, up, thrust.sum(-1))
+        if wash is not None:
+            force = force + c.mass * wash
         torque = quat_rotate(s.quat, -c.ang_damp * c.inertia * s.omega)
         ctrl = torch.from_numpy(self._ctrl).view(n, self.ncontrol)
         m = self.model
@@ -316,10 +316,11 @@ class MujocoPhysics(TorchPhysics):
         s = self.state
         self._pack(s)
         flags = []
+        wash = control_step_downwash(c, s)
         for _ in range(self.params.substeps):
             cmd = command_fn(s)
             throttle = s.throttle + (throttle_target(cmd) - s.throttle) * c.lag
-            self._controls(s, throttle)
+            self._controls(s, throttle, wash)
             self._pool.rollout(
                 self._models, self.datas, self._x, self._ctrl, control_spec=self.control_spec, skip_checks=True,
                 nstep=1, state=self._out, sensordata=self._sens,

@@ -102,9 +102,23 @@ def downwash_force(pos: torch.Tensor, up: torch.Tensor, total_thrust: torch.Tens
     return -(mag.unsqueeze(-1) * thrust_vec.unsqueeze(1)).sum(2)
 
 
-def substep(c: Constants, s: PhysicsState, cmd: torch.Tensor) -> tuple[PhysicsState, torch.Tensor, torch.Tensor, torch.Tensor]:
+def control_step_downwash(c: Constants, s: PhysicsState) -> torch.Tensor | None:
+    """Downwash acceleration [N, D, 3] held for a whole control step, or None without downwash.
+
+    Computed once per control step from its initial state (positions, tilt and rotor thrusts), not
+    every sub-step: the pairwise [N, D, D] terms were half of a 6-drone sub-step's cost, and over 20 ms
+    the wash a drone feels changes by far less than the wash itself (docs/physics.md).
+    """
+    if not c.downwash or s.pos.shape[1] < 2:
+        return None
+    _, up = quat_axes(s.quat)
+    return downwash_force(s.pos, up, rotor_thrusts(s.throttle, c.kf).sum(-1)) / c.mass
+
+
+def substep(c: Constants, s: PhysicsState, cmd: torch.Tensor, wash: torch.Tensor | None = None) -> tuple[PhysicsState, torch.Tensor, torch.Tensor, torch.Tensor]:
     """Advance the world by one sub-step under rotor commands ``cmd`` [N, D, 4] in [-1, 1].
 
+    ``wash`` is the control step's downwash acceleration (``control_step_downwash``), None for none.
     Returns the new state and this sub-step's racket / body contact flags [N, D] and ground flag [N].
     """
     h = c.h
@@ -121,8 +135,8 @@ def substep(c: Constants, s: PhysicsState, cmd: torch.Tensor) -> tuple[PhysicsSt
 
     # linear: thrust along body z, gravity, damping, downwash (semi-implicit Euler)
     force = up0 * (total / c.mass).unsqueeze(-1)
-    if c.downwash and s.pos.shape[1] > 1:
-        force = force + downwash_force(s.pos, up0, total) / c.mass
+    if wash is not None:
+        force = force + wash
     acc = force + c.gravity - c.lin_damp * s.vel
     vel = s.vel + acc * h
     pos = s.pos + vel * h
@@ -198,14 +212,34 @@ def substep(c: Constants, s: PhysicsState, cmd: torch.Tensor) -> tuple[PhysicsSt
     return new, racket_hit, body_hit, ground
 
 
+def masked_select(mask: torch.Tensor, new: torch.Tensor, old: torch.Tensor) -> torch.Tensor:
+    """``new`` where the per-env ``mask`` [N] is set, else ``old`` (both [N, ...]): a reset written
+    without boolean indexing, so that its shapes never depend on how many envs it touches."""
+    return torch.where(mask.reshape(mask.shape + (1,) * (old.dim() - mask.dim())), new, old)
+
+
+# torch.compile options for batched [N, D, ...] code on a CPU: inductor vectorises the innermost loop,
+# here a drone or xyz dimension of 1-6, and by default fills 16-wide masked vectors for it; plain loops
+# there ran the referee 8x and the physics 1.2x faster (docs/performance.md)
+INDUCTOR_OPTIONS = {"cpp.enable_loop_tail_vec": False}
+
+
+def compile_options(backend="inductor") -> dict:
+    """Keyword arguments of ``torch.compile`` for a pure batched step of static shape."""
+    opts = dict(dynamic=False, fullgraph=True, backend=backend)
+    if backend == "inductor":
+        opts["options"] = dict(INDUCTOR_OPTIONS)
+    return opts
+
+
 CommandFn = Callable[[PhysicsState], torch.Tensor]
 
 _FIELDS = tuple(f.name for f in fields(PhysicsState))
 
 
-def substep_flat(c: Constants, cmd: torch.Tensor, *tensors: torch.Tensor):
+def substep_flat(c: Constants, cmd: torch.Tensor, wash: torch.Tensor | None, *tensors: torch.Tensor):
     """``substep`` over a flat tuple of state tensors: the form ``torch.compile`` traces best."""
-    new, racket, body, ground = substep(c, PhysicsState(*tensors), cmd)
+    new, racket, body, ground = substep(c, PhysicsState(*tensors), cmd, wash)
     return (*(getattr(new, k) for k in _FIELDS), racket, body, ground)
 
 
@@ -234,15 +268,16 @@ class TorchPhysics:
             ball_vel=z(num_envs, 3),
         )
         # compile the pure sub-step only (static shapes): the command function changes every step
-        self._substep = torch.compile(substep_flat, dynamic=False) if compile else substep_flat
+        self._substep = torch.compile(substep_flat, **compile_options()) if compile else substep_flat
 
     def step(self, command_fn: CommandFn) -> Contacts:
         """Advance one control step (``substeps`` sub-steps); ``command_fn(state)`` gives rotor commands."""
         state = self.state
         racket = body = ground = None
+        wash = control_step_downwash(self.consts, state)
         for _ in range(self.params.substeps):
             cmd = command_fn(state)
-            *tensors, r, b, g = self._substep(self.consts, cmd, *(getattr(state, k) for k in _FIELDS))
+            *tensors, r, b, g = self._substep(self.consts, cmd, wash, *(getattr(state, k) for k in _FIELDS))
             state = PhysicsState(*tensors)
             racket = r if racket is None else racket | r
             body = b if body is None else body | b
@@ -251,10 +286,21 @@ class TorchPhysics:
         return Contacts(racket=racket, body=body, ground=ground)
 
     def set_state(self, mask: torch.Tensor, **values: torch.Tensor) -> None:
-        """Overwrite the named state fields of the envs selected by the bool mask [N]."""
+        """Overwrite the named state fields of the envs selected by the bool mask [N].
+
+        A value holds either one row per env ([N, ...], or anything that broadcasts to the field's
+        shape): a masked select on fixed shapes, the form the compiled env step uses; or one row per
+        selected env ([mask.sum(), ...]), written by boolean indexing (scripts and tests).
+        """
         for name, v in values.items():
             cur = getattr(self.state, name)
-            cur[mask] = v.to(cur.dtype)
+            v = torch.as_tensor(v, device=cur.device).to(cur.dtype)
+            if v.dim() < cur.dim() or v.shape[0] == self.num_envs:
+                new = masked_select(mask, v.expand_as(cur), cur)
+            else:
+                new = cur.clone()
+                new[mask] = v
+            setattr(self.state, name, new)
 
     def replace_state(self, state: PhysicsState) -> None:
         self.state = replace(state)

@@ -36,7 +36,7 @@ import torch
 
 import volleybots
 from volleybots.competitors import (
-    POPULATION_DIR, Competitor, checkpoint_member, member_path, population_members, resolve_competitor,
+    BUILTIN, POPULATION_DIR, Competitor, checkpoint_member, member_path, population_members, resolve_competitor,
 )
 from volleybots.config import ConfigError, to_dict, validate
 from volleybots.eval.pool import head_to_heads
@@ -161,8 +161,11 @@ class PopulationLoop:
             if len(comp.members) != 1:
                 raise ConfigError(f"algo.seed_members entry {spec!r} is a population; name single policies")
             src = comp.members[0].source
-            if src["kind"] in ("random", "scripted"):
-                self._save_member(k, {"format": CKPT_FORMAT, "builtin": src["kind"], "label": src["kind"], "frames": 0})
+            if src["kind"] in BUILTIN:  # a record naming it (a hierarchical team also its drills' checkpoints)
+                record = {"format": CKPT_FORMAT, "builtin": src["kind"], "label": src["kind"], "frames": 0}
+                if src.get("drills"):
+                    record["drills"] = dict(src["drills"])
+                self._save_member(k, record)
             else:
                 shutil.copyfile(src["path"], path.with_suffix(".tmp"))
                 path.with_suffix(".tmp").replace(path)

@@ -121,23 +121,27 @@ class Referee:
     # ----------------------------------------------------------------------------- reset
     def reset(self, mask: torch.Tensor, ball_pos: torch.Tensor, first: torch.Tensor | None = None) -> None:
         """Reset the envs in ``mask``. ``first`` [N] names the drone that must make the first touch
-        (the server, the setter, the first bumper); by default drone 0 (``free`` mode ignores it)."""
+        (the server, the setter, the first bumper); by default drone 0 (``free`` mode ignores it).
+
+        Written as masked selects over all envs (no boolean indexing), so that the compiled env step
+        has the same shapes whichever envs reset."""
         big = 10**6
-        self.step[mask] = 0
-        self.last_contact[mask] = -big
-        self.last_hit[mask] = -big
-        self.last_hitter[mask] = -1
-        self.touched[mask] = False
-        self.seq_index[mask] = 0
-        self.hits[mask] = 0
-        self.prev_ball_x[mask] = ball_pos[mask, 0]
-        if first is None:
-            first = self.order[0].expand(self.num_envs)
-        one_hot = torch.nn.functional.one_hot(first, self.n_drones).bool()
+        m = mask.unsqueeze(1)  # [N, 1], against the per-drone buffers
+        self.step = torch.where(mask, 0, self.step)
+        self.last_contact = torch.where(m, -big, self.last_contact)
+        self.last_hit = torch.where(m, -big, self.last_hit)
+        self.last_hitter = torch.where(mask, -1, self.last_hitter)
+        self.touched = self.touched & ~m
+        self.seq_index = torch.where(mask, 0, self.seq_index)
+        self.hits = torch.where(m, 0, self.hits)
+        self.prev_ball_x = torch.where(mask, ball_pos[:, 0], self.prev_ball_x)
         if self.cfg.turns == "free":
-            self.may_hit[mask] = True
+            self.may_hit = self.may_hit | m
         else:
-            self.may_hit[mask] = one_hot[mask]
+            if first is None:
+                first = self.order[0].expand(self.num_envs)
+            one_hot = torch.nn.functional.one_hot(first, self.n_drones).bool()
+            self.may_hit = torch.where(m, one_hot, self.may_hit)
 
     # ----------------------------------------------------------------------------- update
     def update(self, pos: torch.Tensor, ball_pos: torch.Tensor, racket: torch.Tensor, body: torch.Tensor) -> Events:
@@ -228,7 +232,6 @@ class Referee:
         """Rally faults with blame: drone faults on the drone's team, ball faults on the last hitter's
         team (the serving team if nobody hit yet is handled by last_hitter = -1 -> nobody), a ball
         landing in a half on that half's team. Both teams faulting in one step is a draw."""
-        n = self.num_envs
         team_oh = torch.nn.functional.one_hot(self.team, 2).bool()  # [D, 2]
 
         def per_team(flags):  # [N, D] -> [N, 2]

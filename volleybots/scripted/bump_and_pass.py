@@ -162,11 +162,11 @@ class BumpAndPassPlayer(_Player):
 
     def act(self, drone, t):
         c, tc, g = self.cfg, self.touch, self.params.gravity
-        anchor = drone.pos - t[..., 0:3]
+        anchor = drone.pos - t["anchor"]
         ball_p, ball_v = self.ball(drone, t)
-        my_turn = (t[..., 12:14] * t[..., 14:16]).sum(-1) > 0.5
+        my_turn = (t["turn"] * t["id"]).sum(-1) > 0.5
         side = torch.sign(anchor[..., 1:2])  # -1 for drone 1, +1 for drone 2
-        drop = self.opening(ball_p, ball_v, t[..., 12:14])
+        drop = self.opening(ball_p, ball_v, t["turn"])
         d = drop.unsqueeze(-1)
         spot_xy = torch.cat((anchor[..., :1], torch.where(d, side * c.first_to, anchor[..., 1:2] - side * c.inward)), -1)
         partner_xy = torch.cat((anchor[..., :1], torch.where(d, -side * c.first_aim, side * c.inward - anchor[..., 1:2])), -1)

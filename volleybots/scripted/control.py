@@ -26,6 +26,7 @@ import torch
 from volleybots.physics.controllers import RateController
 from volleybots.physics.math import quat_axes, quat_rotate_inverse
 from volleybots.physics.params import WorldParams
+from volleybots.tasks.layout import root_layout
 
 
 @dataclass(frozen=True)
@@ -66,8 +67,15 @@ class DroneObs:
 
     @classmethod
     def from_obs(cls, obs: torch.Tensor, with_throttle: bool) -> DroneObs:
-        thr = (obs[..., 19:23] + 1.0) * 0.5 if with_throttle else None
-        return cls(obs[..., 0:3], obs[..., 3:7], obs[..., 7:10], obs[..., 10:13], thr)
+        """From an observation whose first part is the root state (every task's)."""
+        layout = root_layout(with_throttle)
+        return cls.from_root(layout.split(obs[..., : layout.size]))
+
+    @classmethod
+    def from_root(cls, root: dict[str, torch.Tensor]) -> DroneObs:
+        """From the named parts of a root state (``tasks.layout.ROOT_PARTS``)."""
+        thr = root.get("throttle")
+        return cls(root["pos"], root["quat"], root["vel"], root["omega"], None if thr is None else (thr + 1.0) * 0.5)
 
     @property
     def omega_body(self) -> torch.Tensor:

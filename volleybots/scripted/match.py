@@ -62,16 +62,16 @@ class _MatchPlayer(_Player):
 
     def parse(self, drone, t):
         """(anchor, ball position, ball velocity, I may hit, my team's turn, my teammates' positions [..., k, 3])."""
-        anchor = drone.pos - t[..., 0:3]
-        if self.team_size == 1:
-            ball_p, ball_v = drone.pos - t[..., 3:6], t[..., 6:9]
-            may = t[..., 12] > 0.5
+        anchor = drone.pos - t["anchor"]
+        if self.team_size == 1:  # 1 vs 1 observes drone minus ball, its turn flag is "I may hit"
+            ball_p, ball_v = drone.pos - t["ball"], t["ball_vel"]
+            may = t["turn"][..., 0] > 0.5
             return anchor, ball_p, ball_v, may, may, drone.pos.unsqueeze(-2)
         k = self.team_size
-        ball_p, ball_v = drone.pos + t[..., 3:6], t[..., 6:9]
-        team_turn = t[..., 9] > 0.5
-        may = t[..., 11 + k] > 0.5
-        pos = t[..., 13 + k : 13 + k + 3 * k].unflatten(-1, (k, 3))
+        ball_p, ball_v = drone.pos + t["ball"], t["ball_vel"]
+        team_turn = t["turn"][..., 0] > 0.5
+        may = t["may_hit"][..., 0] > 0.5
+        pos = t["positions"][..., : 3 * k].unflatten(-1, (k, 3))  # the own team's, first
         return anchor, ball_p, ball_v, may, team_turn, pos
 
     def attack_target(self, ball_p):

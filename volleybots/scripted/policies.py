@@ -19,6 +19,7 @@ from volleybots.physics.params import WorldParams
 from volleybots.scripted.ballistics import launch_for_apex, time_to_height
 from volleybots.scripted.control import DroneController, DroneObs, Gains
 from volleybots.scripted.plan import StrikePlanner, goto_accel, off_centre
+from volleybots.tasks.layout import ObsLayout, root_layout
 
 ANCHOR = (4.5, 0.0, 2.0)
 
@@ -36,13 +37,24 @@ class ScriptedPolicy(TensorDictModuleBase):
         self.action_space = action_space
         self.ctrl = DroneController(self.params, action_space, gains)
 
-    def act(self, drone: DroneObs, task_obs: torch.Tensor) -> torch.Tensor:
+    @property
+    def layout(self) -> ObsLayout:
+        """The named layout of the observation this policy reads (its task's, tasks/layout.py)."""
+        from volleybots.tasks import TASKS
+
+        return TASKS[self.task].obs_layout(self.action_space == "prt")
+
+    def act(self, drone: DroneObs, obs: dict[str, torch.Tensor]) -> torch.Tensor:
+        """The action [..., 4] from the drone's root state and the observation's named parts."""
         raise TypeError(f"{type(self).__name__} must define act()")
 
+    def parts(self, obs: torch.Tensor) -> tuple[DroneObs, dict[str, torch.Tensor]]:
+        """An observation [..., obs] as (the drone's state, its named parts)."""
+        parts = self.layout.split(obs)
+        return DroneObs.from_root(root_layout(self.action_space == "prt").split(parts["root"])), parts
+
     def forward(self, td: TensorDictBase) -> TensorDictBase:
-        obs = td.get(("agents", "observation"))
-        drone = DroneObs.from_obs(obs, self.action_space == "prt")
-        td.set(("agents", "action"), self.act(drone, obs[..., drone.root_dim :]))
+        td.set(("agents", "action"), self.act(*self.parts(td.get(("agents", "observation")))))
         return td
 
     def _vec(self, ref: torch.Tensor, values) -> torch.Tensor:
@@ -73,12 +85,12 @@ class HoverPolicy(ScriptedPolicy):
         super().__init__(action_space, params, gains or default_gains)
         self.goto = goto or default_goto
 
-    def target(self, drone: DroneObs, task_obs: torch.Tensor) -> torch.Tensor:
-        return drone.pos - task_obs[..., 0:3]
+    def target(self, drone: DroneObs, obs: dict[str, torch.Tensor]) -> torch.Tensor:
+        return drone.pos - obs["target"]
 
-    def act(self, drone, task_obs):
+    def act(self, drone, obs):
         c = self.goto
-        acc = goto_accel(drone.pos, drone.vel, self.target(drone, task_obs), c.accel, c.speed, c.k_v, c.k_p, c.brake, c.stop_at, c.lead)
+        acc = goto_accel(drone.pos, drone.vel, self.target(drone, obs), c.accel, c.speed, c.k_v, c.k_p, c.brake, c.stop_at, c.lead)
         return self.ctrl.act_accel(drone, acc)
 
 
@@ -103,8 +115,9 @@ class BackAndForthPolicy(HoverPolicy):
 class _BallPolicy(ScriptedPolicy):
     """Observation of the ball drills: root, drone minus anchor, drone minus ball, ball velocity."""
 
-    def ball(self, drone: DroneObs, task_obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        return drone.pos - task_obs[..., 3:6], task_obs[..., 6:9]
+    def ball(self, drone: DroneObs, obs: dict[str, torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:
+        """Ball position and velocity (these tasks observe drone minus ball)."""
+        return drone.pos - obs["ball"], obs["ball_vel"]
 
     def strike_action(self, drone: DroneObs, strike, home: torch.Tensor, window, lock_time: float, hold=None, early=(0, 1),
                       early_feed: bool = True, lateral: torch.Tensor | None = None) -> torch.Tensor:
@@ -161,14 +174,14 @@ class SoloBumpPolicy(_BallPolicy):
         self.cfg = cfg
         self.planner = StrikePlanner(self.params)
 
-    def act(self, drone, task_obs):
-        strike = self.plan(drone, task_obs)
+    def act(self, drone, obs):
+        strike = self.plan(drone, obs)
         return self.strike_action(drone, strike, self._vec(drone.pos, ANCHOR), self.cfg.window, self.cfg.lock_time)
 
-    def plan(self, drone, task_obs):
+    def plan(self, drone, obs):
         """The next contact."""
         c = self.cfg
-        ball_p, ball_v = self.ball(drone, task_obs)
+        ball_p, ball_v = self.ball(drone, obs)
         anchor = self._vec(ball_p, ANCHOR)
         contact_ball_z = c.contact_z + self.planner.reach
 
@@ -236,9 +249,9 @@ class HitTheBallPolicy(_BallPolicy):
         best = dist.argmax(-1)
         return torch.gather(v_out, -2, best[..., None, None].expand(*bp.shape[:-1], 1, 3)).squeeze(-2)
 
-    def act(self, drone, task_obs):
+    def act(self, drone, obs):
         c = self.cfg
-        ball_p, ball_v = self.ball(drone, task_obs)
+        ball_p, ball_v = self.ball(drone, obs)
         anchor = self._vec(drone.pos, ANCHOR).expand_as(drone.pos)
         total, speed = self.climb(ball_p, ball_v)
         strike = self.planner.plan(ball_p, ball_v, c.contact_z + self.planner.reach, lambda bp, bv: self.best_return(bp, bv, speed), c.max_tilt)

@@ -308,10 +308,10 @@ class SetAndSpikePlayer(_Player):
 
     def act(self, drone, t):
         c = self.cfg
-        anchor = drone.pos - t[..., 0:3]
+        anchor = drone.pos - t["anchor"]
         ball_p, ball_v = self.ball(drone, t)
-        turn = t[..., 12:15]
-        setter = t[..., 15] > 0.5
+        turn = t["turn"]  # (setter's turn, attacker's, done)
+        setter = t["id"][..., 0] > 0.5
         attack = torch.tensor(c.attack_spot, dtype=ball_p.dtype, device=ball_p.device)
         # after the spike the attacker's throw carries it toward the net: it brakes straight away (``after_touch``)
         done = turn[..., 2:] > 0.5
@@ -469,7 +469,7 @@ class SetAndSpikeHardPlayer(SetAndSpikePlayer):
     def act(self, drone, t):
         # after the tip the attacker comes down close to the net: it backs off before it is level with the net's top
         c = self.cfg
-        low = (drone.pos[..., 2] < c.net_top) | (t[..., 14] > 0.5)  # ... or at any height once its touch is done
+        low = (drone.pos[..., 2] < c.net_top) | (t["turn"][..., 2] > 0.5)  # ... or at any height once its touch is done
         guard = self.recover_ctrl.act_thrust(drone, self.rush(drone, self.off_net(drone)))
         return torch.where((self.near_net(drone) & low).unsqueeze(-1), guard, super().act(drone, t))
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import torch
 
+from volleybots.physics.torch_backend import masked_select
 from volleybots.rules import COURTS, RefereeConfig
 from volleybots.tasks.base import StepResult
 from volleybots.tasks.defence import DefenceRacket
@@ -22,6 +23,12 @@ MISBEHAVE = -10.0
 ANCHOR_RADIUS = 0.5
 ANCHOR_COEF = 0.05
 DIST_COEF = 0.05
+
+
+def coop_parts(n_turn: int) -> tuple[tuple[str, int], ...]:
+    """The cooperative observation: root, drone minus anchor, drone minus ball, ball velocity, other
+    drone minus self, turn one-hot (``n_turn``), id one-hot (2)."""
+    return (("root", 23), ("anchor", 3), ("ball", 3), ("ball_vel", 3), ("other", 3), ("turn", n_turn), ("id", 2))
 
 
 def _shared(x: torch.Tensor, n_drones: int = 2) -> torch.Tensor:
@@ -49,7 +56,7 @@ class _CoopTask(MultiDroneTask):
         pos = self.place_around_anchors(mask, self.init_low, self.init_high)
         ball = self.anchors[0] + torch.tensor((0.0, 0.0, 2.0), device=self.device)
         self.place_ball(mask, ball)
-        self.prev_ball[mask] = ball
+        self.prev_ball = masked_select(mask, ball.expand_as(self.prev_ball), self.prev_ball)
         self.referee.reset(mask, self.physics.state.ball_pos)
         self.reset_coop(mask, pos)
 
@@ -64,17 +71,14 @@ class _CoopTask(MultiDroneTask):
         s = self.physics.state
         n = self.num_envs
         other = s.pos.flip(1) - s.pos
-        return torch.cat(
-            (
-                self.root_state(),
-                s.pos - self.anchors,
-                s.pos - s.ball_pos.unsqueeze(1),
-                s.ball_vel.unsqueeze(1).expand(-1, 2, -1),
-                other,
-                self.turn_obs().unsqueeze(1).expand(-1, 2, -1),
-                self._ids.expand(n, 2, 2),
-            ),
-            -1,
+        return self.layout.build(
+            root=self.root_state(),
+            anchor=s.pos - self.anchors,
+            ball=s.pos - s.ball_pos.unsqueeze(1),
+            ball_vel=s.ball_vel.unsqueeze(1).expand(-1, 2, -1),
+            other=other,
+            turn=self.turn_obs().unsqueeze(1).expand(-1, 2, -1),
+            id=self._ids.expand(n, 2, 2),
         )
 
     def anchor_term(self) -> torch.Tensor:
@@ -96,7 +100,7 @@ class BumpAndPass(_CoopTask):
 
     name = "bump_and_pass"
     anchors_xyz = ((4.5, -2.5, 2.0), (4.5, 2.5, 2.0))
-    obs_dim_prt = 39  # root 23, anchor 3, ball 3, ball vel 3, other 3, turn 2, id 2
+    obs_parts = coop_parts(2)
     reward_terms = ("success_hit", "success_cross", "dist_to_anchor", "ball_misbehave", "drone_misbehave", "wrong_hit", "hit_direction", "dist_to_ball")
     shaping_terms = ("hit_direction", "dist_to_ball")
     metric = "bumps"  # longest run of consecutive successful bumps
@@ -117,11 +121,11 @@ class BumpAndPass(_CoopTask):
         return RefereeConfig(court=COURTS["full"], turns="alternate", drone_min_z=0.4)
 
     def reset_coop(self, mask, pos):
-        for buf in (self.pending, self.crossed):
-            buf[mask] = False
-        for buf in (self.apex, self.streak, self.best, self.passes, self.hits):
-            buf[mask] = 0.0
-        self.receiver[mask] = 1
+        self.pending, self.crossed = self.pending & ~mask, self.crossed & ~mask
+        self.apex, self.streak, self.best, self.passes, self.hits = (
+            torch.where(mask, 0.0, buf) for buf in (self.apex, self.streak, self.best, self.passes, self.hits)
+        )
+        self.receiver = torch.where(mask, 1, self.receiver)
 
     def turn_obs(self):
         return self.referee.may_hit.float()
@@ -173,7 +177,7 @@ class _SetAndSpike(_CoopTask):
     """Setter (drone 0) sets, attacker (drone 1) spikes down into the -x half."""
 
     anchors_xyz = ((2.0, -2.5, 2.5), (2.0, 2.5, 3.5))
-    obs_dim_prt = 40  # as Bump and Pass with a 3-value turn one-hot (setter, attacker, done)
+    obs_parts = coop_parts(3)  # the turn one-hot over (setter, attacker, done)
     n_turn = 3
     metric = "success_rate"  # mean of the four components below
     goal = ""  # the fourth component: "in_target" (Easy) or "success_spike" (Hard)
@@ -197,8 +201,8 @@ class _SetAndSpike(_CoopTask):
         return RefereeConfig(court=COURTS["full"], turns="sequence", order=(0, 1), drone_min_z=self.drone_min_z)
 
     def reset_coop(self, mask, pos):
-        for v in self.flags.values():
-            v[mask] = False
+        for k, v in self.flags.items():
+            self.flags[k] = v & ~mask
 
     def turn_obs(self):
         return one_hot(self.referee.seq_index.clamp_max(2), 3)
@@ -301,15 +305,14 @@ class SetAndSpikeHard(_SetAndSpike):
     def reset_coop(self, mask, pos):
         super().reset_coop(mask, pos)
         self.defence.reset(mask)
-        self.intercepted[mask] = False
+        self.intercepted = self.intercepted & ~mask
 
     def evaluate(self, ev):
         # the racket acts on the ball first, so that a returned ball is never scored as landed
         s = self.physics.state
         touch, bpos, bvel = self.defence.step(self.prev_ball, s.ball_pos, s.ball_vel, self.flags["attacker_hit"])
-        if touch.any():
-            self.physics.set_state(touch, ball_pos=bpos[touch], ball_vel=bvel[touch])
-            ev.ball_landed = ev.ball_landed & ~touch
+        self.physics.set_state(touch, ball_pos=bpos, ball_vel=bvel)  # untouched envs keep their ball
+        ev.ball_landed = ev.ball_landed & ~touch
         self.intercepted = self.intercepted | touch
         return super().evaluate(ev)
 

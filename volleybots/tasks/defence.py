@@ -96,12 +96,14 @@ class DefenceRacket:
         self.v_post = z(n, 3)  # the return velocity it planned (for tests and replays)
 
     def reset(self, mask: torch.Tensor) -> None:
-        self.pos[mask] = self.home
-        self.angles[mask] = 0.0
-        self.vel[mask] = 0.0
-        self.planned[mask] = False
-        self.touched[mask] = False
-        self.t_left[mask] = 0.0
+        """Home, level and idle in the envs of ``mask`` (masked selects: static shapes)."""
+        m = mask.unsqueeze(-1)
+        self.pos = torch.where(m, self.home, self.pos)
+        self.angles = torch.where(m, 0.0, self.angles)
+        self.vel = torch.where(m, 0.0, self.vel)
+        self.planned = self.planned & ~mask
+        self.touched = self.touched & ~mask
+        self.t_left = torch.where(mask, 0.0, self.t_left)
 
     @property
     def normal(self) -> torch.Tensor:

@@ -42,6 +42,14 @@ def both_sides(team0: tuple[tuple[float, float, float], ...]) -> tuple[tuple[flo
     return tuple(team0) + tuple((-x, -y, z) for x, y, z in team0)
 
 
+def team_match_parts(team_size: int) -> tuple[tuple[str, int], ...]:
+    """The 3 vs 3 / 6 vs 6 observation: root, drone minus anchor, ball minus drone, ball velocity,
+    turn (my team may hit, not), id within the team, may-hit flag (I may hit, not), every drone's
+    position (own team first, each team in id order)."""
+    return (("root", 23), ("anchor", 3), ("ball", 3), ("ball_vel", 3), ("turn", 2), ("id", team_size), ("may_hit", 2),
+            ("positions", 3 * 2 * team_size))
+
+
 class _Match(MultiDroneTask):
     court: str = "full"
     team_size: int = 1
@@ -87,22 +95,20 @@ class _Match(MultiDroneTask):
 
     # ------------------------------------------------------------------ reset
     def reset_task(self, mask):
-        m = int(mask.sum())
+        n = self.num_envs
         noise = (self.init_noise,) * 3
         pos = self.place_around_anchors(mask, tuple(-x for x in noise), noise, yaw=self.yaw)
-        team = torch.randint(0, 2, (m,), generator=self.rng, device=self.device)
+        team = (self.uniform(0.0, 1.0, (n,)) < 0.5).long()  # a fair coin per env
         if self.fixed_serve is not None:
             team = torch.full_like(team, self.fixed_serve)
         server = torch.stack((self.team_index(0)[self.server_rank], self.team_index(1)[self.server_rank]))[team]
-        ball = pos[torch.arange(m, device=self.device), server] + torch.tensor((0.0, 0.0, self.ball_above), device=self.device)
+        ball = pos.gather(1, server.view(n, 1, 1).expand(n, 1, 3)).squeeze(1) + torch.tensor((0.0, 0.0, self.ball_above), device=self.device)
         self.place_ball(mask, ball)
-        first = torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
-        first[mask] = server
-        self.referee.reset(mask, self.physics.state.ball_pos, first=first)
-        self.serve_team[mask] = team
-        self.winner[mask] = -1
-        self.reason[mask] = -1
-        self.is_draw[mask] = False
+        self.referee.reset(mask, self.physics.state.ball_pos, first=server)
+        self.serve_team = torch.where(mask, team, self.serve_team)
+        self.winner = torch.where(mask, -1, self.winner)
+        self.reason = torch.where(mask, -1, self.reason)
+        self.is_draw = self.is_draw & ~mask
 
     # ------------------------------------------------------------------ observation helpers
     def own_root(self) -> torch.Tensor:
@@ -185,7 +191,8 @@ class OneVsOne(_Match):
     turn_mode = "alternate"  # strict alternation of hits
     out_at_any_height = True
     episode_len = 800
-    obs_dim_prt = 39  # root 23, anchor 3, drone minus ball 3, ball vel 3, other minus self 3, turn 2, id 2
+    # anchor: drone minus anchor; ball: drone minus ball; other: other drone minus self; turn: (my turn, not); id within the team
+    obs_parts = (("root", 23), ("anchor", 3), ("ball", 3), ("ball_vel", 3), ("other", 3), ("turn", 2), ("id", 2))
     reward_terms = ("win_or_lose", "drone_misbehave", "drone_out_of_court", "success_hit", "dist_to_ball")
     shaping_terms = ("success_hit", "dist_to_ball")
 
@@ -194,17 +201,14 @@ class OneVsOne(_Match):
         n, a = self.num_envs, self.n_drones
         other = s.pos[:, self.view_order[:, 1]] - s.pos
         ids = one_hot(self.rank, 2).expand(n, a, 2)  # id within the team: the same for both sides
-        return torch.cat(
-            (
-                self.own_root(),
-                self.own(s.pos - self.anchors),
-                self.own(s.pos - s.ball_pos.unsqueeze(1)),
-                self.own(s.ball_vel.unsqueeze(1).expand(-1, a, -1)),
-                self.own(other),
-                flag_pair(self.referee.may_hit),
-                ids,
-            ),
-            -1,
+        return self.layout.build(
+            root=self.own_root(),
+            anchor=self.own(s.pos - self.anchors),
+            ball=self.own(s.pos - s.ball_pos.unsqueeze(1)),
+            ball_vel=self.own(s.ball_vel.unsqueeze(1).expand(-1, a, -1)),
+            other=self.own(other),
+            turn=flag_pair(self.referee.may_hit),
+            id=ids,
         )
 
     def team_terms(self, ev, winner, crash, collide):
@@ -235,18 +239,15 @@ class _TeamMatch(_Match):
     def observe(self):
         s = self.physics.state
         n, a = self.num_envs, self.n_drones
-        return torch.cat(
-            (
-                self.own_root(),
-                self.own(s.pos - self.anchors),
-                self.own(s.ball_pos.unsqueeze(1) - s.pos),
-                self.own(s.ball_vel.unsqueeze(1).expand(-1, a, -1)),
-                flag_pair(self.my_turn()),
-                one_hot(self.rank, self.team_size).expand(n, a, self.team_size),
-                flag_pair(self.referee.may_hit),
-                self.all_positions(),
-            ),
-            -1,
+        return self.layout.build(
+            root=self.own_root(),
+            anchor=self.own(s.pos - self.anchors),
+            ball=self.own(s.ball_pos.unsqueeze(1) - s.pos),
+            ball_vel=self.own(s.ball_vel.unsqueeze(1).expand(-1, a, -1)),
+            turn=flag_pair(self.my_turn()),
+            id=one_hot(self.rank, self.team_size).expand(n, a, self.team_size),
+            may_hit=flag_pair(self.referee.may_hit),
+            positions=self.all_positions(),
         )
 
     def teammates_too_close(self):
@@ -272,7 +273,7 @@ class ThreeVsThree(_TeamMatch):
     team_size = 3
     anchors_xyz = both_sides(((3.0, -1.5, 2.0), (3.0, 1.5, 2.0), (6.0, 0.0, 2.0)))
     server_rank = 2  # the back drone
-    obs_dim_prt = 57  # root 23, anchor 3, ball minus drone 3, ball vel 3, turn 2, id 3, may hit 2, positions 18
+    obs_parts = team_match_parts(3)
 
 
 class SixVsSix(_TeamMatch):
@@ -281,4 +282,4 @@ class SixVsSix(_TeamMatch):
     team_size = 6
     anchors_xyz = both_sides(((3.0, -3.0, 2.0), (3.0, 0.0, 2.0), (3.0, 3.0, 2.0), (6.0, -3.0, 2.0), (9.0, 0.0, 2.0), (6.0, 3.0, 2.0)))
     server_rank = 4  # the (9, 0, 2) drone
-    obs_dim_prt = 78  # as 3 vs 3 with id 6 and 12 positions (36)
+    obs_parts = team_match_parts(6)

@@ -21,10 +21,13 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 
 from volleybots.tasks.base import VolleyEnv
+from volleybots.tasks.layout import root_layout
 
-# indices of the world-frame x, y components inside the 23 (19) value root state:
-# pos 0:3, quat 3:7, vel 7:10, angular velocity 10:13, heading 13:16, up 16:19, throttle 19:23
-_ROOT_XY = (0, 1, 7, 8, 10, 11, 13, 14, 16, 17)
+_ROOT = root_layout(True)
+# indices of the world-frame x, y components inside the root state (the throttles come last, so
+# the same indices serve the 19 values of CTBR)
+_ROOT_XY = tuple(_ROOT.slice(p).start + k for p in ("pos", "vel", "omega", "heading", "up") for k in (0, 1))
+_QUAT = _ROOT.slice("quat")
 
 
 def canonical_quat(q: torch.Tensor) -> torch.Tensor:
@@ -53,8 +56,8 @@ def mirror_root(root: torch.Tensor, flip: torch.Tensor) -> torch.Tensor:
     out = root.clone()
     idx = torch.tensor(_ROOT_XY, device=root.device)
     out[..., idx] = torch.where(flip.unsqueeze(-1), -root[..., idx], root[..., idx])
-    quat = root[..., 3:7]
-    out[..., 3:7] = canonical_quat(torch.where(flip.unsqueeze(-1), rotate_quat_z180(quat), quat))
+    quat = root[..., _QUAT]
+    out[..., _QUAT] = canonical_quat(torch.where(flip.unsqueeze(-1), rotate_quat_z180(quat), quat))
     return out
 
 
@@ -105,23 +108,25 @@ class MultiDroneTask(VolleyEnv):
         idx = self.team_index(team)
         for key in sub.keys(include_nested=True, leaves_only=True):
             val = sub.get(key)
-            if key not in agents.keys(include_nested=True, leaves_only=True):
-                spec_shape = (agents.batch_size[0], agents.batch_size[1], *val.shape[2:])
-                agents.set(key, torch.zeros(spec_shape, dtype=val.dtype, device=val.device))
-            agents.get(key)[:, idx] = val
+            if key in agents.keys(include_nested=True, leaves_only=True):
+                # a new tensor, never a write into the old one: the old one may be the previous step's
+                # (the env carries the last action into the next step's tensordict), already collected
+                full = agents.get(key).clone()
+            else:
+                full = torch.zeros((agents.batch_size[0], agents.batch_size[1], *val.shape[2:]), dtype=val.dtype, device=val.device)
+            full[:, idx] = val
+            agents.set(key, full)
         return td
 
     # ---------------------------------------------------------------- shared pieces
     def place_around_anchors(self, mask: torch.Tensor, low, high, yaw: torch.Tensor | None = None) -> torch.Tensor:
         """Drones at rest, uniform in anchor + [low, high], level, heading ``yaw`` [A] (default 0).
-        Returns the positions [M, A, 3]."""
-        m = int(mask.sum())
-        pos = self.anchors + self.uniform(low, high, (m, self.n_drones))
+        Returns the positions [N, A, 3] (those of the envs outside ``mask`` are not used)."""
+        pos = self.anchors + self.uniform(low, high, (self.num_envs, self.n_drones))
         quat = None
         if yaw is not None:
             half = 0.5 * yaw.to(self.device, torch.float32)
             quat = torch.stack((half.cos(), torch.zeros_like(half), torch.zeros_like(half), half.sin()), -1)
-            quat = quat.expand(m, self.n_drones, 4)
         self.place_drones(mask, pos, quat)
         return pos
 

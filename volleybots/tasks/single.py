@@ -11,6 +11,7 @@ import torch
 
 from volleybots.physics.math import euler_to_quat, quat_axes
 from volleybots.rules import COURTS, RefereeConfig
+from volleybots.physics.torch_backend import masked_select
 from volleybots.tasks.base import PARKED_BALL, StepResult, VolleyEnv
 
 ANCHOR = (4.5, 0.0, 2.0)
@@ -27,7 +28,7 @@ class Hover(VolleyEnv):
 
     name = "hover"
     episode_len = 500
-    obs_dim_prt = 26  # root (23) + drone minus target (3)
+    obs_parts = (("root", 23), ("target", 3))  # target: drone minus target
     reward_terms = ("pose", "up", "spin", "crash")
     shaping_terms = ("up", "spin")
     metric = "distance"  # mean distance to the target over the episode, m (lower is better)
@@ -43,18 +44,18 @@ class Hover(VolleyEnv):
         return RefereeConfig(court=COURTS["3v3"], drone_min_z=0.2)
 
     def reset_task(self, mask):
-        m = int(mask.sum())
-        self.place_drones(mask, self.uniform((-2.5, -2.5, 1.0), (2.5, 2.5, 2.5), (m, 1)))
+        n = self.num_envs
+        self.place_drones(mask, self.uniform((-2.5, -2.5, 1.0), (2.5, 2.5, 2.5), (n, 1)))
         if self.fixed_target is None:
-            self.target[mask] = self.uniform((-2.5, -2.5, 1.5), (2.5, 2.5, 2.5), (m,))
+            target = self.uniform((-2.5, -2.5, 1.5), (2.5, 2.5, 2.5), (n,))
         else:
-            self.target[mask] = torch.as_tensor(self.fixed_target, device=self.device, dtype=torch.float32)
+            target = torch.as_tensor(self.fixed_target, device=self.device, dtype=torch.float32).expand(n, 3)
+        self.target = masked_select(mask, target, self.target)
         self.place_ball(mask, PARKED_BALL)
         self.referee.reset(mask, self.physics.state.ball_pos)
 
     def observe(self):
-        rel = self.physics.state.pos - self.target.unsqueeze(1)
-        return torch.cat((self.root_state(), rel), -1)
+        return self.layout.build(root=self.root_state(), target=self.physics.state.pos - self.target.unsqueeze(1))
 
     def evaluate(self, ev):
         s = self.physics.state
@@ -75,7 +76,7 @@ class Hover(VolleyEnv):
 
 class BackAndForth(VolleyEnv):
     name = "back_and_forth"
-    obs_dim_prt = 26  # root (23) + drone minus current target (3)
+    obs_parts = (("root", 23), ("target", 3))  # target: drone minus the current target
     reward_terms = ("target_stay", "dist_to_target", "misbehave")
     metric = "targets"  # targets reached (5 consecutive steps within 0.6 m)
 
@@ -90,14 +91,14 @@ class BackAndForth(VolleyEnv):
         return RefereeConfig(court=COURTS["full"], drone_min_z=0.4, drone_max_z=5.0)
 
     def reset_task(self, mask):
-        m = int(mask.sum())
-        rp = self.uniform((-0.1 * math.pi, -0.1 * math.pi, -math.pi), (0.1 * math.pi, 0.1 * math.pi, math.pi), (m, 1))
+        n = self.num_envs
+        rp = self.uniform((-0.1 * math.pi, -0.1 * math.pi, -math.pi), (0.1 * math.pi, 0.1 * math.pi, math.pi), (n, 1))
         quat = euler_to_quat(rp[..., 0], rp[..., 1], rp[..., 2])
-        self.place_drones(mask, self.anchors[0].expand(m, 1, 3), quat)
+        self.place_drones(mask, self.anchors[0].expand(n, 1, 3), quat)
         self.place_ball(mask, PARKED_BALL)
-        self.target_idx[mask] = 1
-        self.inside[mask] = 0
-        self.reached[mask] = 0
+        self.target_idx = torch.where(mask, 1, self.target_idx)
+        self.inside = torch.where(mask, 0, self.inside)
+        self.reached = torch.where(mask, 0.0, self.reached)
         self.referee.reset(mask, self.physics.state.ball_pos)
 
     @property
@@ -105,7 +106,7 @@ class BackAndForth(VolleyEnv):
         return self.anchors[self.target_idx]
 
     def observe(self):
-        return torch.cat((self.root_state(), self.physics.state.pos - self.target.unsqueeze(1)), -1)
+        return self.layout.build(root=self.root_state(), target=self.physics.state.pos - self.target.unsqueeze(1))
 
     def evaluate(self, ev):
         s = self.physics.state
@@ -130,7 +131,8 @@ class _BallDrill(VolleyEnv):
     """Shared by Hit the Ball and Solo Bump: reset around the anchor, ball at rest above it, and the
     observation root, drone minus anchor, drone minus ball, ball velocity (32 / 28)."""
 
-    obs_dim_prt = 32
+    # anchor: drone minus anchor; ball: drone minus ball; ball_vel: the ball's velocity
+    obs_parts = (("root", 23), ("anchor", 3), ("ball", 3), ("ball_vel", 3))
     ball_start = (4.5, 0.0, 4.0)
 
     def __init__(self, *args, **kw):
@@ -138,8 +140,7 @@ class _BallDrill(VolleyEnv):
         self.anchor = torch.tensor(ANCHOR, device=self.device)
 
     def reset_task(self, mask):
-        m = int(mask.sum())
-        self.place_drones(mask, self.uniform((4.0, -0.5, 1.8), (5.0, 0.5, 2.2), (m, 1)))
+        self.place_drones(mask, self.uniform((4.0, -0.5, 1.8), (5.0, 0.5, 2.2), (self.num_envs, 1)))
         self.place_ball(mask, self.ball_start)
         self.referee.reset(mask, self.physics.state.ball_pos)
         self.reset_drill(mask)
@@ -149,9 +150,7 @@ class _BallDrill(VolleyEnv):
 
     def observe(self):
         s = self.physics.state
-        return torch.cat(
-            (self.root_state(), s.pos - self.anchor, s.pos - s.ball_pos.unsqueeze(1), s.ball_vel.unsqueeze(1)), -1
-        )
+        return self.layout.build(root=self.root_state(), anchor=s.pos - self.anchor, ball=s.pos - s.ball_pos.unsqueeze(1), ball_vel=s.ball_vel.unsqueeze(1))
 
 
 class HitTheBall(_BallDrill):
@@ -171,8 +170,8 @@ class HitTheBall(_BallDrill):
         return RefereeConfig(court=COURTS["full"], turns="sequence", order=(0,), drone_min_z=0.4, ball_low_z=0.15)
 
     def reset_drill(self, mask):
-        self.prev_ball[mask] = self.physics.state.ball_pos[mask]
-        self.distance[mask] = 0.0
+        self.prev_ball = masked_select(mask, self.physics.state.ball_pos, self.prev_ball)
+        self.distance = torch.where(mask, 0.0, self.distance)
 
     def evaluate(self, ev):
         s = self.physics.state
@@ -222,10 +221,9 @@ class SoloBump(_BallDrill):
         return RefereeConfig(court=COURTS["full"], min_hit_gap=25, drone_min_z=0.4, drone_max_z=2.5, ball_low_z=0.15)
 
     def reset_drill(self, mask):
-        for buf in (self.apex, self.streak, self.best):
-            buf[mask] = 0.0
-        self.pending[mask] = False
-        self.hit_ok[mask] = False
+        self.apex, self.streak, self.best = (torch.where(mask, 0.0, buf) for buf in (self.apex, self.streak, self.best))
+        self.pending = self.pending & ~mask
+        self.hit_ok = self.hit_ok & ~mask
 
     def evaluate(self, ev):
         s = self.physics.state

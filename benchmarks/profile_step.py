@@ -1,0 +1,71 @@
+"""Where the time of one compiled env step goes (docs/performance.md "Profile").
+
+    python benchmarks/profile_step.py --task 3v3 --num-envs 4096
+
+Times, in CPU ms per call of this process (one torch thread; robust to a shared machine, unlike wall
+time), the compiled pieces of a step at the same shapes: the physics alone (one control step, the
+ceiling of the env), the whole step graph (physics, referee, rewards, statistics, observations), the
+reset graph (a masked reset of about 2% of the envs), and ``step_and_maybe_reset`` with its
+tensordict plumbing; then, compiled on their own for comparison, the observation and the referee with
+the task's evaluation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import torch
+
+import volleybots
+from volleybots.physics.torch_backend import compile_options
+
+
+def cpu_ms(fn, reps: int) -> float:
+    fn()
+    fn()
+    start = time.process_time()
+    for _ in range(reps):
+        fn()
+    return (time.process_time() - start) / reps * 1e3
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--task", default="3v3")
+    ap.add_argument("--num-envs", type=int, default=4096)
+    ap.add_argument("--reps", type=int, default=20)
+    args = ap.parse_args(argv)
+    torch.set_num_threads(1)
+    n = args.num_envs
+    env = volleybots.make_env(args.task, num_envs=n, compile=True, seed=0)
+    env.reset()
+    td = env.reset()
+    action = env.full_action_spec.rand()
+    gen = torch.Generator().manual_seed(0)
+    mask = torch.rand(n, generator=gen) < 0.02
+    a = action["agents", "action"]
+    physics = torch.compile(lambda: env.physics.step(env.actions.command_fn(a)), **compile_options())
+    s = env.physics.state
+    c = env.physics.step(env.actions.command_fn(a))
+
+    def referee_and_rewards():
+        return env.evaluate(env.referee.update(s.pos, s.ball_pos, c.racket, c.body)).terminated
+
+    rows = [
+        ("physics only (one control step)", physics),
+        ("whole step graph", lambda: env._step_fn(a)),
+        ("reset graph (2% of envs)", lambda: env._reset_envs(mask)),
+        ("step_and_maybe_reset (+ tensordicts, + reset)", lambda: env.step_and_maybe_reset(td.update(action))),
+        ("observation alone", torch.compile(env.observe, **compile_options())),
+        ("referee + rewards alone", torch.compile(referee_and_rewards, **compile_options())),
+    ]
+    print(f"{args.task}, {n} envs, {env.n_drones} drones, compiled, 1 thread")
+    print("| piece | CPU ms per call | env-steps per CPU-s at that cost |")
+    for name, fn in rows:
+        ms = cpu_ms(fn, args.reps)
+        print(f"| {name} | {ms:.2f} | {n / ms:.0f}k |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
