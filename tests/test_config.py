@@ -134,3 +134,15 @@ def test_configs_are_found_from_any_working_directory(tmp_path):
     out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "2.0"
+
+
+def test_configs_saved_with_the_old_compile_physics_task_key_still_load():
+    """Runs written before the whole step compiled kept ``task.compile_physics``; they still evaluate."""
+    from volleybots.config import to_dict, validate
+
+    old = to_dict(load(["task=1v1"]))
+    old["task"]["compile_physics"] = False
+    assert validate(old).task.name == "1v1"
+    old["task"]["compile_phisics"] = False
+    with pytest.raises(ConfigError, match="compile_phisics"):
+        validate(old)

@@ -196,6 +196,10 @@ def validate(cfg) -> DictConfig:
     data = cfg if isinstance(cfg, dict) else OmegaConf.to_container(cfg, resolve=True)
     data = {k: v for k, v in data.items() if k != "hydra"}
     task, algo = data.get("task"), data.get("algo")
+    if isinstance(task, dict) and "compile_physics" in task:
+        # saved by versions whose task constructor took compile_physics (now env.compile): the
+        # runs and checkpoints they wrote still load; the value only ever mirrored env.compile
+        task = {k: v for k, v in task.items() if k != "compile_physics"}
     if not isinstance(task, dict) or "name" not in task:
         raise ConfigError(f"the config has no task; choose one with task=NAME, allowed: {', '.join(sorted(TASKS))}")
     if task["name"] not in TASKS:
