@@ -111,9 +111,6 @@ class PopulationLoop:
     def _append_meta(self, line: dict) -> None:
         write_atomic(self.meta_path, "".join(json.dumps(m) + "\n" for m in [*self.metas(), line]))
 
-    def labels(self) -> list[str]:
-        return [self._label(p) for p in population_members(self.run.path)]
-
     @staticmethod
     def _label(path: Path) -> str:
         state = read_checkpoint(path)
