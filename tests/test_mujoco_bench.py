@@ -15,3 +15,12 @@ def test_run_bench_rows_and_table():
     table = format_table(rows).splitlines()
     assert len(table) == 4 and table[2].startswith("| hover | env | 1 | torch | cpu | no | 1 | 2 |")
     assert table[2].endswith(f"| {ratio:.1f}x |") and table[3].endswith("|  |")
+
+
+def test_mujoco_rows_use_the_threads_for_the_pool_and_restore_torch():
+    """Equal cores: a MuJoCo row's threads size its rollout pool; torch's own count comes back after."""
+    import torch
+
+    before = torch.get_num_threads()
+    rows = run_bench(["hover"], ["mujoco"], num_envs=[2], devices=["cpu"], repeats=1, steps=2, threads=2)
+    assert rows[0]["threads"] == 2 and torch.get_num_threads() == before

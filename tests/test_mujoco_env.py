@@ -89,3 +89,25 @@ def test_optional_net_stops_the_ball():
         end_x[net is not None] = ph.state.ball_pos[0, 0].item()
     assert end_x[False] > 0.5  # without a net it flies on to the other side
     assert end_x[True] < -0.1  # the net sends it back
+
+
+def test_rollout_pool_follows_torch_threads_and_never_changes_results():
+    """The pool defaults to torch's thread count; any pool size (0: the calling thread) steps alike."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        env = volleybots.make_env("3v3", num_envs=6, physics="mujoco", seed=3)
+    finally:
+        torch.set_num_threads(before)
+    assert env.physics.nthread == 1 and len(env.physics.datas) == 1
+    finals = []
+    for nthread in (0, 1, 3):
+        env.physics.set_threads(nthread)
+        assert env.physics.nthread == nthread and len(env.physics.datas) == max(nthread, 1)
+        env.set_seed(3)
+        td = env.reset()
+        torch.manual_seed(0)
+        for _ in range(10):
+            td = env.step(td.update(env.full_action_spec.rand()))["next"]
+        finals.append(env.physics.state.pos.clone())
+    assert torch.equal(finals[0], finals[1]) and torch.equal(finals[0], finals[2])

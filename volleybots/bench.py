@@ -59,7 +59,41 @@ def measure(
         task, num_envs=num_envs, action_space=action_space, physics=backend, device=device, seed=seed,
         compile=bool(compile and backend == "torch"),
     )
+    build_s = time.perf_counter() - t0
     torch.manual_seed(seed)
+    threads = torch.get_num_threads()
+    if backend == "mujoco":
+        # Equal cores, each backend at its best: MuJoCo's rollout pool takes the row's threads (make_env
+        # sized it so) and its torch glue runs on the calling thread alone. Idle torch workers spinning
+        # between ops took cores from the pool: 88k against 110k env-steps/s (Solo Bump, 2 cores).
+        torch.set_num_threads(1)
+    try:
+        row = _time_env(env, num_envs, device, repeats, steps, warmup)
+    finally:
+        torch.set_num_threads(threads)
+        close = getattr(env.physics, "close", None)
+        if close is not None:
+            close()
+    return {
+        "task": task,
+        "backend": backend,
+        "device": str(device),
+        "compile": bool(compile),
+        "num_envs": int(num_envs),
+        "n_drones": int(env.n_drones),
+        "action_space": action_space,
+        "steps": int(steps),
+        "repeats": int(repeats),
+        **row,
+        "setup_s": build_s + row["setup_s"],  # build + warm-up, incl. compilation
+        "threads": threads,
+        "kind": "env",  # "train ALGO" for the rows of measure_training
+    }
+
+
+def _time_env(env, num_envs: int, device: str, repeats: int, steps: int, warmup: int) -> dict:
+    """Warm up (and compile), then time ``repeats`` x ``steps`` random-action steps of ``env``."""
+    t0 = time.perf_counter()
     # a few pre-drawn random actions, cycled, so that sampling does not count as env time
     actions = [env.full_action_spec.rand() for _ in range(8)]
     td = env.reset()
@@ -76,19 +110,7 @@ def measure(
         rates.append(num_envs * steps / (time.perf_counter() - start))
         cpu_rates.append(num_envs * steps / max(time.process_time() - cpu_start, 1e-9))
     rate = statistics.median(rates)
-    close = getattr(env.physics, "close", None)
-    if close is not None:
-        close()
     return {
-        "task": task,
-        "backend": backend,
-        "device": str(device),
-        "compile": bool(compile),
-        "num_envs": int(num_envs),
-        "n_drones": int(env.n_drones),
-        "action_space": action_space,
-        "steps": int(steps),
-        "repeats": int(repeats),
         "env_steps_per_s": rate,
         "step_ms": 1e3 * num_envs / rate,
         "all_env_steps_per_s": rates,
@@ -96,8 +118,6 @@ def measure(
         # the rate it would reach with a core of its own
         "env_steps_per_cpu_s": statistics.median(cpu_rates),
         "setup_s": setup_s,
-        "threads": torch.get_num_threads(),
-        "kind": "env",  # "train ALGO" for the rows of measure_training
     }
 
 
@@ -176,8 +196,10 @@ def run_bench(
         steps: env steps per repeat; default ``default_steps`` (scaled by env count and backend).
         action_space: "prt", "ctbr" or "discrete"; random actions from its spec.
         progress: called with each row as soon as it is measured (for printing).
-        threads: torch intra-op threads for the run (``torch.set_num_threads``); default unchanged.
-            On a machine shared with other work, 1 thread is often much faster than 2.
+        threads: the cores each row may use: torch's intra-op threads (``torch.set_num_threads``) for
+            the torch backend, the rollout pool for MuJoCo (whose torch glue runs on one thread);
+            default unchanged (torch's count). On a machine shared with other work, 1 is often much
+            faster than 2.
         train: also measure end-to-end training frames/s (``measure_training``) of each
             ``TRAIN_CASES`` (task, algorithm) whose task is in ``tasks``, for every env count, device and
             compile mode, on the torch backend.

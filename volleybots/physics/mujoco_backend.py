@@ -192,7 +192,8 @@ class MujocoPhysics(TorchPhysics):
     """Same interface and state as ``TorchPhysics``; the integration and the contacts are MuJoCo's.
 
     ``compile`` is accepted for interface parity and has no effect: the stepping is MuJoCo's native
-    code. ``nthread`` sizes the rollout thread pool (0 steps on the calling thread); ``net`` =
+    code. ``nthread`` sizes the rollout thread pool (0 steps on the calling thread; default: torch's
+    intra-op thread count, the cores this process was given; ``set_threads`` changes it); ``net`` =
     (width, height) adds a physical net at x = 0 that stops the ball (the torch backend has none, so it
     is off by default).
     """
@@ -208,16 +209,14 @@ class MujocoPhysics(TorchPhysics):
         dtype=torch.float32,
         compile: bool = False,
         *,
-        nthread: int = 2,
+        nthread: int | None = None,
         net: tuple[float, float] | None = None,
     ):
         # the torch backend's state, constants and state setters; only the stepping differs
         super().__init__(params, num_envs, n_drones, device=device, dtype=dtype)
         self.model = build_model(params, n_drones, net)
-        self.nthread = nthread
-        self.datas = [mujoco.MjData(self.model) for _ in range(max(nthread, 1))]
         self._models = [self.model] * num_envs  # the rollout's unchecked path wants one model per env
-        self._pool = mj_rollout.Rollout(nthread=nthread)
+        self.set_threads(torch.get_num_threads() if nthread is None else nthread)
         m = self.model
         self.nstate = mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS)
         self.control_spec = int(mujoco.mjtState.mjSTATE_CTRL) | int(mujoco.mjtState.mjSTATE_XFRC_APPLIED)
@@ -242,6 +241,15 @@ class MujocoPhysics(TorchPhysics):
         self.state.pos[..., 1] = 3.0 * torch.arange(n_drones, device=self.device, dtype=dtype)
         self.state.pos[..., 2] = 2.0
         self.state.ball_pos[:, 2] = 1.0
+
+    def set_threads(self, nthread: int) -> None:
+        """Size the rollout's thread pool (0: step on the calling thread), with one MjData per thread."""
+        close = getattr(getattr(self, "_pool", None), "close", None)
+        if close is not None:
+            close()
+        self.nthread = nthread
+        self.datas = [mujoco.MjData(self.model) for _ in range(max(nthread, 1))]
+        self._pool = mj_rollout.Rollout(nthread=nthread)
 
     # ------------------------------------------------------------------ state <-> MuJoCo vectors
     def _pack(self, s: PhysicsState) -> None:

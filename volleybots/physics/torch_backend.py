@@ -13,7 +13,7 @@ from typing import Callable
 
 import torch
 
-from volleybots.physics.math import quat_axes, quat_integrate, quat_rotate, quat_rotate_inverse
+from volleybots.physics.math import Quat, Vec3, quat_axes, quat_rotate
 from volleybots.physics.params import WorldParams
 
 
@@ -59,6 +59,10 @@ class Constants:
         # rotor thrusts t (N) -> body torque: r_i x (0, 0, t_i) plus the yaw reaction of each rotor
         self.torque_map = torch.stack((rp[:, 1], -rp[:, 0], -dirs * d.max_rotor_moment / kf), -1)  # [4, 3]
         self.inertia = torch.tensor(d.inertia, **kw)
+        # plain numbers for the component-wise sub-step (inductor folds them into its kernels)
+        self.torque_rows = self.torque_map.tolist()
+        self.inertia_xyz = tuple(float(i) for i in d.inertia)
+        self.half_xyz = tuple(float(x) for x in d.body_half_extents)
         self.kf = kf
         self.mass = d.mass
         self.h = p.sub_dt
@@ -91,15 +95,16 @@ def throttle_target(cmd: torch.Tensor) -> torch.Tensor:
 
 def downwash_force(pos: torch.Tensor, up: torch.Tensor, total_thrust: torch.Tensor) -> torch.Tensor:
     """Force on every drone i from the rotor wash of every other drone j above it. [N, D, 3]."""
-    diff = pos.unsqueeze(2) - pos.unsqueeze(1)  # [N, i, j, 3] = p_i - p_j
+    pos, up = Vec3.of(pos), Vec3.of(up)
+    diff = pos.unsqueeze(2) - pos.unsqueeze(1)  # [N, i, j] = p_i - p_j
     axis = -up.unsqueeze(1)  # wash direction of j
-    z = (diff * axis).sum(-1)  # distance below j along its wash
-    radial = (diff - z.unsqueeze(-1) * axis).norm(dim=-1)
+    z = diff.dot(axis)  # distance below j along its wash
+    radial = (diff - axis.scale(z)).norm()
     z = z.clamp_min(0.0)
     mag = torch.exp(-0.5 * (2 * radial / z.clamp_min(1e-6)) ** 2) / (1 + 0.3 * z) ** 2
-    mag = torch.where(z > 0, mag, torch.zeros_like(mag))
-    thrust_vec = up * total_thrust.unsqueeze(-1)  # [N, j, 3]
-    return -(mag.unsqueeze(-1) * thrust_vec.unsqueeze(1)).sum(2)
+    mag = torch.where(z > 0, mag, 0.0)
+    thrust = up.scale(total_thrust).unsqueeze(1)  # [N, 1, j]
+    return (-thrust.scale(mag).sum(2)).stack()
 
 
 def control_step_downwash(c: Constants, s: PhysicsState) -> torch.Tensor | None:
@@ -120,66 +125,72 @@ def substep(c: Constants, s: PhysicsState, cmd: torch.Tensor, wash: torch.Tensor
 
     ``wash`` is the control step's downwash acceleration (``control_step_downwash``), None for none.
     Returns the new state and this sub-step's racket / body contact flags [N, D] and ground flag [N].
+    The arithmetic runs on one tensor per component (``Vec3``, ``Quat``): see ``Vec3`` for why.
     """
     h = c.h
-    _, up0 = quat_axes(s.quat)
-    racket0 = s.pos + c.racket_off * up0
-    ball0 = s.ball_pos.unsqueeze(1)
-    hgt0 = ((ball0 - racket0) * up0).sum(-1)  # [N, D] ball height above each racket plane
+    q0 = Quat.of(s.quat)
+    pos0, vel0, omega0 = Vec3.of(s.pos), Vec3.of(s.vel), Vec3.of(s.omega)
+    up0 = q0.up()
+    racket0 = pos0 + up0.scale(c.racket_off)
+    ball0 = Vec3.of(s.ball_pos).unsqueeze(1)
+    hgt0 = (ball0 - racket0).dot(up0)  # [N, D] ball height above each racket plane
 
     # rotors: first-order lag toward the commanded throttle, thrust ~ throttle^2
     throttle = s.throttle + (throttle_target(cmd) - s.throttle) * c.lag
-    t = rotor_thrusts(throttle, c.kf)
-    total = t.sum(-1)
-    torque = t @ c.torque_map  # [N, D, 3] body frame
+    t = rotor_thrusts(throttle, c.kf).unbind(-1)
+    total = t[0] + t[1] + t[2] + t[3]
+    torque = Vec3(*(sum(t[i] * c.torque_rows[i][k] for i in range(4)) for k in range(3)))  # body frame
 
     # linear: thrust along body z, gravity, damping, downwash (semi-implicit Euler)
-    force = up0 * (total / c.mass).unsqueeze(-1)
+    acc = up0.scale(total / c.mass) - vel0.scale(c.lin_damp)
     if wash is not None:
-        force = force + wash
-    acc = force + c.gravity - c.lin_damp * s.vel
-    vel = s.vel + acc * h
-    pos = s.pos + vel * h
+        acc = acc + Vec3.of(wash)
+    acc = Vec3(acc.x, acc.y, acc.z - c.g)
+    vel = vel0 + acc.scale(h)
+    pos = pos0 + vel.scale(h)
 
     # angular: Euler's equations in the body frame
-    jw = s.omega * c.inertia
-    dw = (torque - torch.cross(s.omega, jw, dim=-1)) / c.inertia - c.ang_damp * s.omega
-    omega = s.omega + dw * h
-    quat = quat_integrate(s.quat, omega, h)
+    inertia = Vec3(*c.inertia_xyz)
+    gyro = torque - omega0.cross(omega0.mul(inertia))
+    dw = Vec3(gyro.x / inertia.x, gyro.y / inertia.y, gyro.z / inertia.z) - omega0.scale(c.ang_damp)
+    omega = omega0 + dw.scale(h)
+    q1 = q0.integrate(omega, h)
 
     # ball flight
-    bacc = c.gravity.expand_as(s.ball_vel)
+    bvel0 = Vec3.of(s.ball_vel)
+    bacc = Vec3(0.0, 0.0, -c.g)
     if c.drag > 0:
-        bacc = bacc - c.drag * s.ball_vel.norm(dim=-1, keepdim=True) * s.ball_vel
-    ball_vel = s.ball_vel + bacc * h
-    ball_pos = s.ball_pos + ball_vel * h
+        bacc = bacc - bvel0.scale(c.drag * bvel0.norm())
+    ball_vel = bvel0 + bacc.scale(h)
+    ball_pos = Vec3.of(s.ball_pos) + ball_vel.scale(h)
 
     # ball vs racket: swept test of the ball centre against the racket plane (offset by the ball
     # radius) so that no speed can tunnel through the thin disk; the racket's own motion counts.
-    _, up1 = quat_axes(quat)
-    racket1 = pos + c.racket_off * up1
+    up1 = q1.up()
+    racket1 = pos + up1.scale(c.racket_off)
     ball1 = ball_pos.unsqueeze(1)
     rel1 = ball1 - racket1
-    hgt1 = (rel1 * up1).sum(-1)
+    hgt1 = rel1.dot(up1)
     rel0 = ball0 - racket0
-    frac = ((hgt0 - c.ball_r) / (hgt0 - hgt1).clamp_min(1e-9)).clamp(0.0, 1.0).unsqueeze(-1)
-    cross_pt = rel0 + (rel1 - rel0) * frac
-    radial = (cross_pt - (cross_pt * up1).sum(-1, keepdim=True) * up1).norm(dim=-1)
-    contact_pt = racket1 + cross_pt - (cross_pt * up1).sum(-1, keepdim=True) * up1
-    v_pt = vel + torch.cross(quat_rotate(quat, omega), contact_pt - pos, dim=-1)
+    frac = ((hgt0 - c.ball_r) / (hgt0 - hgt1).clamp_min(1e-9)).clamp(0.0, 1.0)
+    cross_pt = rel0 + (rel1 - rel0).scale(frac)
+    in_plane = cross_pt - up1.scale(cross_pt.dot(up1))
+    radial = in_plane.norm()
+    contact_pt = racket1 + in_plane
+    v_pt = vel + q1.rotate(omega).cross(contact_pt - pos)
     v_rel = ball_vel.unsqueeze(1) - v_pt
-    vn = (v_rel * up1).sum(-1)
+    vn = v_rel.dot(up1)
     racket_hit = (hgt0 >= 0.5 * c.ball_r) & (hgt1 < c.ball_r) & (radial <= c.racket_r) & (vn < 0)
 
     # ball vs body box (everything that is not the racket's upper face)
-    local = quat_rotate_inverse(quat, ball1 - pos)
-    closest = torch.maximum(torch.minimum(local, c.half), -c.half)
-    d_local = local - closest
-    dist = d_local.norm(dim=-1)
+    local = q1.rotate_inverse(ball1 - pos)
+    hx, hy, hz = c.half_xyz
+    d_local = local - Vec3(local.x.clamp(-hx, hx), local.y.clamp(-hy, hy), local.z.clamp(-hz, hz))
+    dist = d_local.norm()
     inside = dist < 1e-9
-    n_local = torch.where(inside.unsqueeze(-1), torch.tensor((0.0, 0.0, 1.0), dtype=local.dtype, device=local.device), d_local / dist.clamp_min(1e-9).unsqueeze(-1))
-    n_body = quat_rotate(quat, n_local)
-    vn_body = (v_rel * n_body).sum(-1)
+    n_local = Vec3.where(inside, Vec3(0.0, 0.0, 1.0), d_local.scale(1.0 / dist.clamp_min(1e-9)))
+    n_body = q1.rotate(n_local)
+    vn_body = v_rel.dot(n_body)
     body_hit = (dist < c.ball_r) & ~racket_hit & (vn_body < 0)
 
     # at most one drone answers per env and sub-step: the first in drone order that touched
@@ -188,27 +199,26 @@ def substep(c: Constants, s: PhysicsState, cmd: torch.Tensor, wash: torch.Tensor
     body_hit = body_hit & ~any_racket.unsqueeze(1)
     body_hit = body_hit & (torch.cumsum(body_hit.int(), 1) == 1)
 
-    normal = torch.where(racket_hit.unsqueeze(-1), up1, n_body)
-    e = torch.where(racket_hit, torch.full_like(vn, c.ball_e), torch.full_like(vn, c.body_e))
-    vn_sel = torch.where(racket_hit, vn, vn_body)
+    normal = Vec3.where(racket_hit, up1, n_body)
+    e = torch.where(racket_hit, torch.full_like(vn, c.ball_e), c.body_e)  # (two numbers would give the default dtype)
     hit = racket_hit | body_hit
-    dv = (-(1 + e) * vn_sel).unsqueeze(-1) * normal * hit.unsqueeze(-1)  # [N, D, 3] ball velocity change
+    dv = normal.scale(torch.where(hit, -(1 + e) * torch.where(racket_hit, vn, vn_body), 0.0))  # ball velocity change
     depth = torch.where(racket_hit, c.ball_r - hgt1, c.ball_r - dist).clamp_min(0.0)
-    dp = depth.unsqueeze(-1) * normal * hit.unsqueeze(-1)
     ball_vel = ball_vel + dv.sum(1)
-    ball_pos = ball_pos + dp.sum(1)
-    vel = vel - (c.ball_m / c.mass) * dv  # reaction on the drone (linear part)
+    ball_pos = ball_pos + normal.scale(torch.where(hit, depth, 0.0)).sum(1)
+    vel = vel - dv.scale(c.ball_m / c.mass)  # reaction on the drone (linear part)
 
     # ground: the ball bounces, a drone rests on its body box
-    ground = (ball_pos[:, 2] < c.ball_r) & (ball_vel[:, 2] < 0)
-    ball_vel = torch.cat((ball_vel[:, :2], torch.where(ground, -c.ground_e * ball_vel[:, 2], ball_vel[:, 2]).unsqueeze(-1)), -1)
-    ball_pos = torch.cat((ball_pos[:, :2], ball_pos[:, 2:].clamp_min(c.ball_r)), -1)
-    low = pos[..., 2] < c.drone_ground
-    vz = torch.where(low, vel[..., 2].clamp_min(0.0), vel[..., 2])
-    vel = torch.cat((vel[..., :2], vz.unsqueeze(-1)), -1)
-    pos = torch.cat((pos[..., :2], pos[..., 2:].clamp_min(c.drone_ground)), -1)
+    ground = (ball_pos.z < c.ball_r) & (ball_vel.z < 0)
+    ball_vel = Vec3(ball_vel.x, ball_vel.y, torch.where(ground, -c.ground_e * ball_vel.z, ball_vel.z))
+    ball_pos = Vec3(ball_pos.x, ball_pos.y, ball_pos.z.clamp_min(c.ball_r))
+    low = pos.z < c.drone_ground
+    vel = Vec3(vel.x, vel.y, torch.where(low, vel.z.clamp_min(0.0), vel.z))
+    pos = Vec3(pos.x, pos.y, pos.z.clamp_min(c.drone_ground))
 
-    new = PhysicsState(pos=pos, quat=quat, vel=vel, omega=omega, throttle=throttle, ball_pos=ball_pos, ball_vel=ball_vel)
+    new = PhysicsState(
+        pos=pos.stack(), quat=q1.stack(), vel=vel.stack(), omega=omega.stack(), throttle=throttle, ball_pos=ball_pos.stack(), ball_vel=ball_vel.stack()
+    )
     return new, racket_hit, body_hit, ground
 
 
