@@ -127,6 +127,9 @@ class Vec3:
     def norm(self):
         return torch.sqrt(self.dot(self))
 
+    def __getitem__(self, index) -> "Vec3":
+        return Vec3(self.x[index], self.y[index], self.z[index])
+
     def unsqueeze(self, dim: int) -> "Vec3":
         return Vec3(self.x.unsqueeze(dim), self.y.unsqueeze(dim), self.z.unsqueeze(dim))
 

@@ -94,17 +94,23 @@ def throttle_target(cmd: torch.Tensor) -> torch.Tensor:
 
 
 def downwash_force(pos: torch.Tensor, up: torch.Tensor, total_thrust: torch.Tensor) -> torch.Tensor:
-    """Force on every drone i from the rotor wash of every other drone j above it. [N, D, 3]."""
+    """Force on every drone i from the rotor wash of every other drone j above it. [N, D, 3].
+
+    One pass per drone j over all drones i ([N, D] components) rather than an [N, D, D] tensor
+    summed over j: without the short reduction the compiled pass vectorises over envs.
+    """
     pos, up = Vec3.of(pos), Vec3.of(up)
-    diff = pos.unsqueeze(2) - pos.unsqueeze(1)  # [N, i, j] = p_i - p_j
-    axis = -up.unsqueeze(1)  # wash direction of j
-    z = diff.dot(axis)  # distance below j along its wash
-    radial = (diff - axis.scale(z)).norm()
-    z = z.clamp_min(0.0)
-    mag = torch.exp(-0.5 * (2 * radial / z.clamp_min(1e-6)) ** 2) / (1 + 0.3 * z) ** 2
-    mag = torch.where(z > 0, mag, 0.0)
-    thrust = up.scale(total_thrust).unsqueeze(1)  # [N, 1, j]
-    return (-thrust.scale(mag).sum(2)).stack()
+    force = Vec3(0.0, 0.0, 0.0)
+    for j in range(pos.x.shape[1]):
+        pj, axis = pos[:, j : j + 1], -up[:, j : j + 1]  # wash direction of j
+        diff = pos - pj  # p_i - p_j
+        z = diff.dot(axis)  # distance below j along its wash
+        radial = (diff - axis.scale(z)).norm()
+        z = z.clamp_min(0.0)
+        mag = torch.exp(-0.5 * (2 * radial / z.clamp_min(1e-6)) ** 2) / (1 + 0.3 * z) ** 2
+        mag = torch.where(z > 0, mag, 0.0)  # zero for i = j too
+        force = force + axis.scale(total_thrust[:, j : j + 1] * mag)
+    return force.stack()
 
 
 def control_step_downwash(c: Constants, s: PhysicsState) -> torch.Tensor | None:
@@ -228,10 +234,12 @@ def masked_select(mask: torch.Tensor, new: torch.Tensor, old: torch.Tensor) -> t
     return torch.where(mask.reshape(mask.shape + (1,) * (old.dim() - mask.dim())), new, old)
 
 
-# torch.compile options for batched [N, D, ...] code on a CPU: inductor vectorises the innermost loop,
-# here a drone or xyz dimension of 1-6, and by default fills 16-wide masked vectors for it; plain loops
-# there ran the referee 8x and the physics 1.2x faster (docs/performance.md)
-INDUCTOR_OPTIONS = {"cpp.enable_loop_tail_vec": False}
+# torch.compile options for batched [N, D, ...] code on a CPU (docs/performance.md): inductor
+# vectorises the innermost loop, here a drone or xyz dimension of 1-6 in the referee and observations,
+# and by default fills 16-wide masked vectors for it; plain loops there ran the referee 8x faster.
+# Its tiling heuristics leave a kernel scalar when it reads many strided values, as the fused sub-step
+# does from the [N, D, 3] state: vectorised anyway, the compiled Solo Bump physics ran 1.7x faster.
+INDUCTOR_OPTIONS = {"cpp.enable_loop_tail_vec": False, "cpp.enable_tiling_heuristics": False}
 
 
 def compile_options(backend="inductor") -> dict:
