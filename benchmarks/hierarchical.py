@@ -19,9 +19,12 @@ the others of that file are kept).
 docs/imitation.md) for ``--bc-minutes`` of wall time, then, with ``--ft-minutes``, PPO from the clone
 with benchmarks/imitation.py's fine-tuning recipe; training uses ``--train-seed`` (its periodic
 evaluations that seed + 10000), so ``--seeds`` should be held out. Step 1 then plays each drill both
-scripted and learned on the same seeds, and step 2's team uses the learned drills (the last stage of
-each). ``--sp-frames`` first trains the SP run (``task=3v3 algo=sp``, ``--sp-envs`` envs) and adds it to
-``--vs`` as ``sp``. These results go under the key ``learned`` of ``--out``; its other keys are kept.
+scripted and learned (bc, and fine-tuned) on the same seeds, and step 2's team uses the learned drills
+(the fine-tuned one unless its final evaluation on the training's evaluation seed is below the
+clone's); ``--baseline`` also plays the all-scripted hierarchical team. ``--sp-frames`` first trains
+the SP run (``task=3v3 algo=sp``, ``--sp-envs`` envs) and adds it to ``--vs`` as ``sp``. ``--reuse
+DIR`` takes the finished runs of an earlier invocation's folder instead of training them. These
+results go under the key ``learned`` of ``--out``; its other keys are kept.
 """
 
 from __future__ import annotations
@@ -128,9 +131,6 @@ def learned(a, seeds: list[int], save) -> dict:
     out = {"machine": f"{platform.machine()}, {os.cpu_count()} cores, torch {torch.__version__}", "command": " ".join(sys.argv),
            "train_seed": a.train_seed, "eval_seeds": seeds, "root": str(root), "training": [], "drills": [], "matches": []}
     names = [n for n in a.learn.split(",") if n]
-    bad = sorted(set(names) - set(DRILLS))
-    if bad:
-        sys.exit(f"error: --learn {','.join(bad)}: not a drill; allowed: {', '.join(DRILLS)}")
     for name in names:
         out["training"].append(learn_drill(name, a, root))
         save(out)
@@ -195,6 +195,11 @@ def main() -> None:
     a.seed = a.train_seed  # imitation.common's name
     drills = dict(kv.split("=", 1) for kv in a.drills.split(",") if kv)
     seeds = [int(s) for s in a.seeds.split(",")]
+    bad = sorted(set(n for n in a.learn.split(",") if n) - set(DRILLS))
+    if bad or (a.reuse and not Path(a.reuse).is_dir()):
+        print(f"error: --learn {','.join(bad)}: not a drill; allowed: {', '.join(DRILLS)}" if bad else
+              f"error: --reuse {a.reuse!r} is no folder of an earlier --learn invocation", file=sys.stderr)
+        sys.exit(2)
     doc = json.loads(Path(a.out).read_text()) if Path(a.out).is_file() else {}
 
     def save(key: str, part) -> None:  # the other keys of --out (the other path's figures) are kept
