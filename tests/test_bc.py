@@ -107,3 +107,19 @@ def test_a_resumed_bc_run_repeats_the_uninterrupted_one(tmp_path):
     for part in ("actor", "critic"):
         assert all(torch.equal(a[part][k], b[part][k]) for k in a[part]), part
     assert torch.equal(a["data"]["obs"], b["data"]["obs"]) and torch.equal(a["counters"], b["counters"])
+
+
+def test_bc_on_a_drill_lowers_the_imitation_loss_and_touches_the_ball(tmp_path):
+    """The drills (tasks/drills.py) are single-drone tasks with a scripted player: bc clones them.
+    3 batches of 64 envs x 64 steps of the teacher's play (the Serve's ball is struck at once)."""
+    torch.set_num_threads(1)
+    cfg = load(["task=serve", "algo=bc", "env.num_envs=64", "algo.steps_per_batch=64", "algo.expert_frames=12288",
+                "total_frames=12288", "evaluation.episodes=16", "seed=1", *QUIET])
+    summary = train(cfg, tmp_path / "serve")
+    rows = [r for r in read_metrics(tmp_path / "serve" / "metrics.csv") if r["phase"] == "train"]
+    assert len(rows) == 3
+    assert rows[-1]["action_mse"] < 0.7 * rows[0]["action_mse"] and rows[-1]["loss_bc"] < rows[0]["loss_bc"]
+    hits = summary["final_eval"]["stats"]["hits"]["mean"]
+    # the same 16 episodes (seed 1 + 10000) with random actions: the drone hardly meets the dropped ball
+    random = evaluate("random", ["task=serve", f"seed={1 + 10_000}", "threads=1"], episodes=16)["stats"]["hits"]["mean"]
+    assert hits >= 0.8 and hits > random + 0.5, (hits, random)

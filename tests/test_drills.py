@@ -77,8 +77,9 @@ def test_attack_observes_its_side_one_hot():
     assert (env.side == 1).all()
 
 
-# measured over 100 episodes on seeds 0 and 1 (docs/hierarchical.md); the floors leave room for 32 episodes' spread
-FLOORS = {"serve": 0.8, "pass": 0.3, "set": 0.65, "attack": 0.65}
+# measured over 100 episodes on seeds 1000 and 1001 (docs/hierarchical.md: serve 0.94-0.95, pass 0.76-0.78,
+# set 0.84-0.87, attack 0.80-0.90); the floors leave room for 32 episodes' spread
+FLOORS = {"serve": 0.8, "pass": 0.5, "set": 0.65, "attack": 0.65}
 
 
 @pytest.mark.parametrize("name", list(FLOORS))

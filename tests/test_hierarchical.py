@@ -5,6 +5,7 @@ the decision log of replays."""
 
 import pytest
 import torch
+from tensordict import TensorDict
 from torchrl.envs.utils import step_mdp
 
 from typer.testing import CliRunner
@@ -15,6 +16,8 @@ from volleybots.competitors import BUILTIN, hierarchical_member, resolve_competi
 from volleybots.config import ConfigError
 from volleybots.replay import EpisodeRecorder
 from volleybots.scripted.hierarchical import ATTACK, DRILL_LABELS, HOVER, PASS, SERVE, SET, HighLevel
+from volleybots.scripted.policies import SCRIPTED_POLICIES
+from volleybots.tasks import TASKS
 from volleybots.tasks.drills import BACK, FRONT_LEFT, FRONT_RIGHT
 from volleybots.tasks.multi import TeamPolicies
 
@@ -195,3 +198,43 @@ def test_replay_logs_the_high_levels_decisions():
     assert "step 0: drone 2 -> serve" in texts and "step 0: drone 0 -> hover" in texts
     assert len(texts) == 3  # logged when a drill changes, not every step; the other team is not driven
     assert len(rec.at("drill/drone_2")) == 3 and not rec.at("drill/drone_3")
+
+
+def one_drone_actions(policy, obs: torch.Tensor) -> torch.Tensor:
+    """A drill policy's actions [n, 4] for one drone's observations [n, obs] (n envs of the drill)."""
+    n = obs.shape[0]
+    out = policy(TensorDict({"agents": TensorDict({"observation": obs.unsqueeze(1)}, [n, 1])}, [n]))
+    return (out if isinstance(out, torch.Tensor) else out["agents", "action"]).reshape(n, -1)
+
+
+def test_a_trained_drill_drives_its_drone_on_the_drill_observation(tmp_path):
+    """A team with a trained Serve: while the back drone serves, its action is the checkpoint policy's
+    mean action on the Serve observation built from its match observation by part names (also where
+    the team is asked for sampled play), not the scripted serve's; the other drones hover as scripted."""
+    torch.set_num_threads(1)
+    res = CliRunner().invoke(app, ["train", "task=serve", "algo=bc", "total_frames=512", "env.num_envs=8", "algo.steps_per_batch=64",
+                                   "threads=1", "progress=false", "evaluation.every=0", "evaluation.episodes=2",
+                                   "evaluation.record=false", "checkpoint.every=0", f"hydra.run.dir={tmp_path / 'serve'}"])
+    assert res.exit_code == 0, res.output
+    n = 4
+    env = volleybots.make_env("3v3", num_envs=n, seed=0, serve=0)  # team 0 serves: its back drone plays the Serve
+    ckpt = resolve_competitor(str(tmp_path / "serve")).members[0].make(volleybots.make_env("serve", num_envs=n), True)
+    scripted_serve, hover = (SCRIPTED_POLICIES[d]("prt", env.params) for d in ("serve", "hover"))
+    team = hierarchical_member({"serve": str(tmp_path / "serve")}).make(env, False)
+    pol = TeamPolicies(env, (team, resolve_competitor("random").team_policy(env)))
+    layout, serve_layout, hover_layout = env.layout, *(TASKS[d].obs_layout(env.with_throttle) for d in ("serve", "hover"))
+    td = env.reset()
+    for _ in range(3):
+        obs = td["agents", "observation"][:, :3].clone()  # team 0: drones 0-2 are front-left, front-right, back
+        td = pol(td)
+        assert (td["agents", "drill"][:, :3] == torch.tensor([1, 1, 2])).all()  # hover, hover, serve
+        parts = layout.split(obs[:, BACK])
+        drill_obs = serve_layout.build(**{k: parts[k] for k in serve_layout.names})
+        got = td["agents", "action"][:, BACK]
+        torch.testing.assert_close(got, one_drone_actions(ckpt, drill_obs))
+        assert (got - one_drone_actions(scripted_serve, drill_obs)).abs().max() > 1e-3  # the checkpoint, not the scripted serve
+        front = layout.split(obs[:, FRONT_LEFT])
+        hover_obs = hover_layout.build(root=front["root"], target=front["anchor"])
+        torch.testing.assert_close(td["agents", "action"][:, FRONT_LEFT], one_drone_actions(hover, hover_obs))
+        td = env.step(td)
+        td = step_mdp(td, keep_other=True, exclude_action=True)
