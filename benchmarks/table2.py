@@ -14,8 +14,9 @@ QMIX keeps its own (128 chunks of 64 steps, tau 0.005 every 4 steps) and acts in
 
 Runs live under ``--out`` as ``<task>_<shaping>_<algo>_s<seed>/`` (ordinary run directories); a run
 that has its summary.json is not repeated, so an interrupted benchmark continues where it stopped.
-Writes ``table2.json``, ``table2.md`` (metric, return and frames/s tables) and ``table2.png``
-(learning curves: the training episodes' metric over frames, mean over seeds) into ``--out``.
+Writes ``table2.json``, ``table2.md`` (metric, return and frames/s tables), ``table2.png`` and
+``table2_return.png`` (learning curves: the training episodes' metric, or return, over frames, mean
+over seeds) into ``--out``.
 """
 
 from __future__ import annotations
@@ -112,8 +113,9 @@ def format_table(res: dict, args, what: str = "metric", paper: bool = False) -> 
     return "\n".join(lines)
 
 
-def curves(args) -> dict:
-    """{(task, shaping): {algo: (frames, mean over seeds of the smoothed training-episode metric)}}."""
+def curves(args, key: str | None = None) -> dict:
+    """{(task, shaping): {algo: (frames, mean over seeds of the smoothed training episodes' ``key``)}};
+    ``key`` None is the task's metric."""
     from volleybots.runs import read_metrics
     from volleybots.tasks import TASKS as ENVS
 
@@ -124,12 +126,13 @@ def curves(args) -> dict:
             continue
         task, shaping, algo, _ = job
         rows = [r for r in read_metrics(path) if r["phase"] == "train"]
-        vals = _smooth([r.get(ENVS[task].metric, math.nan) for r in rows], 5)
+        vals = _smooth([r.get(key or ENVS[task].metric, math.nan) for r in rows], 5)
         out.setdefault((task, shaping), {}).setdefault(algo, []).append(([r["frames"] for r in rows], vals))
     return mean_over_seeds(out)
 
 
-def plot(args, path: Path) -> None:
+def plot(args, path: Path, key: str | None = None) -> None:
+    """Learning curves, one panel per task and shaping: the task's metric, or ``key`` (e.g. return)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -137,12 +140,12 @@ def plot(args, path: Path) -> None:
 
     from volleybots.tasks import TASKS as ENVS
 
-    data = curves(args)
+    data = curves(args, key)
     fig, axes = plt.subplots(len(args.shaping), len(args.tasks), figsize=(4.4 * len(args.tasks), 3.4 * len(args.shaping)), squeeze=False)
     for j, task in enumerate(args.tasks):
         for i, shaping in enumerate(args.shaping):
             title = f"{TITLES[task]} ({'with' if shaping == 'on' else 'without'} shaping)"
-            draw_panel(axes[i][j], data.get((task, shaping), {}), COLORS, title, f"train episodes: {ENVS[task].metric}")
+            draw_panel(axes[i][j], data.get((task, shaping), {}), COLORS, title, f"train episodes: {key or ENVS[task].metric}")
     seeds = ",".join(map(str, args.seeds))
     save_figure(fig, axes, path, f"{int(args.frames):,} env steps x seeds {seeds}, {args.num_envs} envs (mean over seeds, last 5 batches)")
 
@@ -168,6 +171,7 @@ def main(argv=None) -> int:
     print(f"task metric:\n{tables['metric']}\n\nframes/s:\n{tables['fps']}")
     try:
         plot(args, out / "table2.png")
+        plot(args, out / "table2_return.png", "return")  # finer than the metric where few episodes score
     except ImportError:
         print("matplotlib is not installed: no figure (pip install 'volleybots[plot]')", file=sys.stderr)
     return 0
