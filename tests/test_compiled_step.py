@@ -139,3 +139,19 @@ def test_bench_training_rows():
     assert train["steps"] == 64 and train["num_envs"] == 2 and train["env_steps_per_s"] > 0 and train["env_steps_per_cpu_s"] > 0
     assert speed_ratios(rows) == {}
     assert format_table(rows).splitlines()[3].startswith("| solo_bump | train ppo | 1 | torch | cpu | no | 1 | 2 |")
+
+
+@pytest.mark.parametrize("physics", ["torch", "mujoco"])
+def test_nonfinite_action_in_a_match_is_a_crash_draw(physics):
+    """A match ended by a NaN action is scored as a crash of that drone: a draw, the drone's misbehave
+    penalty, no winner (it used to end with neither a winner nor a draw)."""
+    env = volleybots.make_env("1v1", num_envs=2, seed=0, physics=physics)
+    td = env.reset()
+    act = torch.zeros(2, 2, 4)
+    act[1, 1, 0] = float("nan")
+    with pytest.warns(RuntimeWarning, match="non-finite action"):
+        out = env.step(td.set(("agents", "action"), act))["next"]
+    assert out["terminated"].squeeze(-1).tolist() == [False, True]
+    stats = out["stats"]
+    assert stats["draw"].squeeze(-1).tolist() == [0.0, 1.0] and stats["winner"].squeeze(-1).tolist() == [-1.0, -1.0]
+    assert stats["r_drone_misbehave"][1].item() < 0 and stats["r_drone_misbehave"][0].item() == 0

@@ -44,10 +44,10 @@ class ActionSpace(ABC):
         """Raise ``ValueError`` for an action no policy may send (eager, before the compiled step)."""
 
     def sanitize(self, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """(action with every non-finite drone action zeroed, [N] envs where one was) - a masked
-        select on fixed shapes: the env treats such an action as a crash of its drone (docs/physics.md)."""
+        """(action with every non-finite drone action zeroed, [N, D] drones whose action was) - a
+        masked select on fixed shapes: the env treats such an action as a crash of its drone (docs/physics.md)."""
         finite = torch.isfinite(action).all(-1)  # [N, D]
-        return torch.where(finite.unsqueeze(-1), action, 0.0), ~finite.all(-1)
+        return torch.where(finite.unsqueeze(-1), action, 0.0), ~finite
 
     @abstractmethod
     def command_fn(self, action: torch.Tensor):
@@ -83,7 +83,7 @@ class Discrete(ActionSpace):
             raise ValueError(f"discrete action {value!r} is out of range: allowed integers 0..{self.n - 1}")
 
     def sanitize(self, action):
-        return action, torch.zeros(action.shape[0], dtype=torch.bool, device=action.device)
+        return action, torch.zeros(action.shape[:2], dtype=torch.bool, device=action.device)
 
     def command_fn(self, action):
         cmd = self.table[action.long()]

@@ -19,7 +19,8 @@ run (docs/performance.md). ``step_and_maybe_reset`` (what collectors and the tra
 and builds the two tensordicts itself, skipping TorchRL's generic partial-reset plumbing.
 
 Bad actions (docs/physics.md). A non-finite continuous action is a crash of its drone: the drone's
-commands are replaced by zeros for that step, its env terminates, ``("stats", "nonfinite_action")``
+commands are replaced by zeros for that step, the referee's ``drone_low`` event is set for it (so each
+task scores it as its own crash: a match ends in a draw), its env terminates, ``("stats", "nonfinite_action")``
 is 1 for that episode and a warning is issued once per env object; both backends do the same. A
 discrete action outside the integers 0..15 raises a ``ValueError`` naming it.
 """
@@ -296,8 +297,11 @@ class VolleyEnv(EnvBase):
         self.t = self.t + 1
         s = self.physics.state
         self.last_contacts = contacts
-        self.last_events = self.referee.update(s.pos, s.ball_pos, contacts.racket, contacts.body)
-        res = self.evaluate(self.last_events)
+        ev = self.referee.update(s.pos, s.ball_pos, contacts.racket, contacts.body)
+        # a non-finite action is a crash of its drone, judged by the task's own rules (a match: a draw)
+        ev.drone_low = ev.drone_low | bad
+        self.last_events = ev
+        res = self.evaluate(ev)
         reward = torch.zeros(self.num_envs, self.n_drones, device=self.device)
         for name, val in res.terms.items():
             if not self.reward_shaping and name in self.shaping_terms:
@@ -309,6 +313,7 @@ class VolleyEnv(EnvBase):
         for k, v in res.stats.items():
             # a copy, never the task's own buffer: aliased inputs would recompile the reset graph
             self._stats[k] = v.to(torch.float32, copy=True)
+        bad = bad.any(1)
         self._stats["nonfinite_action"] = torch.maximum(self._stats["nonfinite_action"], bad.float())
         terminated = res.terminated | bad
         truncated = (self.t >= self.episode_len) & ~terminated
