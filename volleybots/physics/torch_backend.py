@@ -67,13 +67,11 @@ class Constants:
         self.mass = d.mass
         self.h = p.sub_dt
         self.g = p.gravity
-        self.gravity = torch.tensor((0.0, 0.0, -p.gravity), **kw)
         self.lag = p.lag_per_substep
         self.lin_damp = d.lin_damping
         self.ang_damp = d.ang_damping
         self.racket_r = d.racket_radius
         self.racket_off = d.racket_offset
-        self.half = torch.tensor(d.body_half_extents, **kw)
         self.body_e = d.body_restitution
         self.ball_r = p.ball.radius
         self.ball_m = p.ball.mass
