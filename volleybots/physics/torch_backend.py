@@ -136,7 +136,8 @@ def substep(c: Constants, s: PhysicsState, cmd: torch.Tensor, wash: torch.Tensor
     pos0, vel0, omega0 = Vec3.of(s.pos), Vec3.of(s.vel), Vec3.of(s.omega)
     up0 = q0.up()
     racket0 = pos0 + up0.scale(c.racket_off)
-    ball0 = Vec3.of(s.ball_pos).unsqueeze(1)
+    bpos0, bvel0 = Vec3.of(s.ball_pos), Vec3.of(s.ball_vel)
+    ball0 = bpos0.unsqueeze(1)
     hgt0 = (ball0 - racket0).dot(up0)  # [N, D] ball height above each racket plane
 
     # rotors: first-order lag toward the commanded throttle, thrust ~ throttle^2
@@ -161,12 +162,11 @@ def substep(c: Constants, s: PhysicsState, cmd: torch.Tensor, wash: torch.Tensor
     q1 = q0.integrate(omega, h)
 
     # ball flight
-    bvel0 = Vec3.of(s.ball_vel)
     bacc = Vec3(0.0, 0.0, -c.g)
     if c.drag > 0:
         bacc = bacc - bvel0.scale(c.drag * bvel0.norm())
     ball_vel = bvel0 + bacc.scale(h)
-    ball_pos = Vec3.of(s.ball_pos) + ball_vel.scale(h)
+    ball_pos = bpos0 + ball_vel.scale(h)
 
     # ball vs racket: swept test of the ball centre against the racket plane (offset by the ball
     # radius) so that no speed can tunnel through the thin disk; the racket's own motion counts.
