@@ -51,6 +51,25 @@ def test_the_dataset_holds_the_teachers_actions_not_the_executed_ones():
     assert not torch.allclose(labels, executed.reshape(-1, 4))
 
 
+def test_bc_on_a_match_clones_its_own_teams_scripted_player(tmp_path):
+    """On 1v1 the clone sits on team 0 against ``opponent=`` and its dataset holds what the scripted
+    player does from team 0's (mirrored) observations, one row per step of its own drone."""
+    torch.set_num_threads(1)
+    cfg = load(["task=1v1", "algo=bc", "opponent=scripted", "env.num_envs=16", "algo.action_noise=0.3", "algo.expert_frames=0", *QUIET])
+    run = RunDir(tmp_path / "bc_1v1")
+    run.create(cfg)
+    tr = Trainer(cfg, run)
+    batch, _ = collect(tr.env, tr.seat.policy(tr.env, tr.algo.policy()), tr.env.reset(), 8)
+    mine = tr.seat.view(tr.env, batch)
+    tr.algo.update(mine)
+    obs, labels = tr.algo.data_obs[: tr.algo.size], tr.algo.data_act[: tr.algo.size]
+    assert tr.algo.size == 16 * 8  # team 0's drone only
+    torch.testing.assert_close(obs, mine["agents", "observation"].reshape(-1, obs.shape[-1]))
+    fresh = make_scripted_policy(tr.env)(TensorDict({"agents": TensorDict({"observation": obs.unsqueeze(1)}, [len(obs), 1])}, [len(obs)]))
+    torch.testing.assert_close(labels, fresh["agents", "action"].squeeze(1).clamp(-1, 1))
+    assert (mine["agents", "action"].reshape(-1, 4) - labels).abs().mean() > 0.1  # executed: noisy, half the learner's
+
+
 def test_bc_on_solo_bump_lowers_the_imitation_loss_and_bumps(solo_bump_bc):
     path, summary = solo_bump_bc
     rows = [r for r in read_metrics(path / "metrics.csv") if r["phase"] == "train"]
@@ -82,7 +101,7 @@ def test_a_bc_run_dir_evaluates_and_starts_ppo(solo_bump_bc, tmp_path):
 
 
 def test_bc_refuses_tasks_without_a_teacher_and_discrete_actions():
-    with pytest.raises(ConfigError, match="competitive"):
+    with pytest.raises(ConfigError, match="opponent="):  # a match's player plays one team: seat the clone
         load(["task=1v1", "algo=bc"])
     with pytest.raises(ConfigError, match="action_space"):
         load(["task=hover", "algo=bc", "env.action_space=discrete"])

@@ -130,3 +130,22 @@ def test_actor_freeze_updates_lets_only_the_critic_learn_first():
     assert step() == (1.0, False, True)
     assert step() == (0.0, True, True)
     assert algo.state_dict()["updates"] == 2
+
+
+def test_best_pt_holds_the_policy_of_the_best_evaluation(tmp_path):
+    """checkpoint.best: best.pt is the state at the evaluation with the best metric (Hover: the lowest
+    distance, ties to the earliest), equal to the periodic checkpoint of that moment; resume ignores it."""
+    torch.set_num_threads(1)
+    cfg = load(["task=hover", *TINY, "algo.steps_per_batch=16", "algo.minibatches=2", "total_frames=1024",
+                "evaluation.every=128", "checkpoint.every=128", "checkpoint.keep=100"])
+    summary = train(cfg, tmp_path / "run")
+    run = RunDir(tmp_path / "run")
+    evals = [(e["stats"]["distance"]["mean"], e["frames"]) for e in torch.load(run.final_path, weights_only=True)["evals"]]
+    assert len(evals) == 8 and len({d for d, _ in evals}) > 1  # the evaluations differ, so the choice matters
+    frames = min(evals, key=lambda e: e[0])[1]  # min keeps the first of equals
+    best = torch.load(run.best_path, weights_only=True)
+    assert best["frames"] == frames == summary["best_eval"]["frames"]
+    assert summary["best_eval"]["distance"] == min(d for d, _ in evals)
+    same = torch.load(run.final_path if frames == 1024 else run.ckpt_dir / f"ckpt_{frames:012d}.pt", weights_only=True)
+    _equal(best["algo"]["actor"], same["algo"]["actor"])
+    assert run.latest_checkpoint() == run.final_path

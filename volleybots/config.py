@@ -59,6 +59,7 @@ class WandbConfig:
 class CheckpointConfig:
     every: int = ranged(2_000_000, ge=0)
     keep: int = ranged(3, ge=1)
+    best: bool = True
 
 
 @dataclass
@@ -192,6 +193,7 @@ def validate(cfg) -> DictConfig:
     Returns a typed, resolved DictConfig without the ``hydra`` node. Raises ``ConfigError``."""
     from volleybots.algos import ALGOS
     from volleybots.physics import ACTION_SPACES, BACKENDS
+    from volleybots.algos.base import class_attr
     from volleybots.tasks import TASKS
 
     data = cfg if isinstance(cfg, dict) else OmegaConf.to_container(cfg, resolve=True)
@@ -238,6 +240,10 @@ def validate(cfg) -> DictConfig:
     algo_cls.check(typed_algo, TASKS[typed_task.name], env)
     if rest.opponent is not None:
         _check_opponent(rest, TASKS[typed_task.name], algo_cls)
+    elif getattr(algo_cls, "needs_seat_on_matches", False) and class_attr(TASKS[typed_task.name], "competitive"):
+        raise ConfigError(
+            f"algo {algo_cls.name!r} on a match learns one team: give it opponent=COMPETITOR (scripted, random, a run dir, ...)"
+        )
     return rest
 
 
@@ -278,7 +284,7 @@ def check_env_args(**kwargs) -> None:
         check_range(key, value, ranges.get(key))
 
 
-OPPONENT_LEARNERS = ("mappo",)  # learners that can play one team (MAPPO over one drone is PPO)
+OPPONENT_LEARNERS = ("mappo", "bc")  # learners that can play one team (MAPPO over one drone is PPO; bc clones the team's scripted player)
 
 
 def _check_opponent(cfg, task_cls, algo_cls) -> None:

@@ -4,7 +4,8 @@ Layout of a run::
 
     config.yaml            the resolved, validated config (what `train resume=` and `eval` read)
     metrics.csv            one row per training batch, plus rows of the periodic evaluations
-    checkpoints/           ckpt_<frames>.pt (the last `checkpoint.keep`) and final.pt
+    checkpoints/           ckpt_<frames>.pt (the last `checkpoint.keep`), final.pt and best.pt (the
+                           policy at the best evaluation; for `eval` and `init=`, never resumed from)
     summary.json           frames, wall time, final evaluation, checkpoints
     curves.rrd             the training curves as a rerun recording (rebuilt from metrics.csv)
     eval_<frames>.rrd      one recorded evaluation episode per periodic evaluation
@@ -59,6 +60,7 @@ class RunDir:
     curves_path = property(lambda self: self.path / "curves.rrd")
     ckpt_dir = property(lambda self: self.path / "checkpoints")
     final_path = property(lambda self: self.ckpt_dir / "final.pt")
+    best_path = property(lambda self: self.ckpt_dir / "best.pt")
 
     def is_run(self) -> bool:
         return self.config_path.is_file()
@@ -167,13 +169,15 @@ class RunDir:
             raise ConfigError(f"{what} has no checkpoint yet (checkpoints/ is empty)")
         return ckpt
 
-    def save_checkpoint(self, state: dict, final: bool = False, keep: int = 3) -> Path:
+    def save_checkpoint(self, state: dict, final: bool = False, keep: int = 3, best: bool = False) -> Path:
+        """A periodic checkpoint, ``final.pt`` or ``best.pt``. Only periodic and final ones are resumed
+        from: ``best.pt`` is written at an evaluation, mid-episode, so it is a policy, not a clean cut."""
         self.ckpt_dir.mkdir(parents=True, exist_ok=True)
-        path = self.final_path if final else self.ckpt_dir / f"ckpt_{state['frames']:012d}.pt"
+        path = self.final_path if final else self.best_path if best else self.ckpt_dir / f"ckpt_{state['frames']:012d}.pt"
         tmp = path.with_suffix(".tmp")
         torch.save(state, tmp)
         os.replace(tmp, path)  # a run killed while writing leaves the previous checkpoint intact
-        if not final:
+        if not (final or best):
             for old in self.periodic_checkpoints()[:-keep]:
                 old.unlink()
         return path

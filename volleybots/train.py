@@ -415,7 +415,7 @@ class Trainer:
                     next_ck = _next_multiple(self.frames, ck_every)
                     write_curves(run.metrics_path, run.curves_path)
                 if ev_every and self.frames >= next_ev and self.frames < cfg.total_frames:
-                    self._log_eval(self.evaluate(), wandb)
+                    self._evaluate_and_log(wandb)
                     next_ev = _next_multiple(self.frames, ev_every)
         self.last_train = last
 
@@ -423,8 +423,7 @@ class Trainer:
         """The final evaluation, final.pt and summary.json (what ``fit`` ends with)."""
         cfg, run, wandb = self.cfg, self.run, self.wandb
         last = getattr(self, "last_train", {})
-        final_eval = self.evaluate()
-        self._log_eval(final_eval, wandb)
+        final_eval = self._evaluate_and_log(wandb)
         final = run.save_checkpoint(self._state(), final=True)
         write_curves(run.metrics_path, run.curves_path)
         summary = {
@@ -441,6 +440,7 @@ class Trainer:
             "final_eval": final_eval,
             "last_train_episodes": last,
             "checkpoints": [str(p.relative_to(run.path)) for p in [*run.periodic_checkpoints(), final]],
+            **({"best_eval": self._best_eval()} if run.best_path.is_file() else {}),
             "version": volleybots.__version__,
             **({"init": self.init_info} if self.init_info else {}),
             **(summary_extra or {}),
@@ -449,6 +449,27 @@ class Trainer:
         if wandb:
             wandb.close()
         return summary
+
+    def _evaluate_and_log(self, wandb) -> dict:
+        ev = self.evaluate()
+        self._log_eval(ev, wandb)
+        if self.cfg.checkpoint.best and self._is_new_best():
+            self.run.save_checkpoint(self._state(), best=True)
+        return ev
+
+    def _score(self, ev: dict) -> float:
+        """The evaluation's metric, signed so that larger is better (NaN, no finished episode: worst)."""
+        value = float(ev["stats"][self.metric]["mean"])
+        return -math.inf if math.isnan(value) else value if self.env.metric_higher_is_better else -value
+
+    def _best_eval(self) -> dict:
+        """The frames and metric of the best evaluation so far (ties: the earliest), what best.pt holds."""
+        best = max(self.evals, key=self._score)  # max keeps the first of equals
+        return {"frames": int(best["frames"]), self.metric: float(best["stats"][self.metric]["mean"])}
+
+    def _is_new_best(self) -> bool:
+        """The last evaluation beats every earlier one (the first evaluation always does)."""
+        return len(self.evals) == 1 or self._score(self.evals[-1]) > max(self._score(e) for e in self.evals[:-1])
 
     def _log_eval(self, ev: dict, wandb) -> None:
         m = ev["stats"][self.metric]

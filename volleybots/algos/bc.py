@@ -62,8 +62,10 @@ class BC(PPO):
     config_cls = BCConfig
     action_spaces = ("prt", "ctbr")  # the scripted players fly continuous actions only
     multi_agent = True
-    # a match's scripted player plays one team: a clone of it would need a learner seated on a team
-    task_kinds = ("single", "cooperative")
+    # on a match the learner is seated on team 0 against ``opponent=`` (the ``Versus`` seat) and clones
+    # the scripted player of its own team, which reads that team's (mirrored) observations
+    task_kinds = ("single", "cooperative", "competitive")
+    needs_seat_on_matches = True
 
     @classmethod
     def check(cls, cfg, task_cls, env_cfg):

@@ -89,6 +89,7 @@ class VolleyEnv(EnvBase):
     reward_terms: tuple[str, ...] = ()
     shaping_terms: tuple[str, ...] = ()  # zeroed by reward_shaping=False
     metric: str = ""  # the task's headline metric, a key of the stats
+    metric_higher_is_better: bool = True  # which way the metric improves (the run's best.pt follows it)
     extra_stats: tuple[str, ...] = ()  # further per-episode statistics besides the metric
     competitive: bool = False  # two teams play against each other (the matches)
     default_algo: str = "ppo"  # what `volleybots train task=...` trains when no algo is named

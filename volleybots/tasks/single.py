@@ -32,6 +32,7 @@ class Hover(VolleyEnv):
     reward_terms = ("pose", "up", "spin", "crash")
     shaping_terms = ("up", "spin")
     metric = "distance"  # mean distance to the target over the episode, m (lower is better)
+    metric_higher_is_better = False
 
     max_distance = 8.0  # m from the target; farther than any start, so only flying away ends an episode
 
