@@ -10,6 +10,12 @@ fine-tuning curves, and prints a Markdown table:
     python benchmarks/imitation.py --tasks solo_bump --bc-minutes 6 --ft-minutes 15
     python benchmarks/imitation.py --tasks solo_bump hit_the_ball bump_and_pass set_and_spike_easy \\
         --bc-minutes 20 --ft-minutes 40                        # the issue's 60 minutes per task
+    python benchmarks/imitation.py --tasks 1v1 --opponent scripted   # a match: both runs seated against it
+
+Each run keeps ``best.pt``, the policy of its best periodic evaluation (seed + 10000, never the
+held-out seed): the fine-tuning starts from the clone's, and both the final and the best policy of
+the fine-tuning are scored on the held-out seed. On a match the held-out score is the decisive-game
+win rate against ``--opponent`` over ``--games`` games (cross-play, each side serving half).
 
 Needs matplotlib (``pip install 'volleybots[plot]'``).
 """
@@ -32,8 +38,16 @@ def learner(task: str) -> str:
     return "ppo" if class_attr(TASKS[task], "n_drones") == 1 else "mappo"
 
 
+def competitive(task: str) -> bool:
+    from volleybots.algos.base import class_attr
+    from volleybots.tasks import TASKS
+
+    return class_attr(TASKS[task], "competitive")
+
+
 def common(args, task: str, minutes: float) -> list[str]:
     return [
+        *([f"opponent={args.opponent}"] if competitive(task) else []),
         f"task={task}", f"env.action_space={args.action_space}", f"env.num_envs={args.num_envs}", f"seed={args.seed}",
         f"threads={args.threads}", f"time_limit={minutes * 60}", "total_frames=1e12", f"evaluation.every={args.eval_every}",
         f"evaluation.episodes={args.eval_episodes}", "evaluation.record=false", "checkpoint.every=0", "progress=false",
@@ -46,12 +60,32 @@ def curve(run: Path, metric: str) -> list[dict]:
     return [{"minutes": r["wall_time"] / 60, "frames": r["frames"], metric: r[f"eval_{metric}"]} for r in read_metrics(run / "metrics.csv") if r["phase"] == "eval"]
 
 
+def policy_of(run: Path) -> Path:
+    """A run's best.pt (its best periodic evaluation), else the run itself (final.pt)."""
+    best = run / "checkpoints" / "best.pt"
+    return best if best.is_file() else run
+
+
 def held_out(target: str, args, task: str, metric: str) -> dict:
     from volleybots.eval import evaluate
+
+    if competitive(task):
+        return held_out_games(target, args, task)
 
     extra = [f"task={task}", f"env.action_space={args.action_space}"] if target in ("scripted", "random") else []
     res = evaluate(target, [*extra, f"seed={args.eval_seed}", f"threads={args.threads}"], episodes=args.episodes)
     return {"mean": res["stats"][metric]["mean"], "std": res["stats"][metric]["std"], "return": res["stats"]["return"]["mean"]}
+
+
+def held_out_games(target: str, args, task: str) -> dict:
+    """Decisive-game win rate of ``target`` (mean actions) against ``--opponent`` on the held-out seed."""
+    from volleybots.eval.crossplay import crossplay, match_config, resolve_all
+
+    comps = resolve_all([f"learner={target}" if target not in ("scripted", "random") else target, f"opponent={args.opponent}"])
+    cfg = match_config(comps, [f"task={task}", f"env.action_space={args.action_space}", f"threads={args.threads}"])
+    res = crossplay(cfg, comps, games=args.games, seed=args.eval_seed, deterministic=True)
+    (w, d, l), (lo, hi) = res.wdl[0, 1], (x[0, 1] for x in res.interval())
+    return {"mean": float(res.win_rate()[0, 1]), "std": float("nan"), "wilson95": [float(lo), float(hi)], "wdl": [int(w), int(d), int(l)]}
 
 
 def run_task(task: str, args, root: Path) -> dict:
@@ -70,7 +104,8 @@ def run_task(task: str, args, root: Path) -> dict:
         ft_dir = Path(args.ft_dir)
         ft = json.loads((ft_dir / "summary.json").read_text())
     else:
-        ft = train(load([*common(args, task, args.ft_minutes), f"algo={learner(task)}", f"init={bc_dir}", *FINE_TUNE, *args.ft_overrides]), ft_dir)
+        init = policy_of(bc_dir)
+        ft = train(load([*common(args, task, args.ft_minutes), f"algo={learner(task)}", f"init={init}", *FINE_TUNE, *args.ft_overrides]), ft_dir)
     return {
         "task": task,
         "metric": metric,
@@ -81,8 +116,10 @@ def run_task(task: str, args, root: Path) -> dict:
             "seed": args.eval_seed, "episodes": args.episodes,
             "scripted": held_out("scripted", args, task, metric),
             "random": held_out("random", args, task, metric),
-            "bc": held_out(str(bc_dir), args, task, metric),
-            "fine_tuned": held_out(str(ft_dir), args, task, metric),
+            "bc": held_out(str(policy_of(bc_dir)), args, task, metric),
+            "fine_tuned_final": held_out(str(ft_dir), args, task, metric),
+            "fine_tuned": held_out(str(policy_of(ft_dir)), args, task, metric),
+            "chosen": {"bc": bc.get("best_eval"), "fine_tuned": ft.get("best_eval")},  # on seed + 10000
         },
     }
 
@@ -107,12 +144,20 @@ def plot(results: list[dict], path: Path) -> None:
 
 
 def table(results: list[dict]) -> str:
-    lines = ["| task | metric | random | scripted (teacher) | bc | fine-tuned | bc / fine-tune frames | minutes |", "|---|---|---|---|---|---|---|---|"]
+    lines = ["| task | metric | random | scripted (teacher) | bc (best) | fine-tuned (final) | fine-tuned (best) | bc / fine-tune frames | minutes |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         h = r["held_out"]
-        cell = lambda k: f"{h[k]['mean']:.3g} +- {h[k]['std']:.2g}"  # noqa: E731
+
+        def cell(k):
+            if k not in h:
+                return "-"
+            if "wdl" in h[k]:  # a match: decisive win rate [Wilson 95 %] (W/D/L)
+                return f"{h[k]['mean']:.3f} [{h[k]['wilson95'][0]:.2f}, {h[k]['wilson95'][1]:.2f}] ({'/'.join(map(str, h[k]['wdl']))})"
+            return f"{h[k]['mean']:.3g} +- {h[k]['std']:.2g}"
+
         lines.append(
-            f"| {r['task']} | {r['metric']} | {cell('random')} | {cell('scripted')} | {cell('bc')} | {cell('fine_tuned')} | "
+            f"| {r['task']} | {r['metric']} | {cell('random')} | {cell('scripted')} | {cell('bc')} | {cell('fine_tuned_final')} | {cell('fine_tuned')} | "
             f"{r['bc']['frames']:,} / {r['fine_tune']['frames']:,} | {r['wall_s'] / 60:.0f} |"
         )
     return "\n".join(lines)
@@ -131,6 +176,8 @@ def main() -> None:
     p.add_argument("--eval-episodes", type=int, default=32)
     p.add_argument("--eval-seed", type=int, default=1000, help="held-out seed of the final 100-episode comparison")
     p.add_argument("--episodes", type=int, default=100)
+    p.add_argument("--opponent", default="scripted", help="matches: whom both runs and the held-out games play against")
+    p.add_argument("--games", type=int, default=1000, help="matches: held-out games against --opponent")
     p.add_argument("--bc-overrides", nargs="*", default=[], help="extra overrides of the bc runs (algo.replay_ratio=8 ...)")
     p.add_argument("--bc-dir", default=None, help="a finished bc run of the (one) task to fine-tune instead of a new one")
     p.add_argument("--ft-dir", default=None, help="a finished fine-tuning run of the (one) task to evaluate instead of a new one")
