@@ -122,8 +122,9 @@ def test_registry_has_single_drone_tasks():
 
 # ------------------------------------------------------------------------ task logic from constructed states
 
-def test_back_and_forth_counts_stays_and_swaps_target():
-    env = volleybots.make_env("back_and_forth", num_envs=1)
+@pytest.mark.parametrize("stay,bonus", [(2.5, 0.0), (0.0, 50.0)])
+def test_back_and_forth_counts_stays_and_swaps_target(stay, bonus):
+    env = volleybots.make_env("back_and_forth", num_envs=1, stay_reward=stay, target_reward=bonus)
     td = env.reset()
     hover = torch.tensor(env.params.drone.hover_command).expand(1, 1, 4)
     reached = []
@@ -133,7 +134,8 @@ def test_back_and_forth_counts_stays_and_swaps_target():
             td = env.step(td.set(("agents", "action"), hover.clone()))["next"]
         reached.append(td["stats", "targets"].item())
     assert reached == [1.0, 2.0, 3.0]
-    assert td["stats", "r_target_stay"].item() == pytest.approx(15 * 2.5)
+    assert td["stats", "r_target_stay"].item() == pytest.approx(15 * stay)
+    assert td["stats", "r_target_reached"].item() == pytest.approx(3 * bonus)  # paid on the step a stay completes
 
 
 def test_hit_the_ball_distance_from_ballistic_crossing():

@@ -97,6 +97,8 @@ TASK_RANGES: dict[str, Range] = {
     "episode_len": Range(low=1),  # control steps (null: the task's own)
     "hit_reward": Range(),
     "height_reward": Range(),
+    "stay_reward": Range(),
+    "target_reward": Range(),
     "serve": Range(low=0, high=1),  # the serving team (null: random)
     "side": Range(low=0, high=1),  # the attack drill's target half: 0 left, 1 right (null: random)
     "target": Range(length=3),  # a fixed hover target, x y z in m (null: random)

@@ -78,10 +78,14 @@ class Hover(VolleyEnv):
 class BackAndForth(VolleyEnv):
     name = "back_and_forth"
     obs_parts = (("root", 23), ("target", 3))  # target: drone minus the current target
-    reward_terms = ("target_stay", "dist_to_target", "misbehave")
+    reward_terms = ("target_stay", "dist_to_target", "target_reached", "misbehave")
     metric = "targets"  # targets reached (5 consecutive steps within 0.6 m)
 
-    def __init__(self, *args, **kw):
+    def __init__(self, *args, stay_reward: float = 2.5, target_reward: float = 0.0, **kw):
+        """``stay_reward`` per step inside the sphere is the spec's; it pays a drone that dithers at a
+        target's edge more than one that completes stays and flies on (docs/imitation.md), so
+        ``target_reward``, paid per target reached (0 in the spec), can align the return with the metric."""
+        self.stay_reward, self.target_reward = stay_reward, target_reward
         super().__init__(*args, **kw)
         self.anchors = torch.tensor((ANCHOR, (9.0, 4.5, 2.0)), device=self.device)
         self.target_idx = torch.ones(self.num_envs, dtype=torch.long, device=self.device)
@@ -114,7 +118,7 @@ class BackAndForth(VolleyEnv):
         d = (s.pos[:, 0] - self.target).norm(dim=-1)
         within = d < 0.6
         self.inside = torch.where(within, self.inside + 1, torch.zeros_like(self.inside))
-        stay = within.float() * 2.5
+        stay = within.float() * self.stay_reward
         dist = 0.5 / (1 + d * d) * 0.02 * (50 - self.reached).clamp_min(0)
         done_stay = self.inside >= 5
         self.reached = self.reached + done_stay.float()
@@ -122,7 +126,8 @@ class BackAndForth(VolleyEnv):
         self.inside = torch.where(done_stay, torch.zeros_like(self.inside), self.inside)
         bad = ev.drone_low[:, 0] | ev.drone_high[:, 0] | (d > 7.5)
         return StepResult(
-            terms={"target_stay": _col(stay), "dist_to_target": _col(dist), "misbehave": _col(bad * MISBEHAVE)},
+            terms={"target_stay": _col(stay), "dist_to_target": _col(dist), "target_reached": _col(done_stay * self.target_reward),
+                   "misbehave": _col(bad * MISBEHAVE)},
             terminated=bad,
             stats={"targets": self.reached},
         )
