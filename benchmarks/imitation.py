@@ -77,6 +77,18 @@ def held_out(target: str, args, task: str, metric: str) -> dict:
     return {"mean": res["stats"][metric]["mean"], "std": res["stats"][metric]["std"], "return": res["stats"]["return"]["mean"]}
 
 
+def scripted_held_out(args, task: str, metric: str) -> dict:
+    """The teacher on the held-out episodes, or its figures from ``--scripted-from`` (a JSON of
+    ``benchmarks/scripted.py --seed EVAL_SEED``: the same 100 episodes; the cooperative teachers'
+    lookahead makes playing them again cost ~20 minutes of a core)."""
+    if args.scripted_from and not competitive(task):
+        rows = [r for r in json.loads(Path(args.scripted_from).read_text())["episodes"]
+                if r["task"] == task and r["action_space"] == args.action_space and r["episodes"] == args.episodes]
+        if rows:
+            return {"mean": rows[0]["mean"], "std": rows[0]["std"], "return": None, "from": args.scripted_from}
+    return held_out("scripted", args, task, metric)
+
+
 def held_out_games(target: str, args, task: str) -> dict:
     """Decisive-game win rate of ``target`` (mean actions) against ``--opponent`` on the held-out seed."""
     from volleybots.eval.crossplay import crossplay, match_config, resolve_all
@@ -114,7 +126,7 @@ def run_task(task: str, args, root: Path) -> dict:
         "fine_tune": {"run_dir": str(ft_dir), "algo": learner(task), "frames": ft["frames"], "wall_s": ft["wall_time_s"], "curve": curve(ft_dir, metric)},
         "held_out": {
             "seed": args.eval_seed, "episodes": args.episodes,
-            "scripted": held_out("scripted", args, task, metric),
+            "scripted": scripted_held_out(args, task, metric),
             "random": held_out("random", args, task, metric),
             "bc": held_out(str(policy_of(bc_dir)), args, task, metric),
             "fine_tuned_final": held_out(str(ft_dir), args, task, metric),
@@ -176,6 +188,7 @@ def main() -> None:
     p.add_argument("--eval-episodes", type=int, default=32)
     p.add_argument("--eval-seed", type=int, default=1000, help="held-out seed of the final 100-episode comparison")
     p.add_argument("--episodes", type=int, default=100)
+    p.add_argument("--scripted-from", default=None, help="the teacher's held-out figures from this benchmarks/scripted.py JSON (run on --eval-seed)")
     p.add_argument("--opponent", default="scripted", help="matches: whom both runs and the held-out games play against")
     p.add_argument("--games", type=int, default=1000, help="matches: held-out games against --opponent")
     p.add_argument("--bc-overrides", nargs="*", default=[], help="extra overrides of the bc runs (algo.replay_ratio=8 ...)")
