@@ -90,7 +90,7 @@ def test_train_writes_a_complete_run_directory(run_dir):
         if isinstance(r["return"], float):
             assert abs(r["r_pose"] + r["r_up"] + r["r_spin"] + r["r_crash"] - r["return"]) < 1e-3 * max(1.0, abs(r["return"]))
     ckpts = sorted((run_dir / "checkpoints").iterdir())
-    assert [p.name for p in ckpts] == ["ckpt_000000001024.pt", "final.pt"]
+    assert [p.name for p in ckpts] == ["best.pt", "ckpt_000000001024.pt", "final.pt"]
     for p in ckpts:
         state = torch.load(p, weights_only=True)
         assert state["task"] == "hover" and state["frames"] in (1024, 2048)

@@ -61,7 +61,7 @@ def test_a_two_job_sweep_writes_two_complete_runs(sweeps, launcher):
         summary = json.loads((run / "summary.json").read_text())
         assert summary["seed"] == seed and summary["frames"] == 128 and summary["final_eval"]["episodes"] == 2
         assert (run / "config.yaml").is_file() and (run / ".hydra" / "overrides.yaml").is_file()
-        assert sorted(p.name for p in (run / "checkpoints").iterdir()) == ["ckpt_000000000064.pt", "final.pt"]
+        assert sorted(p.name for p in (run / "checkpoints").iterdir()) == ["best.pt", "ckpt_000000000064.pt", "final.pt"]
         assert torch.load(run / "checkpoints" / "final.pt", weights_only=True)["frames"] == 128
         evals = [line for line in (run / "metrics.csv").read_text().splitlines() if line.startswith("eval,")]
         assert len(evals) == 2  # at 64 frames and the final one

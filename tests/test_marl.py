@@ -60,7 +60,7 @@ def test_a_tiny_run_on_bump_and_pass_checkpoints_and_resumes_bit_for_bit(name, t
     losses = [k for k in rows[-1] if k.startswith("loss_")]
     assert losses and all(isinstance(rows[-1][k], float) and math.isfinite(rows[-1][k]) for k in losses), rows[-1]
     ck = tmp_path / "full" / "checkpoints"
-    assert sorted(p.name for p in ck.iterdir()) == [f"ckpt_{2 * FPB:012d}.pt", "final.pt"]
+    assert sorted(p.name for p in ck.iterdir()) == ["best.pt", f"ckpt_{2 * FPB:012d}.pt", "final.pt"]
     a = torch.load(ck / "final.pt", weights_only=True)
     assert a["config"]["algo"]["name"] == name and a["n_agents"] == 2
 
@@ -290,6 +290,10 @@ def test_every_algorithm_trains_every_task_kind_it_claims_and_refuses_the_others
         if kind in cls.supported_kinds() and getattr(cls, "population", False):
             continue  # trained by the population loop, not `train`: tests/test_population.py runs it
         overrides = [f"algo={name}", f"task={TASK_OF_KIND[kind]}", *RUN, *tiny(name), "checkpoint.every=0", f"total_frames={2 * FPB}"]
+        if kind == "competitive" and getattr(cls, "needs_seat_on_matches", False):
+            with pytest.raises(ConfigError, match="opponent="):  # it learns one team: refused without a seat
+                load(overrides)
+            overrides.append("opponent=random")
         if kind not in cls.supported_kinds():
             with pytest.raises(ConfigError):
                 load(overrides)

@@ -59,7 +59,7 @@ def test_a_tiny_run_writes_metrics_and_loadable_checkpoints(name, tmp_path):
         assert all(isinstance(r[k], float) and math.isfinite(r[k]) for k in loss_cols), r
     assert [r["buffer_size"] for r in rows] == [float(FPB * i) for i in range(1, 5)]
     ck = tmp_path / "run" / "checkpoints"
-    assert sorted(p.name for p in ck.iterdir()) == ["ckpt_000000000064.pt", "final.pt"]
+    assert sorted(p.name for p in ck.iterdir()) == ["best.pt", "ckpt_000000000064.pt", "final.pt"]
     state = torch.load(ck / "final.pt", weights_only=True)
     assert state["frames"] == 128 and state["config"]["algo"]["name"] == name
     assert int(state["algo"]["counters"][0]) == 128 and "buffer" not in state["algo"]  # buffer off by default
