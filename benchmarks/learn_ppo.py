@@ -12,9 +12,10 @@ curves and a JSON of the figures, and prints a Markdown table:
     python benchmarks/learn_ppo.py --diagnose RUN_OR_CHECKPOINT [...]   # what a policy does instead of bumping
 
 ``--diagnose`` plays 64 episodes (held-out seed 1000) with each given policy and reports where its
-return comes from (per reward term), how it ends its episodes, its hits and the apex after them, and
-how long it carries the ball (the ball resting on the racket: within the racket's radius sideways,
-at most 0.3 m above the drone, moving with it to 0.3 m/s), the behaviour the shaping pays for.
+return comes from (per reward term), how it ends its episodes, its hits, the share of them struck
+farther than 1 m from the anchor (which the metric does not count and the reward does not punish),
+the apexes of at least 3.5 m, and how long it carries the ball (resting on the racket: within the
+racket's radius sideways, at most 0.3 m above the drone, moving with it to 0.3 m/s).
 
 Needs matplotlib (``pip install 'volleybots[plot]'``).
 """
@@ -81,6 +82,7 @@ def diagnose(target: str, episodes: int = 64, seed: int = 1000) -> dict:
     n = env.num_envs
     live = torch.ones(n, dtype=torch.bool)
     carry, steps, apex_after_hit = torch.zeros(n), torch.zeros(n), torch.zeros(n)
+    far_hits, high_enough, last_hits = torch.zeros(n), torch.zeros(n), torch.zeros(n)
     ends = {"ball_low": 0, "ball_high": 0, "drone_low_or_high": 0, "wrong_hit_or_ball_out": 0, "time_limit": 0}
 
     def on_step(env, td, nxt):
@@ -90,6 +92,11 @@ def diagnose(target: str, episodes: int = 64, seed: int = 1000) -> dict:
             (s.ball_vel - s.vel[:, 0]).norm(dim=-1) < 0.3)
         carry.add_(on.float() * live)
         steps.add_(live.float())
+        hits_now = env.referee.hits[:, 0].float()
+        new_hit = live & (hits_now > last_hits)
+        far_hits.add_((new_hit & ~env.hit_ok).float())  # the metric counts no bump hit farther than 1 m from the anchor
+        last_hits.copy_(torch.where(live, hits_now, last_hits))
+        high_enough.add_((live & (nxt["stats", "r_success_height"].reshape(n) > 0) & (td["stats", "r_success_height"].reshape(n) < nxt["stats", "r_success_height"].reshape(n))).float())
         hit_before = env.referee.hits[:, 0] > 0
         apex_after_hit.copy_(torch.where(live & hit_before, torch.maximum(apex_after_hit, s.ball_pos[:, 2]), apex_after_hit))
         done = nxt["done"].reshape(n) & live
@@ -123,6 +130,8 @@ def diagnose(target: str, episodes: int = 64, seed: int = 1000) -> dict:
         "episodes_with_a_hit": float((hits > 0).float().mean()),
         "apex_after_first_hit_m": float(apex_after_hit[hits > 0].mean()) if bool((hits > 0).any()) else None,
         "carry_share_of_steps": float(carry.sum() / steps.sum()),
+        "hits_farther_than_1m_from_anchor": float(far_hits.sum() / hits.sum().clamp_min(1)),
+        "apexes_at_least_3_5m_per_episode": float(high_enough.mean()),
         "ends": ends,
     }
 
