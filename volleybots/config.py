@@ -194,8 +194,8 @@ def validate(cfg) -> DictConfig:
 
     Returns a typed, resolved DictConfig without the ``hydra`` node. Raises ``ConfigError``."""
     from volleybots.algos import ALGOS
-    from volleybots.physics import ACTION_SPACES, BACKENDS
     from volleybots.algos.base import class_attr
+    from volleybots.physics import ACTION_SPACES, BACKENDS
     from volleybots.tasks import TASKS
 
     data = cfg if isinstance(cfg, dict) else OmegaConf.to_container(cfg, resolve=True)
