@@ -453,7 +453,7 @@ class Trainer:
     def _evaluate_and_log(self, wandb) -> dict:
         ev = self.evaluate()
         self._log_eval(ev, wandb)
-        if self.cfg.checkpoint.best and self._is_new_best():
+        if self.cfg.checkpoint.best and self._best() is ev:  # a new best: it beats every earlier one
             self.run.save_checkpoint(self._state(), best=True)
         return ev
 
@@ -462,14 +462,13 @@ class Trainer:
         value = float(ev["stats"][self.metric]["mean"])
         return -math.inf if math.isnan(value) else value if self.env.metric_higher_is_better else -value
 
-    def _best_eval(self) -> dict:
-        """The frames and metric of the best evaluation so far (ties: the earliest), what best.pt holds."""
-        best = max(self.evals, key=self._score)  # max keeps the first of equals
-        return {"frames": int(best["frames"]), self.metric: float(best["stats"][self.metric]["mean"])}
+    def _best(self) -> dict:
+        """The best evaluation so far, what best.pt holds (ties: the earliest, as ``max`` keeps the first)."""
+        return max(self.evals, key=self._score)
 
-    def _is_new_best(self) -> bool:
-        """The last evaluation beats every earlier one (the first evaluation always does)."""
-        return len(self.evals) == 1 or self._score(self.evals[-1]) > max(self._score(e) for e in self.evals[:-1])
+    def _best_eval(self) -> dict:
+        best = self._best()
+        return {"frames": int(best["frames"]), self.metric: float(best["stats"][self.metric]["mean"])}
 
     def _log_eval(self, ev: dict, wandb) -> None:
         m = ev["stats"][self.metric]
