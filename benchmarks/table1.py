@@ -62,13 +62,18 @@ def jobs(args) -> list[tuple[str, str, str, int]]:
 
 
 def finished_summary(run_dir: Path) -> dict | None:
-    """The summary of a finished run (not repeated), or None; an interrupted run is removed, to start again."""
+    """The summary of a finished run (not repeated), or None; an interrupted run is removed, to start
+    again. A run still training (another invocation on the same ``--out`` holds its lock) is never
+    removed: that raises ``InUseError``, which ``run_all`` reports as a skipped job."""
     if (run_dir / "summary.json").is_file():
         return json.loads((run_dir / "summary.json").read_text())
     if run_dir.exists():
         import shutil
 
-        shutil.rmtree(run_dir)
+        from volleybots.runs import locked
+
+        with locked(run_dir):  # raises InUseError while another process trains in it
+            shutil.rmtree(run_dir)
     return None
 
 
@@ -253,10 +258,21 @@ def run_all(run_one, todo, args) -> None:
     print(f"# {len(todo)} runs of {int(args.frames):,} env steps, {args.num_envs} envs, {args.jobs} at a time", file=sys.stderr)
     if args.jobs > 1:
         with ProcessPoolExecutor(args.jobs, mp_context=get_context("spawn")) as pool:
-            list(pool.map(run_one, todo, [args] * len(todo)))
+            list(pool.map(_skip_in_use, [run_one] * len(todo), todo, [args] * len(todo)))
     else:
         for job in todo:
-            run_one(job, args)
+            _skip_in_use(run_one, job, args)
+
+
+def _skip_in_use(run_one, job, args) -> dict | None:
+    """``run_one(job, args)``, or None with one line where another process is training that run."""
+    from volleybots.runs import InUseError
+
+    try:
+        return run_one(job, args)
+    except InUseError as e:
+        print(f"  skipped {job}: {e}", file=sys.stderr, flush=True)
+        return None
 
 
 def main(argv=None) -> int:

@@ -174,3 +174,20 @@ def test_solo_bump_counts_successful_apex_only():
     td = env.step(td.set(("agents", "action"), hover.clone()))["next"]
     assert td["stats", "bumps"].squeeze(-1).tolist() == [1.0, 0.0]
     assert td["stats", "r_success_height"].squeeze(-1).tolist() == [8.0, 0.0]
+
+
+@pytest.mark.parametrize("strict,paid", [(False, [8.0, 8.0]), (True, [8.0, 0.0])])
+def test_solo_bump_strict_bumps_pays_only_the_bumps_the_metric_counts(strict, paid):
+    env = volleybots.make_env("solo_bump", num_envs=2, strict_bumps=strict)
+    td = env.reset()
+    # two apexes of 4 m: the first bump struck at the anchor, the second more than 1 m away from it
+    everyone = torch.ones(2, dtype=torch.bool)
+    env.pending[:] = True
+    env.hit_ok[:] = torch.tensor([True, False])
+    env.apex[:] = 4.0
+    env.place_ball(everyone, (4.5, 0.0, 2.9), (0.0, 0.0, -0.1))
+    env.place_drones(everyone, torch.tensor([4.5, 0.0, 2.0]).expand(2, 1, 3))
+    hover = torch.tensor(env.params.drone.hover_command).expand(2, 1, 4)
+    td = env.step(td.set(("agents", "action"), hover.clone()))["next"]
+    assert td["stats", "bumps"].squeeze(-1).tolist() == [1.0, 0.0]
+    assert td["stats", "r_success_height"].squeeze(-1).tolist() == paid

@@ -250,6 +250,37 @@ def test_claim_gives_a_fresh_suffix_when_the_default_dir_is_taken_or_in_use(tmp_
     assert claim_run_dir(second, unique=True) == base.with_name(base.name + "_2_2")
 
 
+def test_a_benchmark_rerun_never_removes_a_run_another_process_is_training(tmp_path):
+    """benchmarks/table1.py removes an unfinished run dir to start it again, but not while another
+    invocation on the same --out holds its lock (that collision once removed a live run)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    try:
+        from table1 import _skip_in_use, finished_summary
+    finally:
+        sys.path.pop(0)
+    from volleybots.runs import InUseError
+
+    live, dead = tmp_path / "live", tmp_path / "dead"
+    for d in (live, dead):
+        d.mkdir()
+        (d / "config.yaml").write_text("{}\n")
+    holder = subprocess.Popen([sys.executable, "-c", (
+        f"import time; from volleybots.runs import lock; lock({str(live)!r}); print('locked', flush=True); time.sleep(60)")],
+        env=ENV, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        with pytest.raises(InUseError, match="in use by process"):
+            finished_summary(live)
+        assert (live / "config.yaml").is_file()
+        assert _skip_in_use(lambda job, args: finished_summary(live), "job", None) is None  # one line, no crash
+    finally:
+        holder.kill()
+        holder.wait()
+    assert finished_summary(dead) is None and not dead.exists()  # interrupted, unlocked: removed to start again
+    (live / "summary.json").write_text('{"frames": 3}')
+    assert finished_summary(live) == {"frames": 3}
+
+
 def test_two_starts_at_once_make_two_intact_runs(tmp_path):
     procs = [subprocess.Popen(_cli("train", *TINY, f"total_frames={2 * FPB}", f"seed={s}"), cwd=tmp_path, env=ENV,
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for s in (1, 2)]

@@ -212,9 +212,13 @@ class SoloBump(_BallDrill):
     metric = "bumps"  # longest streak of bumps with apex in [3.5, 4.5] m, hit within 1 m of the anchor
     extra_stats = ("hits",)
 
-    def __init__(self, *args, hit_reward: float = 2.0, height_reward: float = 8.0, **kw):
+    def __init__(self, *args, hit_reward: float = 2.0, height_reward: float = 8.0, strict_bumps: bool = False, **kw):
+        """``strict_bumps`` pays ``height_reward`` only for the bumps the metric counts (struck within
+        1 m of the anchor, apex in [3.5, 4.5] m); the spec's reward (False) pays every apex of 3.5 m or
+        more, so a policy can earn it while drifting off the anchor, where the metric's streak restarts."""
         self.hit_reward = hit_reward
         self.height_reward = height_reward
+        self.strict_bumps = strict_bumps
         super().__init__(*args, **kw)
         n = self.num_envs
         self.pending = torch.zeros(n, dtype=torch.bool, device=self.device)  # a hit whose apex is still to come
@@ -254,7 +258,7 @@ class SoloBump(_BallDrill):
         return StepResult(
             terms={
                 "success_hit": _col(hit * self.hit_reward),
-                "success_height": _col((at_apex & (self.apex >= 3.5)) * self.height_reward),
+                "success_height": _col((success if self.strict_bumps else at_apex & (self.apex >= 3.5)) * self.height_reward),
                 "dist_to_ball": _col(1.0 / (1.0 + horiz)),
                 "ball_height": _col(0.5 * height),
                 "misbehave": _col(bad * MISBEHAVE),
