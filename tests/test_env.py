@@ -160,34 +160,30 @@ def test_hit_the_ball_distance_from_ballistic_crossing():
     assert td["stats", "r_distance"].item() == pytest.approx(2 * 6 * t, abs=0.1)
 
 
-def test_solo_bump_counts_successful_apex_only():
-    env = volleybots.make_env("solo_bump", num_envs=2)
+def _solo_bump_past_apex(apex, hit_ok, **task):
+    """One step of two Solo Bump envs whose bumps are just past their apex ``apex`` [2], struck where
+    ``hit_ok`` [2] says (within 1 m of the anchor or not); returns the step's stats."""
+    env = volleybots.make_env("solo_bump", num_envs=2, **task)
     td = env.reset()
-    # two bumps just past their apex after hits: apex 4.0 (success) and apex 3.0 (too low)
     everyone = torch.ones(2, dtype=torch.bool)
     env.pending[:] = True
-    env.hit_ok[:] = True
-    env.apex[:] = torch.tensor([4.0, 3.0])
+    env.hit_ok[:] = torch.tensor(hit_ok)
+    env.apex[:] = torch.tensor(apex)
     env.place_ball(everyone, (4.5, 0.0, 2.9), (0.0, 0.0, -0.1))
     env.place_drones(everyone, torch.tensor([4.5, 0.0, 2.0]).expand(2, 1, 3))
     hover = torch.tensor(env.params.drone.hover_command).expand(2, 1, 4)
-    td = env.step(td.set(("agents", "action"), hover.clone()))["next"]
-    assert td["stats", "bumps"].squeeze(-1).tolist() == [1.0, 0.0]
-    assert td["stats", "r_success_height"].squeeze(-1).tolist() == [8.0, 0.0]
+    return env.step(td.set(("agents", "action"), hover.clone()))["next"]["stats"]
+
+
+def test_solo_bump_counts_successful_apex_only():
+    stats = _solo_bump_past_apex([4.0, 3.0], [True, True])  # apex 4.0 (success) and 3.0 (too low)
+    assert stats["bumps"].squeeze(-1).tolist() == [1.0, 0.0]
+    assert stats["r_success_height"].squeeze(-1).tolist() == [8.0, 0.0]
 
 
 @pytest.mark.parametrize("strict,paid", [(False, [8.0, 8.0]), (True, [8.0, 0.0])])
 def test_solo_bump_strict_bumps_pays_only_the_bumps_the_metric_counts(strict, paid):
-    env = volleybots.make_env("solo_bump", num_envs=2, strict_bumps=strict)
-    td = env.reset()
     # two apexes of 4 m: the first bump struck at the anchor, the second more than 1 m away from it
-    everyone = torch.ones(2, dtype=torch.bool)
-    env.pending[:] = True
-    env.hit_ok[:] = torch.tensor([True, False])
-    env.apex[:] = 4.0
-    env.place_ball(everyone, (4.5, 0.0, 2.9), (0.0, 0.0, -0.1))
-    env.place_drones(everyone, torch.tensor([4.5, 0.0, 2.0]).expand(2, 1, 3))
-    hover = torch.tensor(env.params.drone.hover_command).expand(2, 1, 4)
-    td = env.step(td.set(("agents", "action"), hover.clone()))["next"]
-    assert td["stats", "bumps"].squeeze(-1).tolist() == [1.0, 0.0]
-    assert td["stats", "r_success_height"].squeeze(-1).tolist() == paid
+    stats = _solo_bump_past_apex([4.0, 4.0], [True, False], strict_bumps=strict)
+    assert stats["bumps"].squeeze(-1).tolist() == [1.0, 0.0]
+    assert stats["r_success_height"].squeeze(-1).tolist() == paid

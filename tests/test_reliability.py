@@ -224,16 +224,22 @@ def _tiny_run(path: Path, *extra, task="hover") -> Path:
     return path
 
 
+def _hold_lock(path: Path) -> subprocess.Popen:
+    """Another process that makes ``path`` and holds its run-dir lock for up to a minute (kill it when done)."""
+    holder = subprocess.Popen([sys.executable, "-c", (
+        "import time; from volleybots.runs import lock; from pathlib import Path; "
+        f"Path({str(path)!r}).mkdir(parents=True, exist_ok=True); lock({str(path)!r}); print('locked', flush=True); time.sleep(60)")],
+        env=ENV, stdout=subprocess.PIPE, text=True)
+    assert holder.stdout.readline().strip() == "locked"
+    return holder
+
+
 def test_claim_gives_a_fresh_suffix_when_the_default_dir_is_taken_or_in_use(tmp_path):
     from volleybots.runs import claim_run_dir, unlock
 
     base = tmp_path / "12-00-00_hover_ppo"
-    holder = subprocess.Popen([sys.executable, "-c", (
-        "import sys, time; from volleybots.runs import lock; from pathlib import Path; "
-        f"Path({str(base)!r}).mkdir(parents=True); lock({str(base)!r}); print('locked', flush=True); time.sleep(60)")],
-        env=ENV, stdout=subprocess.PIPE, text=True)
+    holder = _hold_lock(base)
     try:
-        assert holder.stdout.readline().strip() == "locked"
         second = claim_run_dir(base, unique=True)
         assert second == base.with_name(base.name + "_2")
         with pytest.raises(ConfigError, match="in use by process"):
@@ -264,11 +270,8 @@ def test_a_benchmark_rerun_never_removes_a_run_another_process_is_training(tmp_p
     for d in (live, dead):
         d.mkdir()
         (d / "config.yaml").write_text("{}\n")
-    holder = subprocess.Popen([sys.executable, "-c", (
-        f"import time; from volleybots.runs import lock; lock({str(live)!r}); print('locked', flush=True); time.sleep(60)")],
-        env=ENV, stdout=subprocess.PIPE, text=True)
+    holder = _hold_lock(live)
     try:
-        assert holder.stdout.readline().strip() == "locked"
         with pytest.raises(InUseError, match="in use by process"):
             finished_summary(live)
         assert (live / "config.yaml").is_file()
