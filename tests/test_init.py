@@ -149,3 +149,46 @@ def test_best_pt_holds_the_policy_of_the_best_evaluation(tmp_path):
     same = torch.load(run.final_path if frames == 1024 else run.ckpt_dir / f"ckpt_{frames:012d}.pt", weights_only=True)
     _equal(best["algo"]["actor"], same["algo"]["actor"])
     assert run.latest_checkpoint() == run.final_path
+
+
+def test_the_anchor_holds_the_actor_near_where_it_started_and_decays():
+    """algo.anchor_coeff: a KL penalty toward the actor as the run started (a frozen copy, checkpointed);
+    with a large weight the actor moves far less from it than without, and the weight decays linearly
+    to 0 over algo.anchor_updates batches."""
+    from volleybots.algos import ALGOS
+    from volleybots.config import make_env
+    from volleybots.train import collect
+
+    torch.set_num_threads(1)
+
+    def run(extra):
+        cfg = load(["task=hover", *PPO_TINY, "algo.actor_lr=3e-3", *extra])
+        env = make_env(cfg)
+        algo = ALGOS["ppo"](cfg.algo, env, seed=0)
+        start = {k: v.clone() for k, v in algo.actor.state_dict().items()}
+        td, weights = env.reset(), []
+        for _ in range(3):
+            batch, td = collect(env, algo.policy(), td, 8)
+            weights.append(algo.update(batch)["anchor_weight"])
+        probe, _ = collect(env, algo.policy(), td, 8)
+        ref = ALGOS["ppo"](cfg.algo, env, seed=0)
+        ref.actor.load_state_dict(start)
+        with torch.no_grad():
+            flat = probe.reshape(-1)
+            kl = torch.distributions.kl_divergence(ref.actor.get_dist(flat), algo.actor.get_dist(flat)).mean().item()
+        return algo, start, weights, kl
+
+    _, _, weights, free = run([])
+    assert weights == [0.0, 0.0, 0.0]
+    algo, start, weights, held = run(["algo.anchor_coeff=1000", "algo.anchor_updates=2"])
+    assert weights == [1000.0, 500.0, 0.0]
+    assert free > 1e-3 and held < 0.2 * free, (free, held)
+    _equal(algo.state_dict()["anchor"], start)  # the anchor is the starting actor, and it is checkpointed
+    resumed = ALGOS["ppo"](algo.cfg, make_env(load(["task=hover", *PPO_TINY])), seed=5)
+    resumed.load_state_dict(algo.state_dict())
+    _equal(resumed.anchor.state_dict(), start)
+
+
+def test_the_anchor_is_refused_where_the_actors_update_their_own_way():
+    with pytest.raises(ConfigError, match="'happo' updates its actors its own way: algo.anchor_coeff must be 0"):
+        load(["task=bump_and_pass", "algo=happo", *PPO_TINY, "algo.anchor_coeff=1"])

@@ -12,6 +12,7 @@ clips to [-1, 1] (the log-probability is that of the unclipped sample); ``discre
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import torch
@@ -63,6 +64,8 @@ class PPOConfig(PPONetConfig):
     critic_coeff: float = ranged(1.0, ge=0)
     normalize_advantage: bool = True
     actor_freeze_updates: int = ranged(0, ge=0)
+    anchor_coeff: float = ranged(0.0, ge=0)
+    anchor_updates: int = ranged(0, ge=0)
 
 
 @dataclass
@@ -156,8 +159,9 @@ class PPO(Algorithm):
     @classmethod
     def check(cls, cfg, task_cls, env_cfg):
         super().check(cfg, task_cls, env_cfg)
-        if cfg.actor_freeze_updates and cls.update is not PPO.update:
-            raise ConfigError(f"algo {cls.name!r} updates its actors its own way: algo.actor_freeze_updates must be 0 (it is for ppo, mappo, mat)")
+        for key in ("actor_freeze_updates", "anchor_coeff"):
+            if getattr(cfg, key) and cls.update is not PPO.update:
+                raise ConfigError(f"algo {cls.name!r} updates its actors its own way: algo.{key} must be 0 (it is for ppo, mappo, mat)")
         frames = env_cfg.num_envs * cfg.steps_per_batch
         if frames < cfg.minibatches:
             raise ConfigError(
@@ -192,6 +196,7 @@ class PPO(Algorithm):
         self.gen = torch.Generator(device=dev)  # minibatch shuffling, checkpointed with the rest
         self.gen.manual_seed(seed)
         self.updates = 0  # batches learned from (the actor stays frozen for the first actor_freeze_updates)
+        self.anchor = None  # the actor as it started (anchor_coeff > 0): a frozen copy made at the first update
         self._policy = TensorDictSequential(self.obs_norm, self.actor) if self.obs_norm is not None else self.actor
 
     # ------------------------------------------------------------ what a variant (happo, mat) replaces
@@ -267,15 +272,47 @@ class PPO(Algorithm):
         # a critic warm-up: an actor started from another run (init=) keeps what it knows until the
         # critic's advantages mean something
         frozen = self.updates < cfg.actor_freeze_updates
+        anchor = 0.0 if frozen else self.anchor_weight()
         for idx in self.minibatches(flat.numel()):
-            out = self.loss(flat[idx])
+            mb = flat[idx]
+            out = self.loss(mb)
             loss = out["loss_critic"] if frozen else out["loss_objective"] + out["loss_critic"] + out.get("loss_entropy", 0.0)
+            # logged from the first batch whenever the anchor is on: metrics.csv's columns are its first row's
+            logs = {"anchor_kl": 0.0} if cfg.anchor_coeff > 0 else {}
+            if anchor > 0:
+                kl = self.anchor_kl(mb)
+                loss = loss + anchor * kl
+                logs["anchor_kl"] = kl.detach()
             gn_a, gn_c = self.step(loss, groups)
-            logs = {k: out[k] for k in ("loss_objective", "loss_critic", "loss_entropy", "entropy", "kl_approx", "clip_fraction", "explained_variance") if k in out.keys()}
+            logs.update({k: out[k] for k in ("loss_objective", "loss_critic", "loss_entropy", "entropy", "kl_approx", "clip_fraction", "explained_variance") if k in out.keys()})
             logs.update(grad_norm_actor=gn_a, grad_norm_critic=gn_c)
             add_logs(sums, logs)
         self.updates += 1
-        return {**self.finish_update(batch, sums, cfg.epochs * cfg.minibatches), "actor_frozen": float(frozen)}
+        return {**self.finish_update(batch, sums, cfg.epochs * cfg.minibatches), "actor_frozen": float(frozen), "anchor_weight": anchor}
+
+    # ----------------------------------------------------------------- the anchor (fine-tuning a clone)
+    def anchor_weight(self) -> float:
+        """The weight of the KL penalty toward the actor as the run started: ``anchor_coeff`` from the
+        first update the actor makes, decaying linearly to 0 over ``anchor_updates`` batches (0: it
+        stays). Fine-tuning a clone: PPO's first updates, on a critic that has only seen the clone's
+        noisy play, can walk the actor off what it imitated faster than the returns can show it; the
+        penalty lets it move where the advantages agree over many batches, and the decay lets it go."""
+        cfg = self.cfg
+        if cfg.anchor_coeff == 0:
+            return 0.0
+        if self.anchor is None:
+            self.anchor = copy.deepcopy(self.actor).requires_grad_(False)
+        if cfg.anchor_updates == 0:
+            return cfg.anchor_coeff
+        done = self.updates - cfg.actor_freeze_updates
+        return cfg.anchor_coeff * max(0.0, 1.0 - done / cfg.anchor_updates)
+
+    def anchor_kl(self, td: TensorDictBase) -> torch.Tensor:
+        """Mean KL(anchor || actor) over a minibatch's drones: the actor pays for giving up actions the
+        anchor chose (the mass-covering direction), not for being surer than it."""
+        with torch.no_grad():
+            ref = self.anchor.get_dist(td)
+        return torch.distributions.kl_divergence(ref, self.actor.get_dist(td)).mean()
 
     def state_dict(self) -> dict:
         return {
@@ -285,6 +322,7 @@ class PPO(Algorithm):
             "optim": self.optim.state_dict(),
             "gen": self.gen.get_state(),
             "updates": torch.tensor(self.updates),
+            **({"anchor": self.anchor.state_dict()} if self.anchor is not None else {}),
         }
 
     def init_parts(self) -> dict[str, nn.Module]:
@@ -300,6 +338,9 @@ class PPO(Algorithm):
             self.obs_norm.load_state_dict(state["obs_norm"])
         self.optim.load_state_dict(state["optim"])
         self.gen.set_state(state["gen"])
+        if "anchor" in state:  # a resumed run keeps the anchor it started from, not the actor it resumes with
+            self.anchor = copy.deepcopy(self.actor).requires_grad_(False)
+            self.anchor.load_state_dict(state["anchor"])
 
 
 class MAPPO(PPO):
