@@ -87,3 +87,42 @@ def test_variant_rows_lists_every_combination_plain_first():
     # the first table varies slowest: its row repeats over the 4 combinations of the others
     assert torch.equal(table[:4, :2], aims[:1].expand(4, 2)) and torch.equal(table[4:8, :2], aims[1:2].expand(4, 2))
     assert len({tuple(r.tolist()) for r in table}) == 12
+
+
+def _searched_per_step(every: int, steps: int, seed: int = 0):
+    """Bump and Pass's opening (its lookahead chooses over the ball's whole fall) with ``every``:
+    how many drones each step searched for, the actions, and the player."""
+    env = volleybots.make_env("bump_and_pass", num_envs=2, seed=seed)
+    pol = make_scripted_policy(env).replan_every(every)
+    search, counts = pol.lookahead._search, []
+
+    def counted(drone, ball_p, *args, **kw):
+        counts[-1] += ball_p.shape[0]
+        return search(drone, ball_p, *args, **kw)
+
+    pol.lookahead._search = counted
+    td, actions = env.reset(), []
+    for _ in range(steps):
+        counts.append(0)
+        td = pol(td)
+        actions.append(td["agents", "action"].clone())
+        td = env.step_mdp(env.step(td))
+    return counts, torch.stack(actions), (env, pol, td)
+
+
+def test_a_kept_choice_searches_every_k_steps_and_starts_as_the_memoryless_player():
+    """Lookahead.every: a drone searches once per ``every`` steps of a touch (about ``every`` times
+    fewer searches), its first step is the memoryless player's own, and a new episode searches
+    afresh (the memo follows the plan's time to go, which a new touch resets)."""
+    fresh, plain, _ = _searched_per_step(1, 30)
+    kept, held, (env, pol, td) = _searched_per_step(4, 30)
+    assert sum(fresh) >= 2 * 20  # both openers choose on most steps of the fall
+    assert torch.equal(plain[0], held[0]) and fresh[0] == kept[0] == 2
+    assert sum(fresh) / 4 - 2 <= sum(kept) <= sum(fresh) / 4 + 2, (sum(fresh), sum(kept))
+    assert not torch.equal(plain, held)  # later, the kept variants fly differently
+    # a new episode's opening: its first choosing step searches for every opener again
+    td = env.reset()
+    memo = next(iter(pol.lookahead._memo.values()))
+    memo["age"].zero_()  # as if each had just searched: only the plan's time to go tells the touches apart
+    pol(td)
+    assert not memo["valid"].any()

@@ -48,6 +48,7 @@ class BCConfig(PPONetConfig):
     batch_size: int = ranged(4096, ge=1)
     replay_ratio: float = ranged(8.0, gt=0)
     min_std: float = ranged(0.02, gt=0)
+    teacher_replan: int = ranged(1, ge=1)
     actor_lr: float = 1e-3
     centralised_critic: bool = True
 
@@ -95,7 +96,7 @@ class BC(PPO):
         """The run loop hands over its env: the teacher is built for its task, action space and physics."""
         from volleybots.scripted import make_scripted_policy
 
-        self.teacher = make_scripted_policy(env, env.action_space_name)
+        self.teacher = make_scripted_policy(env, env.action_space_name).replan_every(self.cfg.teacher_replan)
         n = env.num_envs
         self.learner_mask = (torch.arange(n, device=self.device) < round(self.cfg.learner_envs * n)).view(n, 1, 1)
 

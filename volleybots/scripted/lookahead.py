@@ -8,8 +8,11 @@ player that knows the world's model (the same ``WorldParams`` the physics uses; 
 own state) can instead try ``K`` variants of its touch from the state it observes, fly each on that
 model until the contact and a little past it, and act on the variant whose outcome is best: the
 shooting form of model-predictive control, with the scripted controller as the rollout policy, so
-only a few set-points are searched, never raw rotor commands. Nothing is remembered between steps:
-every step re-plans from the observation (receding horizon), so the player stays a plain policy.
+only a few set-points are searched, never raw rotor commands. By default nothing is remembered between
+steps: every step re-plans from the observation (receding horizon), so the player stays a plain
+policy. ``every = k`` trades that for speed (collecting a teacher's demonstrations, algos/bc.py): a
+drone's chosen variant is kept for k steps and flown closed-loop from each new observation, and only
+then chosen again; the search, nearly all of such a player's time, costs about k times less.
 
 The rollout is the physics' own pure sub-step (``physics.torch_backend.substep``) on a single drone
 and the ball; other drones are left out (their downwash on the player is ignored).
@@ -60,10 +63,12 @@ def variant_rows(*tables: torch.Tensor) -> torch.Tensor:
 class Lookahead:
     """Rolls a single drone and the ball forward on the world's model under a scripted flight."""
 
-    def __init__(self, params: WorldParams, action_space: str):
+    def __init__(self, params: WorldParams, action_space: str, every: int = 1):
         self.params = params
         self.action_space = action_space
+        self.every = every  # steps a chosen variant is kept (1: every step chooses afresh)
         self._consts: dict = {}
+        self._memo: dict[str, dict[str, torch.Tensor]] = {}  # per call site: the variant each drone keeps
 
     def _c(self, ref: torch.Tensor) -> Constants:
         key = (ref.device, ref.dtype)
@@ -134,6 +139,11 @@ class Lookahead:
         """For every drone [B] try every variant [K, P] (``fly(drone, ball_p, ball_v, variant)``),
         score each outcome with ``cost`` (lower is better) and return the best variant's action
         [B, 4] and its cost [B]. Ties go to the earlier variant, so put the plain touch first."""
+        action, score, _ = self._search(drone, ball_p, ball_v, variants, fly, cost, steps, after, after_steps, net_z)
+        return action, score
+
+    def _search(self, drone, ball_p, ball_v, variants, fly, cost, steps, after=None, after_steps=0, net_z=2.6):
+        """``choose``, also returning each drone's best row of ``variants`` [B]."""
         b, k = ball_p.shape[0], variants.shape[0]
 
         def rep(x):
@@ -145,31 +155,59 @@ class Lookahead:
         score = cost(out).view(b, k)
         best = score.argmin(-1)
         idx = torch.arange(b, device=ball_p.device) * k + best
-        return out.action[idx], score.gather(-1, best.unsqueeze(-1)).squeeze(-1)
+        return out.action[idx], score.gather(-1, best.unsqueeze(-1)).squeeze(-1), best
 
     def refine(self, plain: torch.Tensor, now: torch.Tensor, t_go: torch.Tensor, drone: DroneObs, ball_p: torch.Tensor,
                ball_v: torch.Tensor, variants: torch.Tensor, fly, cost: Callable[..., torch.Tensor],
                context: tuple[torch.Tensor, ...] = (), after: Fly | None = None, after_steps: int = 0,
-               margin: int = 3) -> torch.Tensor:
+               margin: int = 3, key: str | None = None) -> torch.Tensor:
         """``plain`` [..., 4] (a player's actions, any batch shape) with the drones where ``now``
         [...] is set flying their best variant instead (``choose``); the rollouts last ``t_go`` [...]
         seconds (the plan's time to the contact) plus ``margin`` steps. ``fly(drone, ball_p,
         ball_v, *context, variant)``: ``context`` holds per-drone tensors [..., n] the flight needs
         besides the drone and the ball; ``cost(outcome, *context)`` gets them too, one row per
-        rollout."""
-        if not bool(now.any()):
+        rollout. With ``every`` > 1 a drone keeps its choice for that many steps; ``key`` (default:
+        ``fly``'s qualified name) tells apart the call sites whose choices are kept."""
+        flat_now, flat_t = now.reshape(-1), t_go.reshape(-1)
+        keep = self._kept(key or getattr(fly, "__qualname__", ""), flat_now, flat_t)
+        if not bool(flat_now.any()):
             return plain
-        idx = now.reshape(-1).nonzero().squeeze(-1)
+        out = plain.reshape(-1, plain.shape[-1]).clone()
+        k = variants.shape[0]
 
-        def pick(x):
+        def pick(x, idx):
             return None if x is None else x.reshape(-1, x.shape[-1])[idx]
 
-        k = variants.shape[0]
-        ctx = tuple(pick(x).repeat_interleave(k, 0) for x in context)
-        d = DroneObs(pick(drone.pos), pick(drone.quat), pick(drone.vel), pick(drone.omega_world), pick(drone.throttle))
-        steps = math.ceil(float(t_go.reshape(-1)[idx].clamp_min(0.0).max()) / self.params.dt) + margin
-        action, _ = self.choose(d, pick(ball_p), pick(ball_v), variants, lambda dd, p, v, var: fly(dd, p, v, *ctx, var),
-                                lambda o: cost(o, *ctx), steps, after, after_steps)
-        out = plain.reshape(-1, plain.shape[-1]).clone()
-        out[idx] = action
+        def drone_of(idx):
+            return DroneObs(pick(drone.pos, idx), pick(drone.quat, idx), pick(drone.vel, idx), pick(drone.omega_world, idx), pick(drone.throttle, idx))
+
+        # drones that keep their variant fly it from where they are now: no search
+        held = (flat_now & keep["valid"]).nonzero().squeeze(-1)
+        if len(held):
+            ctx = tuple(pick(x, held) for x in context)
+            out[held] = fly(drone_of(held), pick(ball_p, held), pick(ball_v, held), *ctx, variants[keep["best"][held]])
+        idx = (flat_now & ~keep["valid"]).nonzero().squeeze(-1)
+        if len(idx):
+            ctx = tuple(pick(x, idx).repeat_interleave(k, 0) for x in context)
+            steps = math.ceil(float(flat_t[idx].clamp_min(0.0).max()) / self.params.dt) + margin
+            out[idx], _, best = self._search(drone_of(idx), pick(ball_p, idx), pick(ball_v, idx), variants,
+                                             lambda dd, p, v, var: fly(dd, p, v, *ctx, var), lambda o: cost(o, *ctx), steps, after, after_steps)
+            keep["best"][idx], keep["age"][idx], keep["t"][idx] = best, 0, flat_t[idx]
         return out.view_as(plain)
+
+    def _kept(self, key: str, now: torch.Tensor, t_go: torch.Tensor) -> dict[str, torch.Tensor]:
+        """The memo of call site ``key`` for a batch [B], advanced by one step: ``valid`` [B] where a
+        drone may fly the variant it chose before (it has searched within the last ``every`` steps,
+        has been choosing ever since, and its contact is still the one it chose for: the plan's time
+        to go fell by the steps since, within two steps; a new episode's touch is a new plan)."""
+        b, dt = now.shape[0], self.params.dt
+        memo = self._memo.get(key)
+        if memo is None or memo["best"].shape[0] != b:
+            memo = self._memo[key] = {"best": torch.zeros(b, dtype=torch.long, device=now.device),
+                                      "age": torch.full((b,), self.every, dtype=torch.long, device=now.device),
+                                      "t": torch.zeros(b, dtype=t_go.dtype, device=now.device)}
+        memo["age"] = torch.where(now, memo["age"] + 1, self.every)
+        memo["t"] = memo["t"] - dt
+        on_plan = (t_go - memo["t"]).abs() < 2.0 * dt
+        memo["valid"] = now & (memo["age"] < self.every) & on_plan
+        return memo

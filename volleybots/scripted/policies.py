@@ -57,6 +57,15 @@ class ScriptedPolicy(TensorDictModuleBase):
         td.set(("agents", "action"), self.act(*self.parts(td.get(("agents", "observation")))))
         return td
 
+    def replan_every(self, steps: int) -> "ScriptedPolicy":
+        """Let every lookahead of this player (and of the players inside it) keep a chosen variant for
+        ``steps`` control steps (``Lookahead.every``): the player is then no longer memoryless, but
+        its search costs about ``steps`` times less. 1 (the default) chooses afresh every step."""
+        for m in self.modules():
+            if getattr(m, "lookahead", None) is not None:
+                m.lookahead.every = steps
+        return self
+
     def _vec(self, ref: torch.Tensor, values) -> torch.Tensor:
         return torch.as_tensor(values, dtype=ref.dtype, device=ref.device)
 
