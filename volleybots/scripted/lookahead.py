@@ -160,16 +160,16 @@ class Lookahead:
     def refine(self, plain: torch.Tensor, now: torch.Tensor, t_go: torch.Tensor, drone: DroneObs, ball_p: torch.Tensor,
                ball_v: torch.Tensor, variants: torch.Tensor, fly, cost: Callable[..., torch.Tensor],
                context: tuple[torch.Tensor, ...] = (), after: Fly | None = None, after_steps: int = 0,
-               margin: int = 3, key: str | None = None) -> torch.Tensor:
+               margin: int = 3) -> torch.Tensor:
         """``plain`` [..., 4] (a player's actions, any batch shape) with the drones where ``now``
         [...] is set flying their best variant instead (``choose``); the rollouts last ``t_go`` [...]
         seconds (the plan's time to the contact) plus ``margin`` steps. ``fly(drone, ball_p,
         ball_v, *context, variant)``: ``context`` holds per-drone tensors [..., n] the flight needs
         besides the drone and the ball; ``cost(outcome, *context)`` gets them too, one row per
-        rollout. With ``every`` > 1 a drone keeps its choice for that many steps; ``key`` (default:
-        ``fly``'s qualified name) tells apart the call sites whose choices are kept."""
+        rollout. With ``every`` > 1 a drone keeps its choice for that many steps (kept per call
+        site, told apart by ``fly``'s qualified name)."""
         flat_now, flat_t = now.reshape(-1), t_go.reshape(-1)
-        keep = self._kept(key or getattr(fly, "__qualname__", ""), flat_now, flat_t)
+        keep = self._kept(getattr(fly, "__qualname__", ""), flat_now, flat_t)
         if not bool(flat_now.any()):
             return plain
         out = plain.reshape(-1, plain.shape[-1]).clone()
@@ -192,7 +192,8 @@ class Lookahead:
             steps = math.ceil(float(flat_t[idx].clamp_min(0.0).max()) / self.params.dt) + margin
             out[idx], _, best = self._search(drone_of(idx), pick(ball_p, idx), pick(ball_v, idx), variants,
                                              lambda dd, p, v, var: fly(dd, p, v, *ctx, var), lambda o: cost(o, *ctx), steps, after, after_steps)
-            keep["best"][idx], keep["age"][idx], keep["t"][idx] = best, 0, flat_t[idx]
+            if self.every > 1:
+                keep["best"][idx], keep["age"][idx], keep["t"][idx] = best, 0, flat_t[idx]
         return out.view_as(plain)
 
     def _kept(self, key: str, now: torch.Tensor, t_go: torch.Tensor) -> dict[str, torch.Tensor]:
@@ -201,6 +202,8 @@ class Lookahead:
         has been choosing ever since, and its contact is still the one it chose for: the plan's time
         to go fell by the steps since, within two steps; a new episode's touch is a new plan)."""
         b, dt = now.shape[0], self.params.dt
+        if self.every == 1:  # the memoryless player: nothing to keep
+            return {"valid": torch.zeros_like(now)}
         memo = self._memo.get(key)
         if memo is None or memo["best"].shape[0] != b:
             memo = self._memo[key] = {"best": torch.zeros(b, dtype=torch.long, device=now.device),
