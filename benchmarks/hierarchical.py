@@ -104,7 +104,7 @@ def learn_drill(name: str, a, root: Path) -> dict:
     bc = trained(bc_dir) or train(load([*common(a, name, a.bc_minutes), "algo=bc", *a.bc_overrides]), bc_dir)
     row = {"drill": name, "bc": run_summary(bc_dir, bc), "fine_tune": None, "policy": str(bc_dir)}
     if a.ft_minutes > 0:
-        ft = trained(ft_dir) or train(load([*common(a, name, a.ft_minutes), "algo=ppo", f"init={bc_dir}", *FINE_TUNE, *a.ft_overrides]), ft_dir)
+        ft = trained(ft_dir) or train(load([*common(a, name, a.ft_minutes), "algo=ppo", f"init={bc_dir}", *FINE_TUNE["ppo"], *a.ft_overrides]), ft_dir)
         row["fine_tune"] = run_summary(ft_dir, ft)
         # the team's drill: the fine-tuned policy unless its final evaluation (the training seed's
         # evaluation seed, not the held-out ones) is below the clone's

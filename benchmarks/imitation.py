@@ -27,14 +27,20 @@ import json
 import time
 from pathlib import Path
 
-# the fine-tuning recipe (docs/imitation.md): a critic warm-up, then a slow, tightly clipped actor
-FINE_TUNE = ["algo.actor_freeze_updates=10", "algo.actor_lr=5e-5", "algo.clip_epsilon=0.1", "algo.entropy_coeff=0.0"]
+# the fine-tuning recipes (docs/imitation.md). PPO / MAPPO: a critic warm-up, then a slow, tightly
+# clipped actor. SAC: its defaults are the recipe (the clone as a guide: warm-up play, distillation,
+# a critic-only phase), so nothing is added.
+FINE_TUNE = {"ppo": ["algo.actor_freeze_updates=10", "algo.actor_lr=5e-5", "algo.clip_epsilon=0.1", "algo.entropy_coeff=0.0"], "sac": []}
+FINE_TUNE["mappo"] = FINE_TUNE["ppo"]
 
 
-def learner(task: str) -> str:
+def learner(task: str, choice: str = "auto") -> str:
+    """The fine-tuning algorithm: ``choice``, or with ``auto`` PPO (MAPPO with several drones)."""
     from volleybots.algos.base import class_attr
     from volleybots.tasks import TASKS
 
+    if choice != "auto":
+        return choice
     return "ppo" if class_attr(TASKS[task], "n_drones") == 1 else "mappo"
 
 
@@ -106,7 +112,8 @@ def run_task(task: str, args, root: Path) -> dict:
     from volleybots.train import train
 
     metric = TASKS[task].metric
-    bc_dir, ft_dir = root / f"{task}_bc", root / f"{task}_{learner(task)}"
+    algo = learner(task, args.learner)
+    bc_dir, ft_dir = root / f"{task}_bc", root / f"{task}_{algo}"
     if args.bc_dir:  # fine-tune a clone made before (one task)
         bc_dir = Path(args.bc_dir)
         bc = json.loads((bc_dir / "summary.json").read_text())
@@ -117,13 +124,13 @@ def run_task(task: str, args, root: Path) -> dict:
         ft = json.loads((ft_dir / "summary.json").read_text())
     else:
         init = policy_of(bc_dir)
-        ft = train(load([*common(args, task, args.ft_minutes), f"algo={learner(task)}", f"init={init}", *FINE_TUNE, *args.ft_overrides]), ft_dir)
+        ft = train(load([*common(args, task, args.ft_minutes), f"algo={algo}", f"init={init}", *FINE_TUNE[algo], *args.ft_overrides]), ft_dir)
     return {
         "task": task,
         "metric": metric,
         "wall_s": bc["wall_time_s"] + ft["wall_time_s"],  # training only; the held-out evaluations come on top
         "bc": {"run_dir": str(bc_dir), "frames": bc["frames"], "wall_s": bc["wall_time_s"], "curve": curve(bc_dir, metric)},
-        "fine_tune": {"run_dir": str(ft_dir), "algo": learner(task), "frames": ft["frames"], "wall_s": ft["wall_time_s"], "curve": curve(ft_dir, metric)},
+        "fine_tune": {"run_dir": str(ft_dir), "algo": algo, "frames": ft["frames"], "wall_s": ft["wall_time_s"], "curve": curve(ft_dir, metric)},
         "held_out": {
             "seed": args.eval_seed, "episodes": args.episodes,
             "scripted": scripted_held_out(args, task, metric),
@@ -194,6 +201,7 @@ def main() -> None:
     p.add_argument("--bc-overrides", nargs="*", default=[], help="extra overrides of the bc runs (algo.replay_ratio=8 ...)")
     p.add_argument("--bc-dir", default=None, help="a finished bc run of the (one) task to fine-tune instead of a new one")
     p.add_argument("--ft-dir", default=None, help="a finished fine-tuning run of the (one) task to evaluate instead of a new one")
+    p.add_argument("--learner", choices=["auto", *FINE_TUNE], default="auto", help="the fine-tuning algorithm (auto: PPO, MAPPO with several drones)")
     p.add_argument("--ft-overrides", nargs="*", default=[], help="extra overrides of the fine-tuning runs")
     p.add_argument("--root", default="outputs/imitation")
     p.add_argument("--out", default="docs/imitation.json")
