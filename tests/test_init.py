@@ -74,7 +74,7 @@ def test_init_of_mappo_from_ppo_and_off_policy_targets(hover_run, tmp_path):
         (["task=solo_bump"], ["task hover", "task solo_bump", "the task differs"]),
         (["task=hover", "env.action_space=ctbr"], ["env.action_space=prt", "env.action_space=ctbr", "action space differs"]),
         (["task=hover", "algo.hidden=[64]"], ["actor's networks differ", "[256] there, [64] here"]),
-        (["task=hover", "algo=sac"], ["algo ppo", "algo sac", "actor's networks differ"]),
+        (["task=hover", "algo=td3"], ["algo ppo", "algo td3", "actor's networks differ"]),
     ],
 )
 def test_a_run_that_does_not_fit_is_refused_naming_both_sides(hover_run, overrides, words):
@@ -86,6 +86,14 @@ def test_a_run_that_does_not_fit_is_refused_naming_both_sides(hover_run, overrid
     assert "\n" not in msg and f"init={str(hover_run)!r}" in msg
     for w in words:
         assert w in msg, (w, msg)
+
+
+def test_sac_from_a_ppo_run_keeps_its_actor_as_a_guide(hover_run, tmp_path):
+    """SAC's networks cannot take PPO's actor: it becomes SAC's frozen guide (tests/test_sac_init.py)."""
+    saved = torch.load(hover_run / "checkpoints" / "final.pt", weights_only=True)["algo"]
+    tr = _trainer(tmp_path, ["task=hover", "algo=sac", *TINY, "algo.batch_size=16", f"init={hover_run}"])
+    assert tr.init_info["loaded"] == ["guide"] and tr.init_info["algo"] == "ppo"
+    _equal(tr.algo.guide.actor.state_dict(), saved["actor"])
 
 
 def test_cli_refuses_a_mismatched_init_with_exit_2_and_writes_nothing(hover_run, tmp_path):

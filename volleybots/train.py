@@ -192,8 +192,9 @@ def _first_difference(there: dict, here: dict) -> str | None:
 def apply_init(algo, cfg, spec: AgentSpec) -> dict:
     """Load ``cfg.init``'s actor, and its critic where it fits, into ``algo`` (built for ``spec``); the
     optimiser, counters and random streams stay the new run's. Raises ``ConfigError`` naming both
-    sides when the task, drone count, action space, observation or the actor's shapes differ.
-    Returns what was loaded (for summary.json)."""
+    sides when the task, drone count, action space, observation or the actor's shapes differ. An
+    algorithm whose networks cannot take the source's may keep them another way (``guide_from``:
+    SAC from a bc / ppo / mappo run). Returns what was loaded (for summary.json)."""
     from volleybots.algos import ALGOS
     from volleybots.algos.base import class_attr
     from volleybots.runs import load_algo_state, read_checkpoint
@@ -225,6 +226,9 @@ def apply_init(algo, cfg, spec: AgentSpec) -> dict:
     parts, src_parts = algo.init_parts(), source.init_parts()
     if "actor" not in parts:
         raise ConfigError(f"algo {cfg.algo.name!r} cannot start from another run (init=)")
+    if algo.guide_from(source):  # networks that cannot take the source's: it guides them (sac from a clone)
+        skipped = [f"{role} (algo {src.algo.name}'s networks are PPO's: its actor is the guide)" for role in parts]
+        return _init_info(path, state, src, ["guide"], skipped)
     loaded, skipped = [], []
     for role, module in parts.items():
         diff = _first_difference(_shapes(src_parts[role]), _shapes(module)) if role in src_parts else f"algo {src.algo.name} has no {role}"
@@ -236,6 +240,11 @@ def apply_init(algo, cfg, spec: AgentSpec) -> dict:
         else:
             skipped.append(f"{role} ({diff})")
     algo.after_init()
+    return _init_info(path, state, src, loaded, skipped)
+
+
+def _init_info(path: Path, state: dict, src, loaded: list[str], skipped: list[str]) -> dict:
+    """What ``init=`` loaded, for summary.json and the checkpoints."""
     from volleybots.competitors import sha256
 
     return {"source": str(path), "sha256": sha256(path), "algo": src.algo.name, "frames": int(state["frames"]), "loaded": loaded, "skipped": skipped}

@@ -114,6 +114,12 @@ class Algorithm(ABC):
         same role when every parameter has the same name and shape."""
         return {}
 
+    def guide_from(self, source: "Algorithm") -> bool:
+        """``init=`` from ``source`` (built and loaded) whose networks this algorithm's cannot take:
+        return True if it keeps them another way (SAC: a PPO-family actor as a frozen guide). Only
+        asked when the task, drone count, action space and observation size fit."""
+        return False
+
     def after_init(self) -> None:
         """Called once ``init=`` has loaded parts (an off-policy method copies them to its targets)."""
 

@@ -232,6 +232,11 @@ class OffPolicy(Algorithm):
             return torch.rand(*shape, self.action_dim, generator=self.gen, device=self.device) * 2.0 - 1.0
         return torch.randint(self.action_dim, tuple(shape), generator=self.gen, device=self.device)
 
+    def warmup_action(self, obs: torch.Tensor) -> torch.Tensor:
+        """The action while the buffer warms up (``random_warmup``): uniformly random; SAC with a
+        guide plays the guide's instead."""
+        return self.random_action(obs.shape[:-1])
+
     def policy(self, deterministic: bool = False):
         def act(td: TensorDictBase) -> TensorDictBase:
             obs = td.get(OBS)
@@ -239,7 +244,7 @@ class OffPolicy(Algorithm):
                 if deterministic:
                     action = self.greedy(obs)
                 elif self.cfg.random_warmup and self.warming_up:
-                    action = self.random_action(obs.shape[:-1])
+                    action = self.warmup_action(obs)
                 else:
                     action = self.explore(obs)
             td.set(ACTION, action)
@@ -269,6 +274,7 @@ class OffPolicy(Algorithm):
         self.frames += batch.numel()  # env steps (epsilon schedules anneal over these)
         logs = dict.fromkeys(self.log_keys(), math.nan)
         if not self.warming_up:
+            logs.update(self.before_gradient_steps())
             sums: dict[str, float] = {}
             counts: dict[str, int] = {}
             for _ in range(self.gradient_steps(len(data))):
@@ -279,6 +285,11 @@ class OffPolicy(Algorithm):
         logs.update(self.extra_logs())
         logs.update(buffer_size=float(len(self.buffer)), grad_steps=float(self.grad_steps))
         return logs
+
+    def before_gradient_steps(self) -> dict[str, float]:
+        """Called before each batch's gradient steps, once the buffer is warm (SAC distils its guide
+        at the first); returns scalars to log."""
+        return {}
 
     def extra_logs(self) -> dict[str, float]:
         """Scalars a method reports once per batch (exploration schedules, ...)."""

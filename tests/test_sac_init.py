@@ -1,0 +1,163 @@
+"""`algo=sac init=RUN` from a bc (or ppo / mappo) run: SAC keeps the run's actor frozen as a guide
+(exactly the saved weights), plays it in the warm-up, distils its actor from it at the first gradient
+step, then fits only the critics for `algo.actor_freeze_updates` steps; the guide survives `resume=`.
+A source that does not fit is still refused with one line, exit 2."""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+
+import pytest
+import torch
+
+from volleybots.config import load
+from volleybots.errors import ConfigError
+from volleybots.runs import RunDir, read_metrics
+from volleybots.train import Trainer, check_init, collect, resume, train
+
+QUIET = ["threads=1", "progress=false", "evaluation.episodes=2", "evaluation.record=false", "seed=3"]
+BC = ["task=solo_bump", "algo=bc", "env.num_envs=8", "algo.steps_per_batch=16", "algo.batch_size=64",
+      "algo.expert_frames=256", "algo.actor_lr=3e-3", "total_frames=512", *QUIET]
+# 8 envs x 8 steps = 64 frames a batch, which fills the warm-up (2 x 32); then 8 x 64 / 32 = 16 gradient steps a batch
+SAC = ["task=solo_bump", "algo=sac", "env.num_envs=8", "algo.steps_per_batch=8", "algo.batch_size=32", "algo.warmup_batches=2",
+       "algo.buffer_size=4096", "algo.hidden=[32,32]", "evaluation.every=0", *QUIET]
+FPB = 64
+
+
+@pytest.fixture(scope="module")
+def bc_run(tmp_path_factory):
+    torch.set_num_threads(1)
+    path = tmp_path_factory.mktemp("sac_init") / "bc"
+    train(load(BC), path)
+    return path
+
+
+def _trainer(path, overrides) -> Trainer:
+    cfg = load(overrides)
+    run = RunDir(path)
+    run.create(cfg)
+    return Trainer(cfg, run)
+
+
+def _copy(module) -> dict:
+    return {k: v.clone() for k, v in module.state_dict().items()}
+
+
+def _moved(old: dict, module) -> bool:
+    return any(not torch.equal(old[k], v) for k, v in module.state_dict().items())
+
+
+def test_the_guide_is_exactly_the_saved_actor_and_drives_the_warm_up(bc_run, tmp_path):
+    saved = torch.load(bc_run / "checkpoints" / "final.pt", weights_only=True)["algo"]
+    tr = _trainer(tmp_path / "sac", [*SAC, f"init={bc_run}", "algo.guide_noise=0"])
+    sac = tr.algo
+    assert tr.init_info["loaded"] == ["guide"] and tr.init_info["algo"] == "bc"
+    guide = sac.guide.actor.state_dict()
+    assert guide.keys() == saved["actor"].keys()
+    for k in guide:
+        assert torch.equal(guide[k], saved["actor"][k]), k
+    assert not any(p.requires_grad for p in sac.guide.parameters())
+    # the warm-up plays the guide's mean action (here without noise), not uniform noise
+    td = tr.env.reset()
+    obs = td.get(("agents", "observation"))
+    action = sac.policy()(td).get(("agents", "action"))
+    assert torch.equal(action, sac.guide(obs))
+    assert action.abs().max() > 0.05  # the clone acts: the comparison is not of zeros
+    # without init= nothing of the guide exists (and the columns are today's)
+    plain = _trainer(tmp_path / "plain", SAC).algo
+    assert plain.guide is None and "guide" not in plain.state_dict()
+    assert not {"distill_loss", "guide_mse", "actor_frozen"} & set(plain.log_keys())
+
+
+def _guided(bc_run, tmp_path, freeze: int):
+    """A guided SAC after the warm-up batch (distillation + 16 frozen steps), its env input and the
+    distance of its greedy action to the guide's on that batch's observations before and after."""
+    tr = _trainer(tmp_path / "guided", [*SAC, f"init={bc_run}", f"algo.actor_freeze_updates={freeze}", "algo.distill_steps=500"])
+    sac, env = tr.algo, tr.env
+    batch, td = collect(env, sac.policy(), env.reset(), 8)
+    obs = batch.get(("agents", "observation")).reshape(-1, sac.obs_dim)
+    gap = lambda: (sac.greedy(obs) - sac.guide(obs)).abs().mean().item()  # noqa: E731
+    with torch.no_grad():
+        before = gap()
+    logs = sac.update(batch)
+    with torch.no_grad():
+        after = gap()
+    return sac, env, td, logs, before, after
+
+
+def test_distillation_puts_the_greedy_action_on_the_guide(bc_run, tmp_path):
+    sac, _, _, logs, before, after = _guided(bc_run, tmp_path, freeze=1000)
+    assert sac.distilled and math.isfinite(logs["distill_loss"]) and logs["grad_steps"] == 16
+    assert after < 0.1 and after < 0.2 * before, (before, after)
+    assert logs["guide_mse"] < 0.02 and logs["actor_frozen"] == 1.0
+
+
+def test_the_critic_warm_up_leaves_the_actor_and_temperature_alone(bc_run, tmp_path):
+    # 32 frozen steps: the first batch's 16 (after the distillation) and the second's
+    sac, env, td, _, _, _ = _guided(bc_run, tmp_path, freeze=32)
+
+    def step():
+        nonlocal td
+        actor, critic = _copy(sac.head), {k: v.clone() for k, v in sac.loss.qvalue_network_params.items(True, True)}
+        alpha = sac.loss.log_alpha.detach().clone()
+        batch, td = collect(env, sac.policy(), td, 8)
+        logs = sac.update(batch)
+        critic_moved = any(not torch.equal(v, critic[k]) for k, v in sac.loss.qvalue_network_params.items(True, True))
+        return logs, _moved(actor, sac.head), critic_moved, not torch.equal(alpha, sac.loss.log_alpha)
+
+    logs, actor, critic, alpha = step()
+    assert (actor, critic, alpha) == (False, True, False) and logs["actor_frozen"] == 1.0 and math.isnan(logs["loss_actor"])
+    assert math.isnan(logs["distill_loss"])  # once only
+    logs, actor, critic, alpha = step()
+    assert (actor, critic, alpha) == (True, True, True) and logs["actor_frozen"] == 0.0 and math.isfinite(logs["loss_actor"])
+
+
+def test_a_source_that_does_not_fit_is_refused(bc_run, tmp_path):
+    with pytest.raises(ConfigError) as e:
+        check_init(load([*SAC, "env.action_space=ctbr", f"init={bc_run}"]))
+    assert "\n" not in str(e.value) and "algo bc" in str(e.value) and "the action space differs" in str(e.value)
+    out = tmp_path / "refused"
+    res = subprocess.run(
+        [sys.executable, "-m", "volleybots.cli", "train", *[o for o in SAC if not o.startswith("task=")], "task=hover",
+         "total_frames=64", f"init={bc_run}", f"hydra.run.dir={out}"],
+        capture_output=True, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"}, timeout=300,
+    )
+    assert res.returncode == 2, res.stderr[-2000:]
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "algo bc, task solo_bump" in lines[0] and "algo sac, task hover" in lines[0] and "the task differs" in lines[0]
+    assert not out.exists()
+
+
+def test_resume_keeps_the_guide_and_repeats_the_uninterrupted_run(bc_run, tmp_path):
+    common = [*SAC, f"init={bc_run}", "algo.distill_steps=50", "algo.actor_freeze_updates=24", "algo.guide_coeff=1.0",
+              "algo.checkpoint_buffer=true", f"checkpoint.every={2 * FPB}"]
+    train(load([*common, f"total_frames={4 * FPB}"]), tmp_path / "full")
+    train(load([*common, f"total_frames={2 * FPB}"]), tmp_path / "half")
+    resume(tmp_path / "half", [f"total_frames={4 * FPB}"])
+    saved = torch.load(bc_run / "checkpoints" / "final.pt", weights_only=True)["algo"]["actor"]
+    a = torch.load(tmp_path / "full" / "checkpoints" / "final.pt", weights_only=True)["algo"]
+    b = torch.load(tmp_path / "half" / "checkpoints" / "final.pt", weights_only=True)["algo"]
+    assert bool(b["guide"]["distilled"]) and b["guide"]["net"] == a["guide"]["net"]
+    for k, v in saved.items():
+        assert torch.equal(b["guide"]["weights"][f"actor.{k}"], v), k
+    for part in ("loss", "guide"):  # the same networks, hence no second distillation after the resume
+        fa, fb = _flat(a[part]), _flat(b[part])
+        assert fa.keys() == fb.keys()
+        for k in fa:
+            assert torch.equal(fa[k], fb[k]) if isinstance(fa[k], torch.Tensor) else fa[k] == fb[k], (part, k)
+    rows = [r for r in read_metrics(tmp_path / "half" / "metrics.csv") if r["phase"] == "train"]
+    assert [r["actor_frozen"] for r in rows] == [1.0, 0.5, 0.0, 0.0]  # 24 frozen steps: 16, then 8 of 16
+    assert [isinstance(r["distill_loss"], float) and math.isfinite(r["distill_loss"]) for r in rows] == [True, False, False, False]
+
+
+def _flat(state, prefix=""):
+    out = {}
+    for k, v in state.items():
+        if isinstance(v, dict):
+            out.update(_flat(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
