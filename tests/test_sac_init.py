@@ -23,7 +23,7 @@ BC = ["task=solo_bump", "algo=bc", "env.num_envs=8", "algo.steps_per_batch=16", 
       "algo.expert_frames=256", "algo.actor_lr=3e-3", "total_frames=512", *QUIET]
 # 8 envs x 8 steps = 64 frames a batch, which fills the warm-up (2 x 32); then 8 x 64 / 32 = 16 gradient steps a batch
 SAC = ["task=solo_bump", "algo=sac", "env.num_envs=8", "algo.steps_per_batch=8", "algo.batch_size=32", "algo.warmup_batches=2",
-       "algo.buffer_size=4096", "algo.hidden=[32,32]", "evaluation.every=0", *QUIET]
+       "algo.buffer_size=4096", "algo.guide_warmup=64", "algo.hidden=[32,32]", "evaluation.every=0", *QUIET]
 FPB = 64
 
 
@@ -70,6 +70,21 @@ def test_the_guide_is_exactly_the_saved_actor_and_drives_the_warm_up(bc_run, tmp
     plain = _trainer(tmp_path / "plain", SAC).algo
     assert plain.guide is None and "guide" not in plain.state_dict()
     assert not {"distill_loss", "guide_mse", "actor_frozen"} & set(plain.log_keys())
+
+
+def test_with_a_guide_the_warm_up_lasts_guide_warmup_transitions(bc_run, tmp_path):
+    # SAC's own warm-up is 2 x 32 = 64 transitions (one batch); the guide's play lasts 3 batches
+    tr = _trainer(tmp_path / "long", [*SAC, f"init={bc_run}", f"algo.guide_warmup={3 * FPB}", "algo.distill_steps=5"])
+    sac, env, td = tr.algo, tr.env, tr.env.reset()
+    steps = []
+    for _ in range(4):
+        batch, td = collect(env, sac.policy(), td, 8)
+        steps.append(sac.update(batch)["grad_steps"])
+    assert steps == [0, 0, 16, 32] and sac.distilled
+    plain = _trainer(tmp_path / "plain", [*SAC, f"algo.guide_warmup={3 * FPB}"]).algo
+    assert plain.warmup_frames == 64  # without a guide the key is not read
+    with pytest.raises(ConfigError, match="algo.guide_warmup"):
+        load([*SAC, "algo.guide_warmup=5000"])
 
 
 def _guided(bc_run, tmp_path, freeze: int):

@@ -27,7 +27,7 @@ from torchrl.objectives import SACLoss
 
 from volleybots.algos.guide import Guide, can_guide
 from volleybots.algos.offpolicy import OffPolicy, OffPolicyConfig, QNet, net
-from volleybots.errors import ranged
+from volleybots.errors import ConfigError, ranged
 
 
 @dataclass
@@ -41,6 +41,7 @@ class SACConfig(OffPolicyConfig):
     distill_steps: int = ranged(500, ge=0)  # Adam steps fitting the actor to the guide at the first gradient step
     actor_freeze_updates: int = ranged(1000, ge=0)  # then: gradient steps that fit only the critics
     guide_coeff: float = ranged(0.0, ge=0)  # weight of the squared gap to the guide's action in the actor loss
+    guide_warmup: int = ranged(409_600, ge=1)  # buffer transitions of the guide's play before the first gradient step
 
 
 DISTILL_LIMIT = 1.0 - 1e-3  # distillation targets stay inside the tanh's open range: atanh(+-1) is infinite
@@ -114,6 +115,20 @@ class SAC(OffPolicy):
             return False
         self.guide = Guide.of(source).to(self.device)
         return True
+
+    @classmethod
+    def check(cls, cfg, task_cls, env_cfg):
+        super().check(cfg, task_cls, env_cfg)
+        if cfg.guide_warmup > cfg.buffer_size:
+            raise ConfigError(f"bad value for 'algo.guide_warmup': {cfg.guide_warmup} must fit in algo.buffer_size = {cfg.buffer_size}")
+
+    @property
+    def warmup_frames(self) -> int:
+        """With a guide the warm-up lasts ``guide_warmup`` transitions at least: whole episodes of the
+        clone's play (800 steps x 256 envs = 204,800 on Solo Bump), so the distillation sees the
+        states of a whole rally; SAC's own warm-up (4 batches of 4096) holds only their openings."""
+        own = super().warmup_frames
+        return own if self.guide is None else max(own, self.cfg.guide_warmup)
 
     def warmup_action(self, obs):
         """With a guide the buffer starts with its play: its mean action plus Gaussian noise of
