@@ -15,6 +15,7 @@ import torch
 
 from volleybots.config import load
 from volleybots.errors import ConfigError
+from volleybots.report import _flat  # nested dicts as dotted keys
 from volleybots.runs import RunDir, read_metrics
 from volleybots.train import Trainer, check_init, collect, resume, train
 
@@ -166,13 +167,3 @@ def test_resume_keeps_the_guide_and_repeats_the_uninterrupted_run(bc_run, tmp_pa
     rows = [r for r in read_metrics(tmp_path / "half" / "metrics.csv") if r["phase"] == "train"]
     assert [r["actor_frozen"] for r in rows] == [1.0, 0.5, 0.0, 0.0]  # 24 frozen steps: 16, then 8 of 16
     assert [isinstance(r["distill_loss"], float) and math.isfinite(r["distill_loss"]) for r in rows] == [True, False, False, False]
-
-
-def _flat(state, prefix=""):
-    out = {}
-    for k, v in state.items():
-        if isinstance(v, dict):
-            out.update(_flat(v, f"{prefix}{k}."))
-        else:
-            out[f"{prefix}{k}"] = v
-    return out
