@@ -274,7 +274,6 @@ class OffPolicy(Algorithm):
         self.frames += batch.numel()  # env steps (epsilon schedules anneal over these)
         logs = dict.fromkeys(self.log_keys(), math.nan)
         if not self.warming_up:
-            logs.update(self.before_gradient_steps())
             sums: dict[str, float] = {}
             counts: dict[str, int] = {}
             for _ in range(self.gradient_steps(len(data))):
@@ -285,11 +284,6 @@ class OffPolicy(Algorithm):
         logs.update(self.extra_logs())
         logs.update(buffer_size=float(len(self.buffer)), grad_steps=float(self.grad_steps))
         return logs
-
-    def before_gradient_steps(self) -> dict[str, float]:
-        """Called before each batch's gradient steps, once the buffer is warm (SAC distils its guide
-        at the first); returns scalars to log."""
-        return {}
 
     def extra_logs(self) -> dict[str, float]:
         """Scalars a method reports once per batch (exploration schedules, ...)."""

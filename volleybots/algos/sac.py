@@ -3,12 +3,13 @@ a tanh-squashed Gaussian actor, twin critics with targets, and a learned tempera
 policy's entropy toward ``target_entropy_scale x action_dim``.
 
 Started from a ``bc``, ``ppo`` or ``mappo`` run (``init=``), whose Gaussian actor over PPO's MLP none
-of SAC's networks can take, SAC keeps that actor frozen as a guide (algos/guide.py) and uses it to
-start where the clone is instead of from random play (docs/imitation.md):
+of SAC's networks can take, SAC keeps that actor frozen as a guide (algos/guide.py) and learns a
+residual on it (residual policy learning, Silver et al. 2018; docs/imitation.md):
 
-1. the warm-up collection plays the guide's mean action plus noise (``guide_noise``), not uniform noise;
-2. at the first gradient step SAC's actor is distilled from the guide (``distill_steps``);
-3. the next ``actor_freeze_updates`` gradient steps fit only the critics, on the distilled actor's play;
+1. the actor's pre-tanh mean is atanh(guide's action) + the MLP's output, whose last layer starts at
+   zero (and its scale at ``guide_noise``): the actor starts exactly as the clone, with a little noise;
+2. the warm-up (``guide_warmup`` transitions, whole episodes) plays that actor, not uniform noise;
+3. the first ``actor_freeze_updates`` gradient steps fit only the critics, on the clone's play;
 4. optionally a penalty ``guide_coeff x (tanh(loc) - guide)^2`` keeps the actor near the guide (TD3+BC).
 
 Without a guide nothing of this runs: the same random draws, the same run.
@@ -16,7 +17,6 @@ Without a guide nothing of this runs: the same random draws, the same run.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import torch
@@ -37,15 +37,47 @@ class SACConfig(OffPolicyConfig):
     alpha_lr: float = ranged(5e-4, gt=0)
     target_entropy_scale: float = ranged(-0.5, ge=-10, le=10)  # x action_dim: the entropy the temperature aims at
     # with a guide only (init= from a bc / ppo / mappo run)
-    guide_noise: float = ranged(0.1, ge=0)  # std of the noise on the guide's warm-up actions
-    distill_steps: int = ranged(500, ge=0)  # Adam steps fitting the actor to the guide at the first gradient step
+    guide_noise: float = ranged(0.1, ge=0.01)  # the residual actor's initial std (before the tanh; 0.01 is the extractor's floor)
     actor_freeze_updates: int = ranged(1000, ge=0)  # then: gradient steps that fit only the critics
     guide_coeff: float = ranged(0.0, ge=0)  # weight of the squared gap to the guide's action in the actor loss
-    guide_warmup: int = ranged(409_600, ge=1)  # buffer transitions of the guide's play before the first gradient step
+    guide_warmup: int = ranged(409_600, ge=1)  # buffer transitions of the clone's play before the first gradient step
 
 
-DISTILL_LIMIT = 1.0 - 1e-3  # distillation targets stay inside the tanh's open range: atanh(+-1) is infinite
-GUIDE_LOGS = ("distill_loss", "guide_mse", "actor_frozen")  # logged from the first batch when there is a guide
+GUIDE_LIMIT = 1.0 - 1e-3  # the guide's action stays inside the tanh's open range: atanh(+-1) is infinite
+GUIDE_LOGS = ("guide_mse", "actor_frozen")  # logged from the first batch when there is a guide
+
+
+class Head(nn.Sequential):
+    """SAC's actor head: an MLP, then loc and a softplus-mapped scale of the Gaussian before the tanh.
+
+    With a guide the loc is a residual: atanh(guide's action) + the MLP's. A Sequential of the same
+    two children as before, so checkpoints keep their parameter names; the guide is not a submodule
+    (a tuple), so its frozen weights stay out of SAC's parameters, optimisers and loss."""
+
+    def __init__(self, mlp: nn.Module, action_dim: int):
+        super().__init__(mlp, NormalParamExtractor())
+        self.action_dim = action_dim
+        self.guide: tuple = ()
+
+    def forward(self, obs):
+        loc, scale = super().forward(obs)
+        if self.guide:
+            loc = loc + torch.atanh(self.guide[0](obs).clamp(-GUIDE_LIMIT, GUIDE_LIMIT))
+        return loc, scale
+
+    @torch.no_grad()
+    def start_at_guide(self, std: float) -> None:
+        """Zero the MLP's last layer but for a bias that maps to ``std``: the residual is 0 and the
+        actor the guide, with that much noise before the tanh."""
+        last = [m for m in self[0].modules() if isinstance(m, nn.Linear)][-1]
+        last.weight.zero_()
+        last.bias.zero_()
+        lo, hi = -20.0, 20.0  # the extractor's scale is increasing in its input: bisect for ``std``
+        for _ in range(60):
+            mid = (lo + hi) / 2
+            _, scale = self[1](torch.tensor([0.0, mid], device=last.bias.device))
+            lo, hi = (mid, hi) if float(scale) < std else (lo, mid)
+        last.bias[self.action_dim:] = lo
 
 
 class SAC(OffPolicy):
@@ -57,12 +89,11 @@ class SAC(OffPolicy):
     def __init__(self, cfg, env, seed: int = 0):
         super().__init__(cfg, env, seed)
         self.guide: Guide | None = None  # a frozen bc / ppo / mappo actor (init=), checkpointed
-        self.distilled = False  # whether the actor has been fitted to the guide (once, at the first gradient step)
 
     def build(self) -> None:
         cfg = self.cfg
         # loc and a softplus-mapped scale of the Gaussian before the tanh
-        self.head = nn.Sequential(net(self.obs_dim, 2 * self.action_dim, cfg), NormalParamExtractor()).to(self.device)
+        self.head = Head(net(self.obs_dim, 2 * self.action_dim, cfg), self.action_dim).to(self.device)
         actor = ProbabilisticActor(
             TensorDictModule(self.head, ["observation"], ["loc", "scale"]),
             in_keys=["loc", "scale"],
@@ -113,8 +144,14 @@ class SAC(OffPolicy):
         so they become the frozen guide (exactly the source's). False for any other source."""
         if not can_guide(source):
             return False
-        self.guide = Guide.of(source).to(self.device)
+        self.use_guide(Guide.of(source).to(self.device))
+        self.head.start_at_guide(self.cfg.guide_noise)
         return True
+
+    def use_guide(self, guide: Guide) -> None:
+        """Keep ``guide`` (checkpointed) and make the actor a residual on it."""
+        self.guide = guide
+        self.head.guide = (guide,)
 
     @classmethod
     def check(cls, cfg, task_cls, env_cfg):
@@ -125,51 +162,20 @@ class SAC(OffPolicy):
     @property
     def warmup_frames(self) -> int:
         """With a guide the warm-up lasts ``guide_warmup`` transitions at least: whole episodes of the
-        clone's play (800 steps x 256 envs = 204,800 on Solo Bump), so the distillation sees the
-        states of a whole rally; SAC's own warm-up (4 batches of 4096) holds only their openings."""
+        clone's play (800 steps x 256 envs = 204,800 on Solo Bump), so the critics' first data hold
+        whole rallies; SAC's own warm-up (4 batches of 4096) holds only their openings."""
         own = super().warmup_frames
         return own if self.guide is None else max(own, self.cfg.guide_warmup)
 
     def warmup_action(self, obs):
-        """With a guide the buffer starts with its play: its mean action plus Gaussian noise of
-        ``guide_noise``, clipped to [-1, 1] (as bc collects), so the critics first see the clone's states."""
-        if self.guide is None:
-            return super().warmup_action(obs)
-        action = self.guide(obs)
-        noise = torch.randn(action.shape, generator=self.gen, device=self.gen.device).to(action.device)
-        return (action + self.cfg.guide_noise * noise).clamp(-1.0, 1.0)
-
-    def before_gradient_steps(self) -> dict[str, float]:
-        if self.guide is None or self.distilled:
-            return {}
-        return {"distill_loss": self.distill()}
-
-    def distill(self) -> float:
-        """Fit SAC's actor to the guide before SAC learns: ``distill_steps`` Adam steps (an optimiser
-        of its own, so SAC's starts fresh) of the TanhNormal's negative log-likelihood of the guide's
-        mean action, on observations sampled from the buffer. A random actor would otherwise steer
-        the critics' targets (the next action) and the first actor steps away from the clone.
-        Returns the last step's loss."""
-        params = list(self.head.parameters())
-        opt = torch.optim.Adam(params, lr=self.cfg.lr)
-        loss = torch.tensor(math.nan)
-        for _ in range(self.cfg.distill_steps):
-            obs = self.buffer.sample().get("observation").to(self.device)
-            target = self.guide(obs).clamp(-DISTILL_LIMIT, DISTILL_LIMIT)
-            loc, scale = self.head(obs)
-            loss = -TanhNormal(loc, scale, low=-1.0, high=1.0).log_prob(target).mean()
-            opt.zero_grad(set_to_none=True)
-            loss.backward()
-            nn.utils.clip_grad_norm_(params, self.cfg.max_grad_norm)
-            opt.step()
-        self.distilled = True
-        return float(loss.detach())
+        """With a guide the warm-up plays the actor (the clone plus ``guide_noise``), not uniform
+        noise, so the buffer starts with the clone's states."""
+        return super().warmup_action(obs) if self.guide is None else self.explore(obs)
 
     @property
     def actor_frozen(self) -> bool:
-        """With a guide, the first ``actor_freeze_updates`` gradient steps (the distillation comes
-        before them) fit only the critics: the actor's first steps then climb Q-values of the
-        distilled actor's play, not those of freshly initialised critics."""
+        """With a guide, the first ``actor_freeze_updates`` gradient steps fit only the critics: the
+        actor's first steps then climb Q-values of the clone's play, not freshly initialised critics'."""
         return self.guide is not None and self.grad_steps < self.cfg.actor_freeze_updates
 
     def guide_gap(self, obs: torch.Tensor, grad: bool) -> torch.Tensor:
@@ -186,11 +192,11 @@ class SAC(OffPolicy):
     def state_dict(self) -> dict:
         state = super().state_dict()
         if self.guide is not None:
-            state["guide"] = {**self.guide.checkpoint(), "distilled": torch.tensor(self.distilled)}
+            state["guide"] = self.guide.checkpoint()
         return state
 
     def load_state_dict(self, state: dict) -> None:
         super().load_state_dict(state)
-        saved = state.get("guide")  # a resumed run keeps its guide and whether it has distilled it
-        self.guide = Guide.from_checkpoint(self.obs_dim, self.action_dim, saved, self.device) if saved else None
-        self.distilled = bool(saved["distilled"]) if saved else False
+        saved = state.get("guide")  # a resumed run keeps its guide (the residual is in the loaded weights)
+        if saved:
+            self.use_guide(Guide.from_checkpoint(self.obs_dim, self.action_dim, saved, self.device))
