@@ -2,8 +2,8 @@
 
 ``algo=sac init=RUN`` where RUN is a ``bc``, ``ppo`` or ``mappo`` run: SAC's actor is a tanh-Gaussian
 MLP with LayerNorm and its critics are Q-functions, so nothing of RUN loads into them. Instead RUN's
-actor is rebuilt as PPO builds it (from RUN's network keys) with RUN's weights, exactly, and SAC is
-SAC learns a residual on its mean action (algos/sac.py: the actor starts as the clone, an optional penalty).
+actor is rebuilt as PPO builds it (from RUN's network keys) with RUN's weights, exactly, and SAC
+learns a residual on its mean action (algos/sac.py: the actor starts as the clone, an optional penalty).
 """
 
 from __future__ import annotations
