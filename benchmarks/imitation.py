@@ -28,9 +28,12 @@ import time
 from pathlib import Path
 
 # the fine-tuning recipes (docs/imitation.md). PPO / MAPPO: a critic warm-up, then a slow, tightly
-# clipped actor. SAC: its defaults are the recipe (the clone as a guide: warm-up play, distillation,
-# a critic-only phase), so nothing is added.
-FINE_TUNE = {"ppo": ["algo.actor_freeze_updates=10", "algo.actor_lr=5e-5", "algo.clip_epsilon=0.1", "algo.entropy_coeff=0.0"], "sac": []}
+# clipped actor. SAC (a residual on the clone, critic warm-up by default): a slow actor, held near the
+# clone (TD3+BC's weight: about mean |Q| / 2.5), aiming at about the entropy it starts with.
+FINE_TUNE = {
+    "ppo": ["algo.actor_freeze_updates=10", "algo.actor_lr=5e-5", "algo.clip_epsilon=0.1", "algo.entropy_coeff=0.0"],
+    "sac": ["algo.actor_lr=5e-5", "algo.guide_coeff=10", "algo.target_entropy_scale=-1.25"],
+}
 FINE_TUNE["mappo"] = FINE_TUNE["ppo"]
 
 

@@ -36,6 +36,7 @@ class SACConfig(OffPolicyConfig):
     alpha_init: float = ranged(0.1, gt=0)
     alpha_lr: float = ranged(5e-4, gt=0)
     target_entropy_scale: float = ranged(-0.5, ge=-10, le=10)  # x action_dim: the entropy the temperature aims at
+    actor_lr: float | None = ranged(None, gt=0)  # the actor's Adam learning rate (None: lr); small steps from a clone
     # with a guide only (init= from a bc / ppo / mappo run)
     guide_noise: float = ranged(0.1, ge=0.01)  # the residual actor's initial std (before the tanh; 0.01 is the extractor's floor)
     actor_freeze_updates: int = ranged(1000, ge=0)  # then: gradient steps that fit only the critics
@@ -110,7 +111,7 @@ class SAC(OffPolicy):
             target_entropy=cfg.target_entropy_scale * self.action_dim,
         )
         self.optims = {
-            "actor": self.adam(self.loss.actor_network_params.values(True, True)),
+            "actor": self.adam(self.loss.actor_network_params.values(True, True), lr=cfg.actor_lr),
             "critic": self.adam(self.loss.qvalue_network_params.values(True, True)),
             "alpha": self.adam([self.loss.log_alpha], lr=cfg.alpha_lr),
         }
