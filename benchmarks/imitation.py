@@ -82,7 +82,8 @@ def held_out(target: str, args, task: str, metric: str) -> dict:
         return held_out_games(target, args, task)
 
     extra = [f"task={task}", f"env.action_space={args.action_space}"] if target in ("scripted", "random") else []
-    res = evaluate(target, [*extra, f"seed={args.eval_seed}", f"threads={args.threads}"], episodes=args.episodes)
+    # the task's own episodes, whatever episode limit a run trained with (task.episode_len in --ft-overrides)
+    res = evaluate(target, [*extra, f"seed={args.eval_seed}", f"threads={args.threads}", "task.episode_len=null"], episodes=args.episodes)
     return {"mean": res["stats"][metric]["mean"], "std": res["stats"][metric]["std"], "return": res["stats"]["return"]["mean"]}
 
 

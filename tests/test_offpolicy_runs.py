@@ -132,3 +132,15 @@ def test_cli_trains_evaluates_and_replays_sac_and_picks_discrete_for_dqn(tmp_pat
     lines = [l for l in res.stderr.splitlines() if l.strip()]
     assert len(lines) == 1 and "dqn" in lines[0] and "discrete" in lines[0] and "'prt'" in lines[0], res.stderr
     assert not bad.exists()
+
+
+def test_eval_may_change_the_episode_limit_but_not_the_task(tmp_path):
+    from volleybots.errors import ConfigError
+    from volleybots.eval import resolve_target
+
+    train(load(["algo=sac", *TINY, "total_frames=64"]), tmp_path / "run")
+    assert resolve_target(str(tmp_path / "run")).cfg.task.episode_len == 40  # as trained
+    assert resolve_target(str(tmp_path / "run"), ["task.episode_len=500"]).cfg.task.episode_len == 500
+    assert resolve_target(str(tmp_path / "run"), ["task.episode_len=null"]).cfg.task.episode_len is None  # the task's own
+    with pytest.raises(ConfigError, match="cannot change 'task.target'"):
+        resolve_target(str(tmp_path / "run"), ["task.target=[0,0,2]"])

@@ -85,8 +85,8 @@ def test_with_a_guide_the_warm_up_lasts_guide_warmup_transitions(bc_run, tmp_pat
     assert steps == [0, 0, 16, 32]
     plain = _trainer(tmp_path / "plain", [*SAC, f"algo.guide_warmup={3 * FPB}"]).algo
     assert plain.warmup_frames == 64  # without a guide the key is not read
-    with pytest.raises(ConfigError, match="algo.guide_warmup"):
-        load([*SAC, "algo.guide_warmup=5000"])
+    capped = _trainer(tmp_path / "capped", [*SAC, f"init={bc_run}", "algo.guide_warmup=5000"]).algo
+    assert capped.warmup_frames == 4096  # algo.buffer_size
 
 
 def _guided(bc_run, tmp_path, freeze: int):

@@ -27,7 +27,7 @@ from torchrl.objectives import SACLoss
 
 from volleybots.algos.guide import Guide, can_guide
 from volleybots.algos.offpolicy import OffPolicy, OffPolicyConfig, QNet, net
-from volleybots.errors import ConfigError, ranged
+from volleybots.errors import ranged
 
 
 @dataclass
@@ -154,19 +154,14 @@ class SAC(OffPolicy):
         self.guide = guide
         self.head.guide = (guide,)
 
-    @classmethod
-    def check(cls, cfg, task_cls, env_cfg):
-        super().check(cfg, task_cls, env_cfg)
-        if cfg.guide_warmup > cfg.buffer_size:
-            raise ConfigError(f"bad value for 'algo.guide_warmup': {cfg.guide_warmup} must fit in algo.buffer_size = {cfg.buffer_size}")
-
     @property
     def warmup_frames(self) -> int:
         """With a guide the warm-up lasts ``guide_warmup`` transitions at least: whole episodes of the
         clone's play (800 steps x 256 envs = 204,800 on Solo Bump), so the critics' first data hold
-        whole rallies; SAC's own warm-up (4 batches of 4096) holds only their openings."""
+        whole rallies; SAC's own warm-up (4 batches of 4096) holds only their openings. At most the
+        buffer's size (the key is read only with a guide, so it is not checked against it)."""
         own = super().warmup_frames
-        return own if self.guide is None else max(own, self.cfg.guide_warmup)
+        return own if self.guide is None else max(own, min(self.cfg.guide_warmup, self.cfg.buffer_size))
 
     def warmup_action(self, obs):
         """With a guide the warm-up plays the actor (the clone plus ``guide_noise``), not uniform
