@@ -166,3 +166,15 @@ def test_resume_keeps_the_guide_and_repeats_the_uninterrupted_run(bc_run, tmp_pa
             assert torch.equal(fa[k], fb[k]) if isinstance(fa[k], torch.Tensor) else fa[k] == fb[k], (part, k)
     rows = [r for r in read_metrics(tmp_path / "half" / "metrics.csv") if r["phase"] == "train"]
     assert [r["actor_frozen"] for r in rows] == [1.0, 0.5, 0.0, 0.0]  # 24 frozen steps: 16, then 8 of 16
+
+
+def test_a_guided_sac_run_passes_its_guide_on(bc_run, tmp_path):
+    train(load([*SAC, f"init={bc_run}", "algo.actor_freeze_updates=0", f"total_frames={3 * FPB}"]), tmp_path / "first")
+    tr = _trainer(tmp_path / "second", [*SAC, f"init={tmp_path / 'first'}"])
+    first = _trainer(tmp_path / "again", [*SAC, f"init={bc_run}"]).algo
+    first.load_state_dict(torch.load(tmp_path / "first" / "checkpoints" / "final.pt", weights_only=True)["algo"])
+    obs = tr.env.reset().get(("agents", "observation"))
+    with torch.no_grad():
+        assert tr.algo.guide is not None and torch.equal(tr.algo.greedy(obs), first.greedy(obs))
+        assert (first.greedy(obs) - first.guide(obs)).abs().max() > 1e-3  # it learned: the residual matters
+    assert tr.init_info["loaded"] == ["actor", "critic"]

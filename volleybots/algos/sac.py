@@ -39,7 +39,7 @@ class SACConfig(OffPolicyConfig):
     actor_lr: float | None = ranged(None, gt=0)  # the actor's Adam learning rate (None: lr); small steps from a clone
     # with a guide only (init= from a bc / ppo / mappo run)
     guide_noise: float = ranged(0.1, ge=0.01)  # the residual actor's initial std (before the tanh; 0.01 is the extractor's floor)
-    actor_freeze_updates: int = ranged(1000, ge=0)  # then: gradient steps that fit only the critics
+    actor_freeze_updates: int = ranged(1000, ge=0)  # the first gradient steps, which fit only the critics
     guide_coeff: float = ranged(0.0, ge=0)  # weight of the squared gap to the guide's action in the actor loss
     guide_warmup: int = ranged(409_600, ge=1)  # buffer transitions of the clone's play before the first gradient step
 
@@ -142,7 +142,10 @@ class SAC(OffPolicy):
     # ------------------------------------------------------------ a guide (init= from a bc / ppo / mappo run)
     def guide_from(self, source) -> bool:
         """``init=`` from a run whose actor is PPO's Gaussian: SAC's networks cannot take its weights,
-        so they become the frozen guide (exactly the source's). False for any other source."""
+        so they become the frozen guide (exactly the source's). False for any other source; a guided
+        SAC run passes its guide on first, since its actor is only the residual on it."""
+        if isinstance(source, SAC) and source.guide is not None:
+            self.use_guide(Guide.from_checkpoint(self.obs_dim, self.action_dim, source.guide.checkpoint(), self.device))
         if not can_guide(source):
             return False
         self.use_guide(Guide.of(source).to(self.device))
