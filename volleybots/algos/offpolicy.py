@@ -234,7 +234,7 @@ class OffPolicy(Algorithm):
 
     def warmup_action(self, obs: torch.Tensor) -> torch.Tensor:
         """The action while the buffer warms up (``random_warmup``): uniformly random; SAC with a
-        guide plays the guide's instead."""
+        guide plays its actor instead (the clone plus noise)."""
         return self.random_action(obs.shape[:-1])
 
     def policy(self, deterministic: bool = False):
