@@ -119,6 +119,27 @@ def test_eval_of_a_run_prints_a_table_and_json(run_dir):
     assert "distance (metric)" in res.stdout and "ppo@1024" in res.stdout
 
 
+def test_eval_compare_pairs_the_episodes_and_tells_the_better_player(run_dir):
+    res = runner.invoke(app, ["eval", "compare", "random", "scripted", "task=hover", "episodes=8", "seed=3", "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout)
+    assert out["task"] == "hover" and out["episodes"] == 8 and out["higher_is_better"] is False
+    rand, scripted = out["targets"]
+    assert len(rand["per_episode"]) == 8 and "vs_baseline" not in rand
+    c = scripted["vs_baseline"]
+    # the scripted player flies to every target; random play tumbles: better in each of the 8 episodes
+    assert (c["wins"], c["ties"], c["losses"]) == (8, 0, 0) and c["verdict"] == "better" and c["p"] < 0.01
+    assert c["diff"] == pytest.approx(rand["mean"] - scripted["mean"]) and c["low"] > 0
+    # a scripted baseline plays the run's task; a policy against itself ties every episode
+    res = runner.invoke(app, ["eval", "compare", "scripted", str(run_dir), str(run_dir), "episodes=3", "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout)
+    assert out["task"] == "hover" and [t["target"] for t in out["targets"]] == ["scripted", str(run_dir), str(run_dir)]
+    assert out["targets"][1]["per_episode"] == out["targets"][2]["per_episode"]
+    res = runner.invoke(app, ["eval", "compare", str(run_dir), str(run_dir), "episodes=3"])
+    assert res.exit_code == 0 and "level" in res.stdout and "0/3/0" in res.stdout
+
+
 def test_eval_of_random_play(tmp_path):
     res = runner.invoke(app, ["eval", "random", "task=solo_bump", "env.action_space=ctbr", "episodes=4", "--json"])
     assert res.exit_code == 0, res.output
@@ -167,6 +188,9 @@ def _bad_cases(run_dir: Path, tmp: Path):
     state = torch.load(run_dir / "checkpoints" / "final.pt", weights_only=True)
     state["config"]["task"] = {"name": "solo_bump", "reward_shaping": True, "episode_len": None, "hit_reward": 2.0, "height_reward": 8.0}
     torch.save(state, mismatched)
+    state = torch.load(run_dir / "checkpoints" / "final.pt", weights_only=True)
+    state["config"]["task"]["target"] = [0.0, 0.0, 2.0]  # hover with a fixed target: other episodes than the run's
+    torch.save(state, tmp / "fixed_target.pt")
     (tmp / "not_a_ckpt.pt").write_text("hello")
     (tmp / "empty_run").mkdir()
     shutil.copy(run_dir / "config.yaml", tmp / "empty_run" / "config.yaml")
@@ -196,6 +220,10 @@ def _bad_cases(run_dir: Path, tmp: Path):
         (["eval", str(run_dir), "task=solo_bump"], ["task", "episodes"]),
         (["eval", str(run_dir), "episodes=0"], ["episodes", ">= 1"]),
         (["eval", "random", "task=nope"], ["nope", "hover"]),
+        (["eval", "compare", "scripted", "episodes=2"], ["compare", "baseline", "scripted"]),
+        (["eval", "compare", str(run_dir), str(mismatched), "episodes=2"], ["one task", "hover", "solo_bump"]),
+        (["eval", "compare", str(run_dir), str(tmp / "fixed_target.pt"), "episodes=2"], ["fixed_target.pt", "did not play the episodes"]),
+        (["eval", "compare", "scripted", str(run_dir), "--out", "x"], ["--out", "--json"]),
         (["replay", "random", "--out", str(run_dir / "curves.rrd")], ["curves.rrd", "exists"]),
         (["replay", "random", "--out", str(tmp / "x.txt")], ["x.txt", ".rrd"]),
         (["bench", "speed=3"], ["speed", "num_envs"]),

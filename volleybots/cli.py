@@ -279,7 +279,8 @@ eval_app = typer.Typer(
     cls=_EvalGroup,
     no_args_is_help=True,
     help="Evaluate: `eval TARGET episodes=100 ...` plays one policy (a run dir, a checkpoint, scripted, random) "
-    "and reports the task metric; `eval crossplay` and `eval elo` rank competitors of a match.",
+    "and reports the task metric; `eval compare A B ...` plays several on the same episodes and tests their differences; "
+    "`eval crossplay` and `eval elo` rank competitors of a match.",
 )
 app.add_typer(eval_app, name="eval")
 _COMPETITORS = "Competitors (a run dir, a checkpoint, a population run, scripted, random; label one with name=PATH)"
@@ -299,6 +300,26 @@ def eval_cmd(
     result = evaluate(target, list(overrides or []))
     if as_json:
         typer.echo(json.dumps(result, indent=2))
+    else:
+        from rich.console import Console
+
+        Console().print(format_table(result))
+
+
+@eval_app.command("compare", context_settings=_PASS_THROUGH)
+@_user_errors
+def compare_cmd(
+    args: Optional[List[str]] = typer.Argument(None, help="BASELINE TARGET [TARGET ...] (run dirs, checkpoints, scripted, random), then episodes=100 seed=0 deterministic=true task.episode_len=... (scripted/random play the first run's task unless task= is given)."),
+    as_json: bool = typer.Option(False, "--json", help="Print the result, per-episode metrics included, as JSON instead of a table."),
+) -> None:
+    """Play every target on the same episodes and compare each with the first, episode by episode (paired differences, Wilcoxon test)."""
+    from volleybots.eval.compare import compare, format_table
+
+    args = list(args or [])
+    _refuse_flags(args, "--json, --help")
+    result = compare(args)
+    if as_json:
+        typer.echo(json.dumps(result, indent=1))
     else:
         from rich.console import Console
 

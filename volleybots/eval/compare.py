@@ -1,0 +1,155 @@
+"""Paired comparison of policies on the same episodes (``volleybots eval compare``).
+
+Two policies evaluated on the same seed start their episodes from the same states (``run_episodes``
+scores the first episode of every env, and a reset's random numbers do not depend on the policy).
+So their per-episode metrics pair up, and the difference of each pair removes what the start
+contributes: on Hover the start decides most of an episode's mean distance (the standard deviation
+over episodes is 0.15 m), while the teacher and its clone differ by 0.005 m, which two unpaired means
+cannot resolve and the paired differences resolve at p < 1e-6. Every target after the first is
+compared with the first (the baseline); the first observations are checked to be identical, so a
+pair that did not play the same episodes is refused rather than compared.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from scipy import stats
+
+from volleybots.config import check_memory, make_env
+from volleybots.errors import ConfigError
+from volleybots.runs import memory_errors_as
+
+from . import POLICY_NAMES, resolve_target, run_episodes
+
+LEVEL = 0.05  # two-sided significance of the Wilcoxon signed-rank test behind a "better" / "worse" verdict
+
+
+@dataclass
+class Paired:
+    """``other`` against ``base`` on the same episodes; ``diff`` > 0 means ``other`` is better."""
+
+    diff: float  # mean improvement (metric units, signed so that > 0 is better)
+    se: float  # its standard error over episodes
+    low: float  # 95 % t-interval of the mean improvement
+    high: float
+    wins: int  # episodes where other is better, level, worse
+    ties: int
+    losses: int
+    rank_biserial: float  # (R+ - R-) / (R+ + R-) over the non-zero differences: the effect's direction and size
+    p: float  # Wilcoxon signed-rank, two-sided (1.0 when every episode ties)
+
+    @property
+    def verdict(self) -> str:
+        if self.p >= LEVEL or self.rank_biserial == 0:
+            return "level"
+        return "better" if self.rank_biserial > 0 else "worse"
+
+    def to_dict(self) -> dict:
+        return {**self.__dict__, "verdict": self.verdict}
+
+
+def paired(base, other, higher_is_better: bool = True) -> Paired:
+    """Compare per-episode metrics ``other`` with ``base`` (same length, same episodes)."""
+    base, other = np.asarray(base, dtype=np.float64), np.asarray(other, dtype=np.float64)
+    if base.shape != other.shape or base.ndim != 1 or base.size < 2:
+        raise ValueError(f"paired metrics need two vectors of the same length >= 2, got {base.shape} and {other.shape}")
+    d = (other - base) * (1.0 if higher_is_better else -1.0)
+    n = d.size
+    mean, se = float(d.mean()), float(d.std(ddof=1) / math.sqrt(n))
+    half = float(stats.t.ppf(0.975, n - 1)) * se
+    nz = d[d != 0]
+    if nz.size:
+        ranks = stats.rankdata(np.abs(nz))
+        plus, minus = float(ranks[nz > 0].sum()), float(ranks[nz < 0].sum())
+        r = (plus - minus) / (plus + minus)
+        p = float(stats.wilcoxon(nz).pvalue) if nz.size > 1 else 1.0
+    else:
+        r, p = 0.0, 1.0
+    return Paired(mean, se, mean - half, mean + half, int((d > 0).sum()), int((d == 0).sum()), int((d < 0).sum()), r, p)
+
+
+def split(args) -> tuple[list[str], list[str]]:
+    """Targets (no ``=``) and overrides (``key=value``) of a command line, in order."""
+    targets = [a for a in args if "=" not in a]
+    overrides = [a for a in args if "=" in a]
+    if len(targets) < 2:
+        raise ConfigError(f"eval compare needs a baseline and at least one target to compare with it, got {targets or 'none'}")
+    return targets, overrides
+
+
+def _resolve(targets: list[str], overrides: list[str]):
+    """Trained targets first; a built-in player (scripted, random) plays their task and action space
+    unless the command line names them."""
+    trained = {t: resolve_target(t, overrides) for t in targets if t not in POLICY_NAMES}
+    named = {o.partition("=")[0] for o in overrides}
+    implied = []
+    if trained:
+        first = next(iter(trained.values())).cfg
+        implied = [f"{k}={v}" for k, v in (("task", first.task.name), ("env.action_space", first.env.action_space)) if k not in named]
+    return [trained[t] if t in trained else resolve_target(t, [*implied, *overrides]) for t in targets]
+
+
+def _play(target, episodes: int):
+    """The per-episode statistics of ``target`` and the first observation it saw."""
+    n = int(episodes or target.cfg.episodes)
+    check_memory(target.cfg, worlds=n)
+    with memory_errors_as(f"episodes={n}"):
+        env = make_env(target.cfg, num_envs=n, seed=target.cfg.seed)
+        policy = target.make_policy(env)
+        first = []
+
+        def watch(td):
+            if not first:
+                first.append(td["agents", "observation"].clone())
+            return policy(td)
+
+        with torch.no_grad():
+            res = run_episodes(env, watch)
+    return env, res, first[0]
+
+
+def compare(args, episodes: int | None = None) -> dict:
+    """Play every target of ``args`` on the same episodes; compare each with the first."""
+    names, overrides = split(args)
+    targets = _resolve(names, overrides)
+    tasks = {t.cfg.task.name for t in targets}
+    if len(tasks) > 1:
+        raise ConfigError(f"eval compare plays one task, but the targets are of {sorted(tasks)}: " + ", ".join(f"{n} ({t.cfg.task.name})" for n, t in zip(names, targets)))
+    rows, base, base_obs = [], None, None
+    for name, t in zip(names, targets):
+        env, res, obs = _play(t, episodes)
+        metric = res[env.metric].double().cpu().numpy()
+        if base is None:
+            base, base_obs = metric, obs
+        elif obs.shape != base_obs.shape or not torch.equal(obs, base_obs):
+            raise ConfigError(f"{name!r} did not play the episodes {names[0]!r} played (its first observations differ: another seed, "
+                              "episode count, task option or action space); compare targets on the same episodes only")
+        row = {"target": name, "label": t.label, "checkpoint": str(t.checkpoint) if t.checkpoint else None, "mean": float(metric.mean()),
+               "std": float(metric.std()), "per_episode": metric.tolist()}
+        if len(rows):
+            row["vs_baseline"] = paired(base, metric, env.metric_higher_is_better).to_dict()
+        rows.append(row)
+    cfg = targets[0].cfg
+    return {"task": cfg.task.name, "metric": env.metric, "higher_is_better": env.metric_higher_is_better, "episodes": int(base.size),
+            "seed": int(cfg.seed), "deterministic": bool(cfg.deterministic), "baseline": names[0], "targets": rows}
+
+
+def format_table(result: dict):
+    """A rich table: each target's metric, and its paired difference from the baseline."""
+    from rich.table import Table
+
+    way = "higher" if result["higher_is_better"] else "lower"
+    table = Table(caption="better by: mean paired improvement +- its standard error; W/T/L: episodes better, level, worse; p: Wilcoxon signed-rank",
+                  title=f"{result['task']}: {result['metric']} ({way} is better), {result['episodes']} paired episodes, seed {result['seed']}")
+    for col in ("target", "mean", "std", "better by", "95% CI", "W/T/L", "p", "verdict"):
+        table.add_column(col, justify="left" if col in ("target", "verdict") else "right")
+    for row in result["targets"]:
+        c = row.get("vs_baseline")
+        cells = ["-"] * 4 + ["baseline"] if c is None else [f"{c['diff']:+.3g} +- {c['se']:.1g}", f"[{c['low']:+.3g}, {c['high']:+.3g}]",
+                                                     f"{c['wins']}/{c['ties']}/{c['losses']}", f"{c['p']:.2g}", c["verdict"]]
+        table.add_row(row["target"], f"{row['mean']:.4g}", f"{row['std']:.3g}", *cells)
+    return table
