@@ -82,9 +82,30 @@ def held_out(target: str, args, task: str, metric: str) -> dict:
         return held_out_games(target, args, task)
 
     extra = [f"task={task}", f"env.action_space={args.action_space}"] if target in ("scripted", "random") else []
-    # the task's own episodes, whatever episode limit a run trained with (task.episode_len in --ft-overrides)
-    res = evaluate(target, [*extra, f"seed={args.eval_seed}", f"threads={args.threads}", "task.episode_len=null"], episodes=args.episodes)
+    res = evaluate(target, [*extra, *held_out_overrides(args, task)], episodes=args.episodes)
     return {"mean": res["stats"][metric]["mean"], "std": res["stats"][metric]["std"], "return": res["stats"]["return"]["mean"]}
+
+
+def held_out_overrides(args, task: str) -> list[str]:
+    """The held-out seed and the task's own episodes, whatever a run trained on (a shorter episode
+    limit or Solo Bump's far starts in --ft-overrides)."""
+    import dataclasses
+
+    from volleybots.config import task_schema
+
+    own = ["task.episode_len=null", *(["task.far_starts=0"] if "far_starts" in {f.name for f in dataclasses.fields(task_schema(task))} else [])]
+    return [f"seed={args.eval_seed}", f"threads={args.threads}", *own]
+
+
+def paired_held_out(targets: dict[str, str], args, task: str) -> dict:
+    """The teacher and ``targets`` (name -> run or checkpoint) on the same held-out episodes, each
+    compared with the teacher episode by episode (``volleybots eval compare``)."""
+    from volleybots.eval.compare import compare
+
+    res = compare(["scripted", *targets.values(), f"episodes={args.episodes}", *held_out_overrides(args, task)])
+    rows = dict(zip(["scripted", *targets], res["targets"]))
+    return {k: {"mean": r["mean"], "std": r["std"], "return": None, **({"vs_teacher": r["vs_baseline"]} if "vs_baseline" in r else {})}
+            for k, r in rows.items()}
 
 
 def scripted_held_out(args, task: str, metric: str) -> dict:
@@ -129,6 +150,11 @@ def run_task(task: str, args, root: Path) -> dict:
     else:
         init = policy_of(bc_dir)
         ft = train(load([*common(args, task, args.ft_minutes), f"algo={algo}", f"init={init}", *FINE_TUNE[algo], *args.ft_overrides]), ft_dir)
+    runs = {"bc": str(policy_of(bc_dir)), "fine_tuned_final": str(ft_dir), "fine_tuned": str(policy_of(ft_dir))}
+    if args.paired and not competitive(task):
+        played = paired_held_out(runs, args, task)
+    else:
+        played = {"scripted": scripted_held_out(args, task, metric), **{k: held_out(v, args, task, metric) for k, v in runs.items()}}
     return {
         "task": task,
         "metric": metric,
@@ -137,11 +163,8 @@ def run_task(task: str, args, root: Path) -> dict:
         "fine_tune": {"run_dir": str(ft_dir), "algo": algo, "frames": ft["frames"], "wall_s": ft["wall_time_s"], "curve": curve(ft_dir, metric)},
         "held_out": {
             "seed": args.eval_seed, "episodes": args.episodes,
-            "scripted": scripted_held_out(args, task, metric),
             "random": held_out("random", args, task, metric),
-            "bc": held_out(str(policy_of(bc_dir)), args, task, metric),
-            "fine_tuned_final": held_out(str(ft_dir), args, task, metric),
-            "fine_tuned": held_out(str(policy_of(ft_dir)), args, task, metric),
+            **played,
             "chosen": {"bc": bc.get("best_eval"), "fine_tuned": ft.get("best_eval")},  # on seed + 10000
         },
     }
@@ -177,7 +200,8 @@ def table(results: list[dict]) -> str:
                 return "-"
             if "wdl" in h[k]:  # a match: decisive win rate [Wilson 95 %] (W/D/L)
                 return f"{h[k]['mean']:.3f} [{h[k]['wilson95'][0]:.2f}, {h[k]['wilson95'][1]:.2f}] ({'/'.join(map(str, h[k]['wdl']))})"
-            return f"{h[k]['mean']:.3g} +- {h[k]['std']:.2g}"
+            c = h[k].get("vs_teacher")  # paired with the teacher: mean improvement [95 % interval]
+            return f"{h[k]['mean']:.3g} +- {h[k]['std']:.2g}" + (f" ({c['diff']:+.3g} [{c['low']:+.3g}, {c['high']:+.3g}])" if c else "")
 
         lines.append(
             f"| {r['task']} | {r['metric']} | {cell('random')} | {cell('scripted')} | {cell('bc')} | {cell('fine_tuned_final')} | {cell('fine_tuned')} | "
@@ -199,6 +223,7 @@ def main() -> None:
     p.add_argument("--eval-episodes", type=int, default=32)
     p.add_argument("--eval-seed", type=int, default=1000, help="held-out seed of the final 100-episode comparison")
     p.add_argument("--episodes", type=int, default=100)
+    p.add_argument("--paired", action="store_true", help="play the teacher too and compare every policy with it episode by episode (eval compare)")
     p.add_argument("--scripted-from", default=None, help="the teacher's held-out figures from this benchmarks/scripted.py JSON (run on --eval-seed)")
     p.add_argument("--opponent", default="scripted", help="matches: whom both runs and the held-out games play against")
     p.add_argument("--games", type=int, default=1000, help="matches: held-out games against --opponent")

@@ -42,3 +42,12 @@ def test_ties_and_mixed_results_are_level():
     assert c.verdict == "level" and c.rank_biserial == 0.0
     with pytest.raises(ValueError, match="same length"):
         paired(base, base[:5])
+
+
+def test_the_verdict_is_about_the_mean_not_the_typical_episode():
+    # many episodes a little better, a few much worse: Solo Bump's clone against its teacher
+    base = np.zeros(100)
+    other = np.array([1.0] * 90 + [-13.0] * 10)
+    c = paired(base, other)
+    assert c.diff == pytest.approx(-0.4) and c.low < 0 < c.high and c.verdict == "level"
+    assert c.rank_biserial > 0.5 and c.p < 1e-6  # yet the typical episode is better

@@ -187,3 +187,21 @@ def test_solo_bump_strict_bumps_pays_only_the_bumps_the_metric_counts(strict, pa
     stats = _solo_bump_past_apex([4.0, 4.0], [True, False], strict_bumps=strict)
     assert stats["bumps"].squeeze(-1).tolist() == [1.0, 0.0]
     assert stats["r_success_height"].squeeze(-1).tolist() == paid
+
+
+def _solo_bump_starts(**task):
+    env = volleybots.make_env("solo_bump", num_envs=2000, seed=3, **task)
+    env.reset()
+    pos = env.physics.state.pos[:, 0]
+    return pos, (pos[:, :2] - torch.tensor([4.5, 0.0])).norm(dim=-1)
+
+
+def test_solo_bump_far_starts_draw_the_openings_far_from_the_ball():
+    box_lo, box_hi = torch.tensor([4.0, -0.5, 1.8]), torch.tensor([5.0, 0.5, 2.2])
+    pos, off = _solo_bump_starts()
+    assert 0.18 < float((off >= 0.5).float().mean()) < 0.25  # the spec's box: 1 - pi / 4 of it
+    pos_far, off_far = _solo_bump_starts(far_starts=1.0)
+    assert bool((off_far >= 0.5 - 1e-5).all()) and bool(((pos_far >= box_lo) & (pos_far <= box_hi)).all())
+    assert torch.equal(pos_far[:, 2], pos[:, 2])  # the heights come from the same draws
+    _, off_half = _solo_bump_starts(far_starts=0.5)
+    assert 0.55 < float((off_half >= 0.5).float().mean()) < 0.66  # half far, half from the whole box

@@ -99,6 +99,7 @@ TASK_RANGES: dict[str, Range] = {
     "height_reward": Range(),
     "stay_reward": Range(),
     "target_reward": Range(),
+    "far_starts": Range(low=0, high=1),  # Solo Bump's share of far starts (a training curriculum)
     "serve": Range(low=0, high=1),  # the serving team (null: random)
     "side": Range(low=0, high=1),  # the attack drill's target half: 0 left, 1 right (null: random)
     "target": Range(length=3),  # a fixed hover target, x y z in m (null: random)

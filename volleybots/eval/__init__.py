@@ -25,9 +25,10 @@ from volleybots.runs import RunDir, load_algo_state, memory_errors_as, read_chec
 
 POLICY_NAMES = ("scripted", "random", "hierarchical")  # hierarchical: 3v3, the hierarchical team on both sides
 # keys of a checkpoint's config that evaluation may change; the rest fix what the policy was trained on.
-# The episode limit is not in any observation, so a run trained on short episodes plays the task's own.
+# The episode limit and Solo Bump's start curriculum are in no observation, so a run trained on short
+# episodes or far starts plays the task's own.
 EVAL_KEYS = ("episodes", "deterministic", "seed", "progress", "threads", "env.device", "env.physics", "env.compile", "env.num_envs",
-             "task.episode_len")
+             "task.episode_len", "task.far_starts")
 
 
 @dataclass

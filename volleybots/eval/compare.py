@@ -25,7 +25,6 @@ from volleybots.runs import memory_errors_as
 
 from . import POLICY_NAMES, resolve_target, run_episodes
 
-LEVEL = 0.05  # two-sided significance of the Wilcoxon signed-rank test behind a "better" / "worse" verdict
 
 
 @dataclass
@@ -44,9 +43,11 @@ class Paired:
 
     @property
     def verdict(self) -> str:
-        if self.p >= LEVEL or self.rank_biserial == 0:
-            return "level"
-        return "better" if self.rank_biserial > 0 else "worse"
+        """About the mean, the metric's figure: better or worse when the 95 % interval excludes 0.
+        The Wilcoxon test asks another question (is the typical episode better?), and on Solo Bump
+        the answers differ: a clone wins 46 episodes by a bump and loses 7 by thirteen (an opening
+        missed), so it is better in the typical episode (p < 1e-6) and level on the mean."""
+        return "better" if self.low > 0 else "worse" if self.high < 0 else "level"
 
     def to_dict(self) -> dict:
         return {**self.__dict__, "verdict": self.verdict}

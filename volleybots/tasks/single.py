@@ -146,10 +146,14 @@ class _BallDrill(VolleyEnv):
         self.anchor = torch.tensor(ANCHOR, device=self.device)
 
     def reset_task(self, mask):
-        self.place_drones(mask, self.uniform((4.0, -0.5, 1.8), (5.0, 0.5, 2.2), (self.num_envs, 1)))
+        self.place_drones(mask, self.drone_start())
         self.place_ball(mask, self.ball_start)
         self.referee.reset(mask, self.physics.state.ball_pos)
         self.reset_drill(mask)
+
+    def drone_start(self) -> torch.Tensor:
+        """Start positions [N, 1, 3]: uniform in a 1 m x 1 m x 0.4 m box centred under the ball."""
+        return self.uniform((4.0, -0.5, 1.8), (5.0, 0.5, 2.2), (self.num_envs, 1))
 
     def reset_drill(self, mask):
         pass
@@ -212,13 +216,20 @@ class SoloBump(_BallDrill):
     metric = "bumps"  # longest streak of bumps with apex in [3.5, 4.5] m, hit within 1 m of the anchor
     extra_stats = ("hits",)
 
-    def __init__(self, *args, hit_reward: float = 2.0, height_reward: float = 8.0, strict_bumps: bool = False, **kw):
+    far_start = 0.5  # m from the ball's column: where the starts the scripted player misses lie (docs/imitation.md)
+
+    def __init__(self, *args, hit_reward: float = 2.0, height_reward: float = 8.0, strict_bumps: bool = False, far_starts: float = 0.0, **kw):
         """``strict_bumps`` pays ``height_reward`` only for the bumps the metric counts (struck within
         1 m of the anchor, apex in [3.5, 4.5] m); the spec's reward (False) pays every apex of 3.5 m or
-        more, so a policy can earn it while drifting off the anchor, where the metric's streak restarts."""
+        more, so a policy can earn it while drifting off the anchor, where the metric's streak restarts.
+        ``far_starts`` is the probability that an episode's start is drawn (uniformly) from the part
+        of the start box at least ``far_start`` from the ball's column rather than from all of it: a
+        training curriculum for the hardest openings, which the spec's box (``far_starts=0``) gives
+        one episode in five."""
         self.hit_reward = hit_reward
         self.height_reward = height_reward
         self.strict_bumps = strict_bumps
+        self.far_starts = far_starts
         super().__init__(*args, **kw)
         n = self.num_envs
         self.pending = torch.zeros(n, dtype=torch.bool, device=self.device)  # a hit whose apex is still to come
@@ -229,6 +240,23 @@ class SoloBump(_BallDrill):
 
     def referee_config(self):
         return RefereeConfig(court=COURTS["full"], min_hit_gap=25, drone_min_z=0.4, drone_max_z=2.5, ball_low_z=0.15)
+
+    def drone_start(self) -> torch.Tensor:
+        start = super().drone_start()
+        if self.far_starts <= 0:  # the spec's box, from the same random numbers as ever
+            return start
+        n = self.num_envs
+        far = self.uniform(0.0, 1.0, (n,)) < self.far_starts
+        # uniform over the box outside the disc, by rejection; when all 32 tries fall inside it (4e-4 of
+        # the far episodes) the first is pushed out to the disc's edge, which lies inside the box
+        tries = self.uniform((-0.5, -0.5), (0.5, 0.5), (n, 32))
+        r = tries.norm(dim=-1, keepdim=True)
+        ok = r[..., 0] >= self.far_start
+        pick = torch.gather(tries, 1, ok.float().argmax(1)[:, None, None].expand(n, 1, 2))[:, 0]  # the first that lies out
+        edge = tries[:, 0] * (self.far_start / r[:, 0].clamp_min(1e-6))
+        off = torch.where(ok.any(1, keepdim=True), pick, edge)
+        xy = (torch.as_tensor(self.ball_start[:2], device=self.device) + off).unsqueeze(1)
+        return torch.cat((torch.where(far[:, None, None], xy, start[..., :2]), start[..., 2:]), -1)
 
     def reset_drill(self, mask):
         self.apex, self.streak, self.best = (torch.where(mask, 0.0, buf) for buf in (self.apex, self.streak, self.best))
