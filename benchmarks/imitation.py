@@ -104,8 +104,8 @@ def paired_held_out(targets: dict[str, str], args, task: str) -> dict:
 
     res = compare(["scripted", *targets.values(), f"episodes={args.episodes}", *held_out_overrides(args, task)])
     rows = dict(zip(["scripted", *targets], res["targets"]))
-    return {k: {"mean": r["mean"], "std": r["std"], "return": None, **({"vs_teacher": r["vs_baseline"]} if "vs_baseline" in r else {})}
-            for k, r in rows.items()}
+    return {k: {"mean": r["mean"], "std": r["std"], "return": None, "per_episode": r["per_episode"],
+                **({"vs_teacher": r["vs_baseline"]} if "vs_baseline" in r else {})} for k, r in rows.items()}
 
 
 def scripted_held_out(args, task: str, metric: str) -> dict:
