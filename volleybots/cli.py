@@ -312,7 +312,7 @@ def compare_cmd(
     args: Optional[List[str]] = typer.Argument(None, help="BASELINE TARGET [TARGET ...] (run dirs, checkpoints, scripted, random), then episodes=100 seed=0 deterministic=true task.episode_len=... (scripted/random play the first run's task unless task= is given)."),
     as_json: bool = typer.Option(False, "--json", help="Print the result, per-episode metrics included, as JSON instead of a table."),
 ) -> None:
-    """Play every target on the same episodes and compare each with the first, episode by episode (paired differences, Wilcoxon test)."""
+    """Play every target on the same episodes and compare each with the first, episode by episode: mean improvement with its 95 % interval, W/T/L, Wilcoxon test."""
     from volleybots.eval.compare import compare, format_table
 
     args = list(args or [])

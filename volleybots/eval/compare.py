@@ -5,7 +5,7 @@ scores the first episode of every env, and a reset's random numbers do not depen
 So their per-episode metrics pair up, and the difference of each pair removes what the start
 contributes: on Hover the start decides most of an episode's mean distance (the standard deviation
 over episodes is 0.15 m), while the teacher and its clone differ by 0.005 m, which two unpaired means
-cannot resolve and the paired differences resolve at p < 1e-6. Every target after the first is
+cannot resolve and the paired differences resolve (95 % interval [-0.0070, -0.0035] m). Every target after the first is
 compared with the first (the baseline); the first observations are checked to be identical, so a
 pair that did not play the same episodes is refused rather than compared.
 """
@@ -24,7 +24,6 @@ from volleybots.errors import ConfigError
 from volleybots.runs import memory_errors_as
 
 from . import POLICY_NAMES, resolve_target, run_episodes
-
 
 
 @dataclass

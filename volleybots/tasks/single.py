@@ -216,7 +216,7 @@ class SoloBump(_BallDrill):
     metric = "bumps"  # longest streak of bumps with apex in [3.5, 4.5] m, hit within 1 m of the anchor
     extra_stats = ("hits",)
 
-    far_start = 0.5  # m from the ball's column: where the starts the scripted player misses lie (docs/imitation.md)
+    far_start = 0.5  # m from the ball's column: the scripted player misses first balls from starts this far (docs/imitation.md)
 
     def __init__(self, *args, hit_reward: float = 2.0, height_reward: float = 8.0, strict_bumps: bool = False, far_starts: float = 0.0, **kw):
         """``strict_bumps`` pays ``height_reward`` only for the bumps the metric counts (struck within
@@ -242,6 +242,7 @@ class SoloBump(_BallDrill):
         return RefereeConfig(court=COURTS["full"], min_hit_gap=25, drone_min_z=0.4, drone_max_z=2.5, ball_low_z=0.15)
 
     def drone_start(self) -> torch.Tensor:
+        """The box's starts; with probability ``far_starts`` one from its part far from the ball instead."""
         start = super().drone_start()
         if self.far_starts <= 0:  # the spec's box, from the same random numbers as ever
             return start
