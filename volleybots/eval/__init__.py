@@ -124,14 +124,19 @@ def hierarchical_both_sides(env):
     return TeamPolicies(env, (hierarchical_policy(env), hierarchical_policy(env)))
 
 
-def evaluate(target: str, overrides=(), episodes: int | None = None) -> dict:
-    """Play ``episodes`` (default: the config's ``episodes``) and summarise them."""
-    t = resolve_target(target, overrides)
+def play(t: Target, episodes: int | None = None, on_step=None):
+    """The env and the per-episode statistics of ``episodes`` (default: the config's) played by ``t``."""
     n = int(episodes or t.cfg.episodes)
     check_memory(t.cfg, worlds=n)
     with memory_errors_as(f"episodes={n}"):
         env = make_env(t.cfg, num_envs=n, seed=t.cfg.seed)
-        res = run_episodes(env, t.make_policy(env))
+        return env, run_episodes(env, t.make_policy(env), on_step)
+
+
+def evaluate(target: str, overrides=(), episodes: int | None = None) -> dict:
+    """Play ``episodes`` (default: the config's ``episodes``) and summarise them."""
+    t = resolve_target(target, overrides)
+    env, res = play(t, episodes)
     out = summarize(res, env.metric)
     out.update(
         target=t.label,
@@ -165,4 +170,4 @@ def _num(x: float) -> str:
     return "nan" if math.isnan(x) else f"{x:.4g}"
 
 
-__all__ = ["Target", "evaluate", "format_table", "resolve_target", "run_episodes", "summarize"]
+__all__ = ["Target", "evaluate", "format_table", "play", "resolve_target", "run_episodes", "summarize"]

@@ -19,11 +19,9 @@ import numpy as np
 import torch
 from scipy import stats
 
-from volleybots.config import check_memory, make_env
 from volleybots.errors import ConfigError
-from volleybots.runs import memory_errors_as
 
-from . import POLICY_NAMES, resolve_target, run_episodes
+from . import POLICY_NAMES, play, resolve_target
 
 
 @dataclass
@@ -93,22 +91,16 @@ def _resolve(targets: list[str], overrides: list[str]):
     return [trained[t] if t in trained else resolve_target(t, [*implied, *overrides]) for t in targets]
 
 
-def _play(target, episodes: int):
-    """The per-episode statistics of ``target`` and the first observation it saw."""
-    n = int(episodes or target.cfg.episodes)
-    check_memory(target.cfg, worlds=n)
-    with memory_errors_as(f"episodes={n}"):
-        env = make_env(target.cfg, num_envs=n, seed=target.cfg.seed)
-        policy = target.make_policy(env)
-        first = []
+def _play(target, episodes: int | None):
+    """The env, the per-episode statistics of ``target`` and the first observation it saw."""
+    first = []
 
-        def watch(td):
-            if not first:
-                first.append(td["agents", "observation"].clone())
-            return policy(td)
+    def watch(env, td, next_td):
+        if not first:
+            first.append(td["agents", "observation"].clone())
 
-        with torch.no_grad():
-            res = run_episodes(env, watch)
+    with torch.no_grad():
+        env, res = play(target, episodes, on_step=watch)
     return env, res, first[0]
 
 
