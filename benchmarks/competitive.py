@@ -22,7 +22,7 @@ METHODS = ("sp", "fsp", "psro_uniform", "psro_nash")
 
 def run(method: str, args, root: Path) -> dict:
     from volleybots.config import load
-    from volleybots.runner import start
+    from volleybots.population.run import start
 
     cfg = load([
         "task=1v1", f"algo={method}", f"env.num_envs={args.num_envs}", f"seed={args.seed}", f"threads={args.threads}",

@@ -9,7 +9,7 @@
    ``--drills``): ``--episodes`` episodes per seed (one per env), the success rate (the metric) with
    its Wilson 95 % interval, the mean error and the touches.
 2. The hierarchical team (scripted drills, or ``--drills``) against each competitor of ``--vs``:
-   ``--games`` games (``volleybots.eval.games.play_games``: each side half of the games, serves
+   ``--games`` games (``volleybots.play.games.play_games``: each side half of the games, serves
    drawn at random), W/D/L from the hierarchical side and the win rate of decisive games with its
    Wilson 95 % interval (spec: win rate = wins / (wins + losses)).
 Writes the results (with the seeds, budget and machine) as JSON to ``--out`` (keys ``drills``, ``matches``;
@@ -41,11 +41,11 @@ import torch
 from scipy.stats import binomtest
 
 import volleybots
-from volleybots.competitors import hierarchical_member, resolve_competitor, Competitor
+from volleybots.policies import hierarchical_member, resolve_competitor, Competitor
 from volleybots.config import load
-from volleybots.eval import run_episodes
-from volleybots.eval.games import play_games
-from volleybots.scripted.hierarchical import learned_drill
+from volleybots.play import run_episodes
+from volleybots.play.games import play_games
+from volleybots.policies.builtin import learned_drill
 from volleybots.scripted.policies import SCRIPTED_POLICIES
 from volleybots.tasks.match import Referee
 from volleybots.train import train

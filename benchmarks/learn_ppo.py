@@ -73,9 +73,10 @@ def diagnose(target: str, episodes: int = 64, seed: int = 1000) -> dict:
     import torch
 
     from volleybots.config import make_env
-    from volleybots.eval import resolve_target, run_episodes
+    from volleybots.play import run_episodes
+    from volleybots.policies import resolve_target
 
-    from volleybots.eval import POLICY_NAMES
+    from volleybots.policies import BUILTIN as POLICY_NAMES
 
     t = resolve_target(target, [*(["task=solo_bump"] if target in POLICY_NAMES else []), f"seed={seed}", "threads=1"])
     env = make_env(t.cfg, num_envs=episodes, seed=seed)

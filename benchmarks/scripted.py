@@ -24,7 +24,7 @@ import torch
 
 import volleybots
 from volleybots.bench import run_bench
-from volleybots.eval import run_episodes, summarize
+from volleybots.play import run_episodes, summarize
 from volleybots.scripted import make_scripted_policy
 
 TASKS = ("hover", "back_and_forth", "hit_the_ball", "solo_bump")

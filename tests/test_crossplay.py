@@ -14,10 +14,10 @@ import pytest
 from typer.testing import CliRunner
 
 from volleybots.cli import app
-from volleybots.competitors import resolve_competitor
+from volleybots.policies import resolve_competitor
 from volleybots.config import load
 from volleybots.eval.crossplay import CrossPlay, crossplay
-from volleybots.eval.games import play_games
+from volleybots.play.games import play_games
 
 runner = CliRunner()
 ENV = {**os.environ, "OMP_NUM_THREADS": "1"}

@@ -6,7 +6,7 @@ import pytest
 import torch
 
 import volleybots
-from volleybots.eval import run_episodes
+from volleybots.play import run_episodes
 from volleybots.scripted import make_scripted_policy
 from volleybots.scripted.ballistics import crossing
 from volleybots.tasks import TASKS

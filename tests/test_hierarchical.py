@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 import volleybots
 from volleybots.cli import app
-from volleybots.competitors import BUILTIN, hierarchical_member, resolve_competitor
+from volleybots.policies import BUILTIN, hierarchical_member, resolve_competitor
 from volleybots.config import ConfigError
 from volleybots.replay import EpisodeRecorder
 from volleybots.scripted.hierarchical import ATTACK, DRILL_LABELS, HOVER, PASS, SERVE, SET, HighLevel

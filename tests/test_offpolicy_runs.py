@@ -136,7 +136,7 @@ def test_cli_trains_evaluates_and_replays_sac_and_picks_discrete_for_dqn(tmp_pat
 
 def test_eval_may_change_the_episode_limit_but_not_the_task(tmp_path):
     from volleybots.errors import ConfigError
-    from volleybots.eval import resolve_target
+    from volleybots.policies import resolve_target
 
     train(load(["algo=sac", *TINY, "total_frames=64"]), tmp_path / "run")
     assert resolve_target(str(tmp_path / "run")).cfg.task.episode_len == 40  # as trained

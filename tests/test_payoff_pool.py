@@ -10,7 +10,7 @@ import pytest
 
 from volleybots.config import ConfigError, load
 from volleybots.population.loop import PopulationLoop
-from volleybots.runner import start
+from volleybots.population.run import start
 from volleybots.runs import RunDir
 
 TINY = [
@@ -43,7 +43,7 @@ def test_a_ray_pool_plays_the_same_payoff_entries_as_serial_play(serial_run, tmp
     def here(*args):
         raise AssertionError("a match was played in this process, not in a Ray worker")
 
-    monkeypatch.setattr("volleybots.eval.pool.head_to_head", here)  # Ray's workers import their own, unpatched
+    monkeypatch.setattr("volleybots.play.pool.head_to_head", here)  # Ray's workers import their own, unpatched
     try:
         PopulationLoop(cfg, RunDir(copy))._play_payoffs()
         assert ray.is_initialized()

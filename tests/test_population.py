@@ -7,11 +7,11 @@ import pytest
 import torch
 
 import volleybots
-from volleybots.competitors import Competitor, builtin_member, resolve_competitor
+from volleybots.policies import Competitor, builtin_member, resolve_competitor
 from volleybots.config import ConfigError, load
 from volleybots.population.loop import PopulationLoop
 from volleybots.population.payoffs import PayoffTable
-from volleybots.runner import resume, start
+from volleybots.population.run import resume, start
 from volleybots.runs import RunDir
 from volleybots.train import SelfPlay, collect
 

@@ -6,7 +6,7 @@ import pytest
 import torch
 
 import volleybots
-from volleybots.eval import run_episodes
+from volleybots.play import run_episodes
 from volleybots.physics import TorchPhysics, WorldParams
 from volleybots.physics.params import DroneParams
 from volleybots.physics.torch_backend import Constants

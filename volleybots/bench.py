@@ -50,12 +50,12 @@ def measure(
     seed: int = 0,
 ) -> dict:
     """One row of ``run_bench``: the env-steps/s of one (task, backend, num_envs, device, compile)."""
-    import volleybots
+    from volleybots.config import build_env
 
     steps = steps or default_steps(num_envs, backend)
     t0 = time.perf_counter()
     # make_env routes compile= to the physics sub-step only (static shapes); MuJoCo ignores it
-    env = volleybots.make_env(
+    env = build_env(
         task, num_envs=num_envs, action_space=action_space, physics=backend, device=device, seed=seed,
         compile=bool(compile and backend == "torch"),
     )
@@ -129,7 +129,7 @@ def measure_training(
     that warms up (and compiles). The algorithm's own config (steps per batch, epochs) is the default."""
     from volleybots.algos import ALGOS
     from volleybots.config import load, make_env
-    from volleybots.train import collect
+    from volleybots.play.episodes import collect
 
     cfg = load([f"task={task}", f"algo={algo}", f"env.num_envs={num_envs}", f"env.device={device}", f"env.physics={backend}",
                 f"env.compile={str(bool(compile and backend == 'torch')).lower()}", f"seed={seed}"])

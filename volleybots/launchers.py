@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import importlib.util
 
-from volleybots.config import ConfigError
+from volleybots.errors import ConfigError
 
 EXTRA = "cluster"  # pip install 'volleybots[cluster]' installs every plugin below
 

@@ -224,7 +224,7 @@ def record_episode(env, policy, out: Path | None, viewer: bool = False) -> dict:
     """Play one episode in env 0 of ``env`` while recording it to ``out`` and/or a viewer.
 
     Returns the episode's statistics (of env 0)."""
-    from volleybots.eval import run_episodes
+    from volleybots.play.episodes import run_episodes
 
     with recording(out, viewer=viewer) as rec:
         res = run_episodes(env, policy, on_step=EpisodeRecorder(rec, env, 0))
@@ -234,7 +234,7 @@ def record_episode(env, policy, out: Path | None, viewer: bool = False) -> dict:
 def record_match(env, policy, labels: tuple[str, str], out: Path | None, viewer: bool = False) -> dict:
     """``record_episode`` for a match between two labelled teams (``policy``: ``TeamPolicies``),
     with the ``MatchLog`` of colours, touches and the ending fault."""
-    from volleybots.eval import run_episodes
+    from volleybots.play.episodes import run_episodes
 
     with recording(out, viewer=viewer) as rec:
         hooks = (EpisodeRecorder(rec, env, 0), MatchLog(rec, env, labels, 0))

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from volleybots.config import ConfigError
+from volleybots.errors import ConfigError
 from volleybots.runs import RunDir, read_metrics
 
 CONFIDENCE = 0.95

@@ -445,28 +445,3 @@ def memory_errors_as(what: str):
 def note(msg: str) -> None:
     """A line on stderr for what the user should know but that is no error (a run started afresh)."""
     print(f"note: {msg}", file=sys.stderr, flush=True)
-
-
-class WandbLogger:
-    """Optional Weights & Biases mirror of metrics.csv; offline unless ``wandb.mode=online``."""
-
-    def __init__(self, cfg, run_dir: Path, resume: bool):
-        try:
-            import wandb
-        except ImportError:
-            raise ConfigError("logger=wandb needs the wandb package: pip install 'volleybots[wandb]'") from None
-        self.run = wandb.init(
-            project=cfg.wandb.project,
-            mode=cfg.wandb.mode,
-            dir=str(run_dir),
-            config=to_dict(cfg),
-            name=run_dir.name,
-            id=re.sub(r"[^A-Za-z0-9_-]", "_", run_dir.name),
-            resume="allow" if resume else None,
-        )
-
-    def log(self, row: dict) -> None:
-        self.run.log({k: v for k, v in row.items() if isinstance(v, (int, float))}, step=int(row["frames"]))
-
-    def close(self) -> None:
-        self.run.finish()

@@ -70,9 +70,7 @@ class Algorithm(ABC):
             )
         n_drones = class_attr(task_cls, "n_drones")
         if n_drones > 1 and not cls.multi_agent:
-            from volleybots.algos import ALGOS
-
-            multi = [n for n, a in ALGOS.items() if a.multi_agent]
+            multi = sorted({a.name for a in _subclasses(Algorithm) if a.multi_agent and not getattr(a, "population", False)})
             raise ConfigError(f"algo {cls.name!r} trains one drone but task {task_cls.name!r} has {n_drones}; use one of: {', '.join(multi)}")
         kind, kinds = task_kind(task_cls), cls.supported_kinds()
         if kind not in kinds:
@@ -150,3 +148,12 @@ def mlp(in_dim: int, out_dim: int, hidden, activation: str, out_gain: float) -> 
             nn.init.orthogonal_(m.weight, gain=out_gain if m is layers[-1] else 2**0.5)
             nn.init.zeros_(m.bias)
     return nn.Sequential(*layers)
+
+
+def _subclasses(cls) -> list[type]:
+    """Every subclass of ``cls``, recursively (the registry in ``volleybots.algos`` imports this module,
+    so the alternatives an error names are found here without importing it back)."""
+    out = []
+    for sub in cls.__subclasses__():
+        out += [sub, *_subclasses(sub)]
+    return out

@@ -28,7 +28,7 @@ from torch import nn
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
 from volleybots.algos.ppo import ACTION, LOG_PROB, VALUE, MAPPO, MAPPOConfig, make_actor
-from volleybots.config import ConfigError
+from volleybots.errors import ConfigError
 from volleybots.errors import ranged
 
 

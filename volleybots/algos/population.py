@@ -13,8 +13,10 @@ from dataclasses import dataclass, field
 from volleybots.algos.base import class_attr
 from volleybots.algos.ppo import MAPPO, MAPPOConfig, PPO
 from volleybots.errors import ConfigError, ranged
+from volleybots.population.solvers import SOLVERS  # a leaf module (numpy and scipy only)
 
 INITS = ("scratch", "last")
+POOLS = ("serial", "ray")  # where payoff games are played: here, or as tasks of a Ray pool (volleybots.play.pool)
 
 
 @dataclass
@@ -70,34 +72,22 @@ class PopulationMethod(PPO):
 
     @classmethod
     def check(cls, cfg, task_cls, env_cfg):
-        from volleybots.competitors import BUILTIN, resolve_competitor
-        from volleybots.population.solvers import SOLVERS
-
+        """The preset's own values; the files and players it names (``seed_members``, ``eval_opponent``)
+        are checked before a run by ``volleybots.policies.check_references``, which opens them."""
         if not class_attr(task_cls, "competitive"):
             from volleybots.tasks import TASKS
 
             matches = [n for n, t in TASKS.items() if class_attr(t, "competitive")]
             raise ConfigError(f"algo {cls.name!r} trains for matches, not task {task_cls.name!r}; allowed tasks: {', '.join(matches)}")
         super().check(cfg, task_cls, env_cfg)
-        if cfg.solver not in SOLVERS:
-            raise ConfigError(f"unknown algo.solver {cfg.solver!r}; allowed: {', '.join(SOLVERS)}")
-        if cfg.learner_init not in INITS:
-            raise ConfigError(f"unknown algo.learner_init {cfg.learner_init!r}; allowed: {', '.join(INITS)}")
-        if cfg.eval_opponent not in BUILTIN:
-            raise ConfigError(f"unknown algo.eval_opponent {cfg.eval_opponent!r}; allowed: {', '.join(BUILTIN)}")
-        from volleybots.eval.pool import check_pool
-
-        check_pool(cfg.payoff_pool, "algo.payoff_pool")
+        for value, allowed, key in ((cfg.solver, SOLVERS, "algo.solver"), (cfg.learner_init, INITS, "algo.learner_init"),
+                                    (cfg.payoff_pool, POOLS, "algo.payoff_pool")):
+            if value not in allowed:
+                raise ConfigError(f"unknown {key} {value!r}; allowed: {', '.join(allowed)}")
         if cfg.max_updates < cfg.min_updates:
             raise ConfigError(f"algo.max_updates={cfg.max_updates} is below algo.min_updates={cfg.min_updates}")
         if not cfg.self_play and not cfg.seed_members:
             raise ConfigError(f"algo {cls.name!r} needs a first opponent: algo.seed_members=[random] (or scripted, or checkpoint paths)")
-        obs_dim = class_attr(task_cls, "obs_dim_prt") - (4 if env_cfg.action_space == "ctbr" else 0)
-        for spec in cfg.seed_members:
-            comp = resolve_competitor(str(spec))
-            if len(comp.members) != 1:
-                raise ConfigError(f"algo.seed_members entry {spec!r} is a population; name single policies (its member files)")
-            comp.check_fits(task_cls.name, env_cfg.action_space, obs_dim)
 
 
 class SP(PopulationMethod):

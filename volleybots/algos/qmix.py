@@ -28,7 +28,7 @@ from torchrl.objectives.multiagent import QMixerLoss
 
 from volleybots.algos.dqn import DQN, DQNConfig
 from volleybots.algos.offpolicy import ACTION, OBS, joint_transitions, net
-from volleybots.config import ConfigError
+from volleybots.errors import ConfigError
 from volleybots.errors import ranged
 
 ACTION_VALUE = ("agents", "action_value")

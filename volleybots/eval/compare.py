@@ -21,7 +21,9 @@ from scipy import stats
 
 from volleybots.errors import ConfigError
 
-from . import POLICY_NAMES, play, resolve_target
+from volleybots.eval import play
+from volleybots.policies import BUILTIN as POLICY_NAMES
+from volleybots.policies import resolve_target
 
 
 @dataclass

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from volleybots.config import ConfigError, load, make_env, parse_value, to_dict
-from volleybots.eval.games import DEFAULT_BATCH, check_scenario, play_games
+from volleybots.play.games import DEFAULT_BATCH, check_scenario, play_games
 from volleybots.ratings import wilson_interval
 
 FORMAT = "volleybots.crossplay/1"
@@ -114,10 +114,10 @@ def versions() -> dict:
     import torch
     import torchrl
 
-    import volleybots
+    from volleybots.version import __version__
 
     return {
-        "volleybots": volleybots.__version__,
+        "volleybots": __version__,
         "python": platform.python_version(),
         "torch": torch.__version__,
         "torchrl": torchrl.__version__,
@@ -154,7 +154,7 @@ def split_args(args, options: dict) -> tuple[list[str], dict, list[str]]:
 
 def resolve_all(specs) -> list:
     """Competitors from their specs (``volleybots.competitors``); labels must differ."""
-    from volleybots.competitors import resolve_competitor
+    from volleybots.policies import resolve_competitor
 
     comps = [resolve_competitor(s) for s in specs]
     labels = [c.label for c in comps]
@@ -338,7 +338,7 @@ REPLAY_OPTIONS = {"seed": int, "scenario": str, "deterministic": bool}
 def is_competitor_spec(arg: str) -> bool:
     """A replay argument names a competitor (rather than a config override) when it has no ``=`` or
     labels a built-in player or an existing path: ``replay A B`` records a match, ``replay A k=v`` one policy."""
-    from volleybots.competitors import BUILTIN
+    from volleybots.policies import BUILTIN
 
     label, eq, value = arg.partition("=")
     return not eq or value in BUILTIN or (bool(value) and Path(value).exists())
@@ -349,7 +349,7 @@ def replay_match(args, out: Path | None, viewer: bool) -> tuple[dict, Path | Non
     colours, touches, the point and its fault); returns (env 0's statistics, the file, the labels)."""
     import time
 
-    from volleybots.eval.games import side_env
+    from volleybots.play.games import side_env
     from volleybots.replay import record_match
     from volleybots.tasks.multi import TeamPolicies
 

@@ -121,7 +121,7 @@ PLOT = "ratings.png"
 def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
     """``volleybots eval elo``: ratings of games played now (``rounds`` games per pair) or of a
     cross-play results file (``from=FILE``, whose competitors must be the ones named, if any)."""
-    from volleybots.config import ConfigError
+    from volleybots.errors import ConfigError
     from volleybots.eval.crossplay import HEATMAP, OPTIONS, RESULTS, heatmap, out_dir, resolve_all, run_crossplay, split_args
 
     options = {**{k: v for k, v in OPTIONS.items() if k != "games"}, **ELO_OPTIONS}
@@ -156,7 +156,7 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
 
 def _check_same_competitors(result: CrossPlay, competitors, source) -> None:
     """The competitors named must be the file's: the same labels and the same member files."""
-    from volleybots.config import ConfigError
+    from volleybots.errors import ConfigError
 
     mine = [(c.label, [m.get("sha256") for m in c.sources]) for c in competitors]
     theirs = [(p["label"], [m.get("sha256") for m in p["members"]]) for p in result.meta.get("competitors", [])]

@@ -34,17 +34,19 @@ from pathlib import Path
 import numpy as np
 import torch
 
-import volleybots
-from volleybots.competitors import (
-    BUILTIN, POPULATION_DIR, Competitor, checkpoint_member, member_path, population_members, resolve_competitor,
-)
-from volleybots.config import ConfigError, to_dict, validate
-from volleybots.eval.pool import head_to_heads
+from volleybots.algos.ppo import MAPPO
+from volleybots.config import to_dict, validate
+from volleybots.errors import ConfigError
+from volleybots.play.pool import head_to_heads
+from volleybots.play.seats import SelfPlay, Versus
+from volleybots.policies import BUILTIN, Competitor, checkpoint_member, member_path, population_members, resolve_competitor
+from volleybots.policies.competitors import POPULATION_DIR
 from volleybots.population.payoffs import PayoffTable, plot, write_atomic
 from volleybots.population.solvers import SOLVERS
 from volleybots.runs import CKPT_FORMAT, RunDir, check_writable, locked, read_checkpoint
 from volleybots.train import RESUME_KEYS as TRAIN_RESUME_KEYS
-from volleybots.train import SelfPlay, Trainer, Versus, resume_config
+from volleybots.train import Trainer, resume_config
+from volleybots.version import __version__
 
 ITERATION_SEED = 1_000  # iteration i runs with seed + i * ITERATION_SEED
 GAMES_SEED = 500_000  # payoff games of member k against j use seed + GAMES_SEED + 1000 k + j
@@ -219,17 +221,17 @@ class PopulationLoop:
             stop = Convergence(m.min_updates, m.max_updates, m.win_window, m.win_mean, m.win_std)
         extra = lambda: {"population": {"iteration": i, "oracle": stop.state_dict() if stop else None}}  # noqa: E731
         ckpt = self._checkpoint_of(i)
-        tr = Trainer(cfg, self.run, checkpoint=ckpt, seat=seat, learner_cls=_learner_cls(), extra_state=extra)
+        tr = Trainer(cfg, self.run, checkpoint=ckpt, seat=seat, learner_cls=MAPPO, extra_state=extra)
         if ckpt is not None:
             if stop is not None:
                 stop.load_state_dict(tr.checkpoint_state["population"]["oracle"])
         else:
-            tr.frames, tr.iteration, tr.wall_offset = frames, updates, wall
+            tr.start_at(frames, updates, wall)
             learned = [p for p in population_members(self.run.path)[: k] if "algo" in read_checkpoint(p)]
             if m.learner_init == "last" and learned:
                 tr.algo.load_state_dict(read_checkpoint(learned[-1], device=tr.env.device)["algo"])
         tr.train_loop(stop=stop, row_extra={"pop_iteration": i})
-        state = tr._state()
+        state = tr.state()
         label = "sp" if m.self_play else f"br{i}"
         state.update(label=label, oracle=(stop.summary() if stop else {"updates": tr.iteration - updates, "converged": None}))
         self._save_member(k, state)
@@ -266,16 +268,10 @@ class PopulationLoop:
             "metric": "win",
             "population": {"members": last.get("members", []), "mixture": last.get("mixture", []), "solver": self.m.solver},
             "oracles": [m["oracle"] for m in metas if m["iteration"] >= 1],
-            "version": volleybots.__version__,
+            "version": __version__,
         }
         self.run.write_summary(summary)
         return summary
-
-
-def _learner_cls():
-    from volleybots.algos.ppo import MAPPO
-
-    return MAPPO
 
 
 def start(cfg, run_dir) -> dict:
@@ -294,9 +290,12 @@ def resume(run_dir, overrides=()) -> dict:
     Everything is checked before anything is written: the config and overrides, that the run dir is
     writable, that its member files and meta-strategies read back, and that something is left to do;
     then the run's lock is taken (a second resume is refused) and the config written."""
+    from volleybots.policies.targets import check_references
+
     run = RunDir(run_dir)
     cfg = resume_config(run_dir, overrides, RESUME_KEYS)
     check_writable(run.path, "the run directory")
+    check_references(cfg)
     loop = PopulationLoop(cfg, run)
     for path in population_members(run.path):
         read_checkpoint(path)  # a damaged member is one line naming it

@@ -226,39 +226,20 @@ def _act(policy, obs: torch.Tensor) -> torch.Tensor:
     return action.reshape(m, -1)
 
 
-def make_hierarchical(env, checkpoints: dict[str, object] | None = None, deterministic: bool = True,
-                      generator: torch.Generator | None = None) -> HierarchicalPolicy:
-    """The hierarchical policy for one team of ``env`` (3v3): each drill's policy is the trained
-    checkpoint ``checkpoints[drill]`` where given (a ``competitors.Member``-making spec: a checkpoint
-    file or run dir), else the scripted one."""
+def make_hierarchical(env, learned: dict[str, object] | None = None, generator: torch.Generator | None = None) -> HierarchicalPolicy:
+    """The hierarchical policy for one team of ``env`` (3v3): each drill's low-level policy is
+    ``learned[drill]`` where given (a trained drill policy acting on that drill's observations, built
+    by ``volleybots.policies.learned_drill``), else the scripted one."""
     from volleybots.scripted.policies import SCRIPTED_POLICIES
 
-    checkpoints = dict(checkpoints or {})
-    unknown = set(checkpoints) - set(DRILLS)
+    learned = dict(learned or {})
+    unknown = set(learned) - set(DRILLS)
     if unknown:
         raise ValueError(f"unknown drills {sorted(unknown)} in the hierarchical policy's checkpoints; allowed: {', '.join(DRILLS)}")
     if env.action_space_name not in ("prt", "ctbr"):
         raise ValueError(f"the hierarchical policy acts in env.action_space prt or ctbr, not {env.action_space_name!r}")
-    lows = {}
-    for name in DRILLS:
-        if name in checkpoints:
-            lows[name] = learned_drill(name, checkpoints[name], env, deterministic)
-        else:
-            lows[name] = SCRIPTED_POLICIES[name](env.action_space_name, env.params)
+    lows = {name: learned[name] if name in learned else SCRIPTED_POLICIES[name](env.action_space_name, env.params) for name in DRILLS}
     return HierarchicalPolicy(env, lows, generator)
 
 
-def learned_drill(name: str, spec, env, deterministic: bool):
-    """A trained drill policy from a checkpoint file or run dir, checked against the drill."""
-    import volleybots
-    from volleybots.competitors import resolve_competitor
-
-    comp = resolve_competitor(str(spec))
-    drill_env = volleybots.make_env(name, num_envs=1, action_space=env.action_space_name)
-    comp.check_fits(name, env.action_space_name, drill_env.obs_dim)
-    if len(comp.members) != 1:
-        raise ValueError(f"drill {name!r}: {str(spec)!r} is a population; name one checkpoint")
-    return comp.members[0].make(drill_env, deterministic)
-
-
-__all__ = ["DRILLS", "DRILL_LABELS", "HighLevel", "HierarchicalPolicy", "drill_code", "learned_drill", "make_hierarchical"]
+__all__ = ["DRILLS", "DRILL_LABELS", "HighLevel", "HierarchicalPolicy", "drill_code", "make_hierarchical"]

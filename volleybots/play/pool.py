@@ -1,6 +1,6 @@
 """Many head-to-head matches at once: here one after another, or as tasks of a Ray pool.
 
-A match's games draw their random numbers from the match's own seed (``volleybots.eval.games``), so
+A match's games draw their random numbers from the match's own seed (``volleybots.play.games``), so
 its W/D/L counts do not depend on where or in which order it is played: the pool changes the wall
 time, never the results. ``ray`` connects to the cluster named by ``RAY_ADDRESS`` (``ray start
 --head`` prints it), joins the cluster of the Ray task it runs in (a sweep job of
@@ -12,10 +12,11 @@ from __future__ import annotations
 import importlib.util
 import os
 
-from volleybots.config import ConfigError, to_dict, validate
-from volleybots.eval.games import head_to_head
+from volleybots.algos.population import POOLS
+from volleybots.config import to_dict, validate
+from volleybots.errors import ConfigError
+from volleybots.play.games import head_to_head
 
-POOLS = ("serial", "ray")
 EXTRA = "cluster"  # pip install 'volleybots[cluster]' installs ray
 
 

@@ -1,4 +1,4 @@
-"""Games between two competitors on a match task, batched on the env (spec: evaluation.md).
+"""Games between two competitors on a match task, batched on the env (docs/evaluation.md).
 
 A game is one episode of a match (one rally: it ends at the first fault, a draw, or the time limit).
 ``play_games`` plays ``games`` of them between A and B, half with A on team 0 (+x) and half with A on
@@ -7,7 +7,7 @@ side advantage shows and cancels. A *scenario* fixes who serves through the task
 override: ``serve`` (A serves every game), ``receive`` (B serves), ``any`` (a random side per game,
 the task's default); the paper evaluated 3 vs 3 serve and rally situations apart.
 
-A competitor (``volleybots.competitors``) acts for a team through ``team_policy(env, deterministic,
+A competitor (``volleybots.policies.competitors``) acts for a team through ``team_policy(env, deterministic,
 generator)``: ``tasks.multi.TeamPolicies`` gives it only its team's agents, mirrored, and a
 population competitor draws its member per env when that env's episode starts. A game's random
 numbers come from ``seed`` alone (torch's global generator is forked, so the caller's state is left
@@ -22,8 +22,9 @@ import numpy as np
 import torch
 from omegaconf import OmegaConf
 
-from volleybots.config import ConfigError, make_env, to_dict
-from volleybots.eval import run_episodes
+from volleybots.config import make_env, to_dict
+from volleybots.errors import ConfigError
+from volleybots.play.episodes import run_episodes
 from volleybots.rules import Referee
 from volleybots.tasks.multi import TeamPolicies
 

@@ -1,4 +1,4 @@
-"""Competitors: whatever can play one side of a match (spec: evaluation.md, populations.md).
+"""Competitors: whatever can play one side of a match (docs/evaluation.md, docs/competitive.md).
 
 A competitor is ``scripted``, ``random``, ``hierarchical`` (3v3 only: drills under an event-driven high
 level, ``volleybots.scripted.hierarchical``; a ``*.yaml`` file ``hierarchical: {drill: checkpoint}``
@@ -9,8 +9,8 @@ population run (its members and final meta-strategy); ``name=PATH`` gives it a l
 of several members draws one member per env each time that env's episode starts (``TeamPolicies``
 calls ``begin_episodes``), so one batch mixes opponents as the meta-strategy says.
 
-This module sits below ``eval`` (games, cross-play) and ``population`` (opponents of a learner,
-members of a population): both read competitors from here, and neither imports the other for it.
+This module sits below ``play`` (games), ``train`` (opponents of a learner), ``population`` (members)
+and ``eval`` (cross-play): all read competitors from here.
 
 Population run layout (written by ``volleybots.population``): ``population/member_<k>.pt`` (a
 checkpoint of one member, or a record naming ``scripted`` / ``random``), ``population/meta.jsonl``
@@ -19,7 +19,6 @@ checkpoint of one member, or a record naming ``scripted`` / ``random``), ``popul
 
 from __future__ import annotations
 
-import hashlib
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,21 +27,17 @@ from typing import Callable
 import torch
 from tensordict import TensorDictBase
 
-from volleybots.config import ConfigError, validate
-from volleybots.runs import RunDir, load_algo_state, read_checkpoint
+from volleybots.errors import ConfigError
+from volleybots.policies.builtin import BUILTIN, HIERARCHICAL_TASK, PLAYERS, acted, hierarchical_policy, read_drills_file
+from volleybots.policies.store import load_learner, parse_spec, saved_config, sha256
+from volleybots.runs import RunDir, read_checkpoint
 
-BUILTIN = ("scripted", "random", "hierarchical")  # hierarchical: 3v3 only (drills under a rule-based high level)
-HIERARCHICAL_TASK = "3v3"
 POPULATION_DIR = "population"
 META_FILE = "meta.jsonl"
 
 
 def member_path(run_path: Path, k: int) -> Path:
     return Path(run_path) / POPULATION_DIR / f"member_{k:03d}.pt"
-
-
-def sha256(path: Path) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 @dataclass
@@ -106,65 +101,14 @@ class MixturePolicy:
 
     def __call__(self, td: TensorDictBase) -> TensorDictBase:
         if len(self.policies) == 1:
-            return _acted(self.policies[0], td)
+            return acted(self.policies[0], td)
         action = None
         for k, policy in enumerate(self.policies):
-            a = _acted(policy, td.clone(recurse=False).set("agents", td.get("agents").clone(recurse=False))).get(("agents", "action"))
+            a = acted(policy, td.clone(recurse=False).set("agents", td.get("agents").clone(recurse=False))).get(("agents", "action"))
             pick = (self.choice == k).reshape(-1, *([1] * (a.dim() - 1)))
             action = a if action is None else torch.where(pick, a, action)
         td.set(("agents", "action"), action)
         return td
-
-
-def _acted(policy, td: TensorDictBase) -> TensorDictBase:
-    out = policy(td)
-    if isinstance(out, torch.Tensor):  # scripted players may return the action tensor
-        td.set(("agents", "action"), out)
-        return td
-    return td if out is None else out
-
-
-# ------------------------------------------------------------------------------- the built-ins
-def random_policy(env) -> Callable[[TensorDictBase], TensorDictBase]:
-    """Uniform actions for whichever agents the tensordict holds (one team or all)."""
-    acts = env.actions
-
-    def act(td: TensorDictBase) -> TensorDictBase:
-        n, a = td.get("agents").batch_size
-        if acts.continuous:
-            action = torch.rand(n, a, acts.dim, device=td.device) * 2 - 1
-        else:
-            action = torch.randint(0, acts.n, (n, a), device=td.device)
-        td.set(("agents", "action"), action)
-        return td
-
-    return act
-
-
-def scripted_policy(env, action_space: str) -> Callable[[TensorDictBase], TensorDictBase]:
-    """The task's scripted model-based player (``volleybots.scripted``), as a ``td -> td`` policy."""
-    from volleybots.scripted import make_scripted_policy
-
-    try:
-        pol = make_scripted_policy(env, action_space)
-    except (ValueError, KeyError) as e:
-        raise ConfigError(f"no scripted policy for task {env.name!r} with env.action_space={action_space!r}: {e}") from None
-    return lambda td: _acted(pol, td)
-
-
-def hierarchical_policy(env, drills: dict | None = None) -> Callable[[TensorDictBase], TensorDictBase]:
-    """The hierarchical 3v3 team (``volleybots.scripted.hierarchical``): scripted drills, or the
-    trained checkpoints of ``drills`` (drill name -> checkpoint file or run dir). **Decision:** trained
-    drills act on their mean, also where the competitor is asked for sampled play: a drill is a skill
-    under the high level, whose own randomness is the attack's side (a Pass clone, seed 0, 100
-    episodes: 0.41 success on its mean, 0.24 sampling its Gaussian); the scripted drills are
-    deterministic too."""
-    from volleybots.scripted.hierarchical import make_hierarchical
-
-    try:
-        return make_hierarchical(env, drills, deterministic=True)
-    except ValueError as e:
-        raise ConfigError(f"competitor 'hierarchical': {e}") from None
 
 
 def hierarchical_member(drills: dict | None = None, label: str = "hierarchical") -> Member:
@@ -176,50 +120,30 @@ def hierarchical_member(drills: dict | None = None, label: str = "hierarchical")
 
 
 def builtin_member(name: str, drills: dict | None = None) -> Member:
-    if name == "random":
-        return Member("random", lambda env, deterministic=False: random_policy(env), {"kind": "random"})
+    """A member of ``volleybots.policies.builtin.PLAYERS`` (the hierarchical team with ``drills``)."""
     if name == "hierarchical":
         return hierarchical_member(drills)
-    return Member("scripted", lambda env, deterministic=False: scripted_policy(env, env.action_space_name), {"kind": "scripted"})
-
-
-def read_drills_file(path: Path) -> dict:
-    """A hierarchical team's drill checkpoints from a YAML file ``hierarchical: {drill: path}``
-    (relative paths are relative to the file)."""
-    from omegaconf import OmegaConf
-
-    data = OmegaConf.to_container(OmegaConf.load(path))
-    drills = data.get("hierarchical") if isinstance(data, dict) else None
-    if not isinstance(drills, dict):
-        raise ConfigError(f"{str(path)!r} is no hierarchical team: expected a mapping 'hierarchical: {{drill: checkpoint}}'")
-    return {k: str((Path(path).parent / v) if not Path(v).is_absolute() else v) for k, v in drills.items()}
+    player = PLAYERS[name]
+    return Member(name, lambda env, deterministic=False: player.team(env), {"kind": name}, player.task)
 
 
 # ------------------------------------------------------------------------------- trained policies
 def checkpoint_member(path, label: str | None = None) -> Member:
     """A member from a checkpoint file: a run's checkpoint or a population member (``member_<k>.pt``,
-    which may also name a built-in player)."""
+    which may also name a built-in player). Its networks are built by the policy store when it plays."""
     path = Path(path)
     state = read_checkpoint(path)
     if "builtin" in state:
+        if state["builtin"] not in PLAYERS:
+            raise ConfigError(f"{str(path)!r} names an unknown built-in player {state['builtin']!r}; allowed: {', '.join(BUILTIN)}")
         m = builtin_member(state["builtin"], state.get("drills"))
         m.label = label or m.label
         return m
-    cfg = validate(state["config"])
-    what = f"checkpoint {str(path)!r}"
+    cfg = saved_config(state, f"checkpoint {str(path)!r}")
+    n_agents = int(state["n_agents"])
 
     def make(env, deterministic: bool = False):
-        from volleybots.algos import ALGOS
-        from volleybots.algos.base import AgentSpec
-
-        algo_cls = ALGOS[cfg.algo.name]
-        learner_cls = getattr(algo_cls, "learner_cls", algo_cls)  # a population method's learner
-        # the initial weights are overwritten at once: drawing them must not move the caller's
-        # random stream (a resumed run builds its opponents after restoring that stream)
-        with torch.random.fork_rng(devices=[]):
-            algo = learner_cls(cfg.algo, AgentSpec.of(env, int(state["n_agents"])), seed=cfg.seed)
-        load_algo_state(algo, state, what, cfg)
-        return algo.policy(deterministic=deterministic)
+        return load_learner(path, env, n_agents)[0].policy(deterministic=deterministic)
 
     source = {"kind": "checkpoint", "path": str(path), "sha256": sha256(path), "frames": int(state["frames"]), "algo": cfg.algo.name}
     return Member(label or f"{cfg.algo.name}@{int(state['frames'])}", make, source, cfg.task.name, cfg.env.action_space, int(state["obs_dim"]))
@@ -239,35 +163,27 @@ def population_members(run_path: Path) -> list[Path]:
 
 def resolve_competitor(spec: str) -> Competitor:
     """``scripted``, ``random``, ``hierarchical``, a checkpoint, a run dir, a population run or a
-    hierarchical team's drills file (``*.yaml``: ``hierarchical: {drill: checkpoint}``); ``name=PATH`` labels it."""
-    label, eq, target = spec.partition("=")
-    if not eq:
-        label, target = "", spec
-    if not target:
-        raise ConfigError(f"competitor {spec!r} names no policy; expected a run dir, a checkpoint file, or one of: {', '.join(BUILTIN)}")
-    if target in BUILTIN:
-        return Competitor(label or target, [builtin_member(target)])
-    path = Path(target)
-    if path.is_file() and path.suffix in (".yaml", ".yml"):
-        return Competitor(label or path.stem, [hierarchical_member(read_drills_file(path), label or path.stem)])
-    if path.is_file():
-        m = checkpoint_member(path)
-        return Competitor(label or m.label, [m])
-    if not path.is_dir():
-        raise ConfigError(f"competitor {target!r} does not exist; expected a run dir, a checkpoint file, or one of: {', '.join(BUILTIN)}")
-    run = RunDir(path)
-    if not run.is_run():
-        raise ConfigError(f"{target!r} is not a run directory (no config.yaml) nor a checkpoint file")
+    hierarchical team's drills file (``*.yaml``: ``hierarchical: {drill: checkpoint}``); ``name=PATH``
+    labels it (the grammar of ``volleybots.policies.store.parse_spec``)."""
+    s = parse_spec(spec)
+    if s.kind == "builtin":
+        return Competitor(s.label or s.target, [builtin_member(s.target)])
+    if s.kind == "drills":
+        label = s.label or s.path.stem
+        return Competitor(label, [hierarchical_member(read_drills_file(s.path), label)])
+    if s.kind == "checkpoint":
+        m = checkpoint_member(s.path)
+        return Competitor(s.label or m.label, [m])
+    path = s.path
     members, metas = population_members(path), read_meta(path)
     if members and metas and len(metas[-1]) == len(members):
         ms = [checkpoint_member(p, f"{path.name}/{p.stem}") for p in members]
-        return Competitor(label or path.name, ms, metas[-1])
-    ckpt = run.policy_checkpoint(f"run {target!r}")
-    return Competitor(label or path.name, [checkpoint_member(ckpt, path.name)])
+        return Competitor(s.label or path.name, ms, metas[-1])
+    ckpt = RunDir(path).policy_checkpoint(f"run {s.target!r}")
+    return Competitor(s.label or path.name, [checkpoint_member(ckpt, path.name)])
 
 
 __all__ = [
-    "BUILTIN", "Competitor", "Member", "MixturePolicy", "builtin_member", "checkpoint_member", "hierarchical_member",
-    "hierarchical_policy", "member_path", "read_drills_file",
-    "population_members", "random_policy", "read_meta", "resolve_competitor", "scripted_policy", "sha256",
+    "Competitor", "Member", "MixturePolicy", "builtin_member", "checkpoint_member", "hierarchical_member", "member_path",
+    "population_members", "read_meta", "resolve_competitor",
 ]

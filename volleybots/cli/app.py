@@ -1,0 +1,108 @@
+"""The ``volleybots`` Typer app, its error handling (one line, exit 2) and the helpers every verb shares.
+
+Bad input (an unknown name, key, verb or option, a wrong type or an out-of-range value, an algorithm
+that cannot act in the chosen action space, a missing or mismatched checkpoint, an output file that
+exists or cannot be written, a run directory in use) prints one line naming the bad value and the
+allowed ones, exits with code 2 and writes nothing. docs/usage.md lists the guarantees.
+"""
+
+from __future__ import annotations
+
+import functools
+import sys
+
+import typer
+from typer.core import TyperGroup
+
+try:  # typer >= 0.2x carries its own copy of click
+    from typer._click import exceptions as click_errors
+except ImportError:
+    from click import exceptions as click_errors
+
+from volleybots.errors import ConfigError
+from volleybots.version import __version__
+
+
+class _Verbs(TyperGroup):
+    """Click's own usage errors (a missing argument, an unknown verb or option, an option without its
+    value) as one line and exit code 2, like every other bad input, not a boxed usage message."""
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        try:
+            rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        except click_errors.ClickException as e:
+            if not standalone_mode:
+                raise
+            if type(e).__name__ == "NoArgsIsHelpError":  # bare `volleybots`: the help, as Click does
+                typer.echo(e.format_message())
+            else:
+                typer.echo(f"error: {_usage_message(self, e)}", err=True)
+            sys.exit(2 if isinstance(e, click_errors.UsageError) else e.exit_code)
+        except typer.Abort:
+            if not standalone_mode:
+                raise
+            typer.echo("error: aborted", err=True)
+            sys.exit(1)
+        if standalone_mode:
+            sys.exit(rv if isinstance(rv, int) else 0)
+        return rv
+
+
+def _usage_message(group, e) -> str:
+    msg = " ".join(e.format_message().split()).rstrip(".")
+    ctx = getattr(e, "ctx", None)
+    where = ctx.command_path if ctx is not None else "volleybots"
+    if msg.startswith("No such command"):
+        msg += f"; allowed: {', '.join(group.commands)}"
+    return f"{msg[:1].lower()}{msg[1:]} (see: {where} --help)"
+
+
+app = typer.Typer(
+    cls=_Verbs,
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    help="Multi-drone volleyball: train, evaluate and replay policies on batched drone-physics tasks.",
+)
+_PASS_THROUGH = {"allow_extra_args": True, "ignore_unknown_options": True}
+
+
+def _fail(msg: str) -> None:
+    typer.echo(f"error: {msg}", err=True)
+    raise typer.Exit(2)
+
+
+def _user_errors(fn):
+    """Turn ``ConfigError`` (bad user input) into one line and exit code 2."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kw):
+        try:
+            return fn(*args, **kw)
+        except ConfigError as e:
+            _fail(str(e))
+
+    return wrapper
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"volleybots {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def main(
+    version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="Print the version and exit."),
+) -> None:
+    """Multi-drone volleyball: train, evaluate and replay policies on batched drone-physics tasks."""
+
+
+
+def _refuse_flags(args: list[str], allowed: str) -> None:
+    """An option Click passed through (the verbs take Hydra overrides after them) is a misspelt one."""
+    flags = [a for a in args if a.startswith("-")]
+    if flags:
+        raise ConfigError(f"unknown option {flags[0]!r}; allowed: {allowed}")
+
+

@@ -1,0 +1,200 @@
+"""``volleybots eval`` (a target, ``compare``, ``crossplay``, ``exploitability``, ``elo``) and ``volleybots replay``."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+from typer.core import TyperGroup
+
+from volleybots.cli.app import _PASS_THROUGH, _refuse_flags, _user_errors, app
+from volleybots.errors import ConfigError
+
+
+class _EvalGroup(TyperGroup):
+    """``eval`` is a group of verbs (crossplay, elo) whose first argument may instead be a target:
+    ``volleybots eval RUN_DIR episodes=3`` runs the hidden ``policy`` verb."""
+
+    def parse_args(self, ctx, args):
+        if args and args[0] not in self.commands and not args[0].startswith("-"):
+            args = ["policy", *args]
+        return super().parse_args(ctx, args)
+
+
+eval_app = typer.Typer(
+    cls=_EvalGroup,
+    no_args_is_help=True,
+    help="Evaluate: `eval TARGET episodes=100 ...` plays one policy (a run dir, a checkpoint, scripted, random) "
+    "and reports the task metric; `eval compare A B ...` plays several on the same episodes and tests their differences; "
+    "`eval crossplay` and `eval elo` rank competitors of a match.",
+)
+app.add_typer(eval_app, name="eval")
+_COMPETITORS = "Competitors (a run dir, a checkpoint, a population run, scripted, random; label one with name=PATH)"
+
+
+@eval_app.command("policy", hidden=True, context_settings=_PASS_THROUGH)
+@_user_errors
+def eval_cmd(
+    target: str = typer.Argument(..., help="A run directory, a checkpoint file, 'scripted' or 'random'."),
+    overrides: Optional[List[str]] = typer.Argument(None, help="episodes=100 deterministic=true seed=0; for scripted/random also task=NAME env.action_space=ctbr."),
+    as_json: bool = typer.Option(False, "--json", help="Print the result as JSON instead of a table."),
+) -> None:
+    """Play N episodes (episodes=100) and report the task metric's mean / std and every per-term return."""
+    from volleybots.eval import evaluate, format_table
+
+    _refuse_flags([target, *(overrides or [])], "--json, --help")
+    result = evaluate(target, list(overrides or []))
+    if as_json:
+        typer.echo(json.dumps(result, indent=2))
+    else:
+        from rich.console import Console
+
+        Console().print(format_table(result))
+
+
+@eval_app.command("compare", context_settings=_PASS_THROUGH)
+@_user_errors
+def compare_cmd(
+    args: Optional[List[str]] = typer.Argument(None, help="BASELINE TARGET [TARGET ...] (run dirs, checkpoints, scripted, random), then episodes=100 seed=0 deterministic=true task.episode_len=... (scripted/random play the first run's task unless task= is given)."),
+    as_json: bool = typer.Option(False, "--json", help="Print the result, per-episode metrics included, as JSON instead of a table."),
+) -> None:
+    """Play every target on the same episodes and compare each with the first, episode by episode: mean improvement with its 95 % interval, W/T/L, Wilcoxon test."""
+    from volleybots.eval.compare import compare, format_table
+
+    args = list(args or [])
+    _refuse_flags(args, "--json, --help")
+    result = compare(args)
+    if as_json:
+        typer.echo(json.dumps(result, indent=1))
+    else:
+        from rich.console import Console
+
+        Console().print(format_table(result))
+
+
+def _pair_progress(i: int, j: int, games) -> None:
+    typer.echo(f"  pair {i},{j}: W/D/L {'/'.join(map(str, games.total.tolist()))}", err=True)
+
+
+def _show(data: dict, table, as_json: bool, files: list[Path]) -> None:
+    """A verb's result: its JSON, or its table and the files it wrote."""
+    if as_json:
+        typer.echo(json.dumps(data, indent=1))
+        return
+    from rich.console import Console
+
+    Console().print(table)
+    typer.echo(f"wrote {' and '.join(map(str, files))}")
+
+
+@eval_app.command("crossplay", context_settings=_PASS_THROUGH)
+@_user_errors
+def crossplay_cmd(
+    args: Optional[List[str]] = typer.Argument(None, help=f"{_COMPETITORS}, then games=1000 seed=0 batch=256 scenario=any|serve|receive deterministic=false task=1v1 env.action_space=prt."),
+    as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of the table."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder for crossplay.json and crossplay.png (new or empty; default outputs/crossplay/<time>_<task>)."),
+) -> None:
+    """Every pair plays N games, each side half of them: W/D/L, win rates with Wilson intervals, average win rate, heatmap."""
+    from volleybots.eval.crossplay import format_table, run_crossplay
+
+    res, path = run_crossplay(list(args or []), out, progress=None if as_json else _pair_progress)
+    _show(res.to_dict(), format_table(res), as_json, [path / "crossplay.json", path / "crossplay.png"])
+
+
+@eval_app.command("exploitability", context_settings=_PASS_THROUGH)
+@_user_errors
+def exploitability_cmd(
+    args: Optional[List[str]] = typer.Argument(None, help="TARGET (a competitor), then budget=1000000 games=1000 seed=0 scenario=any|serve|receive init=RUN num_envs=N batch=256 task=1v1 env.action_space=prt."),
+    as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of a line."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder for the best response's run dir (br/) and exploitability.json (new or empty)."),
+) -> None:
+    """Train a best response with (MA)PPO against TARGET for a budget of frames, play it: 100 x (BR win rate - 0.5)."""
+    from volleybots.eval.exploitability import RESULTS, format_line, run_exploitability
+
+    args = list(args or [])
+    if as_json:
+        args.append("progress=false")
+    report, path = run_exploitability(args, out)
+    if as_json:
+        typer.echo(json.dumps(report, indent=1, default=float))
+        return
+    typer.echo(format_line(report))
+    typer.echo(f"wrote {path / RESULTS} and the best response's run {path / 'br'}")
+
+
+@eval_app.command("elo", context_settings=_PASS_THROUGH)
+@_user_errors
+def elo_cmd(
+    args: Optional[List[str]] = typer.Argument(None, help=f"{_COMPETITORS}, or from=CROSSPLAY_JSON; then rounds=2000 k=168 bootstrap=1000 seed=0 and cross-play's options."),
+    as_json: bool = typer.Option(False, "--json", help="Print the ratings JSON instead of the table."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Folder for ratings.json, ratings.png (and the games played); new or empty."),
+) -> None:
+    """Elo over rounds in which every pair meets once (the paper's), Bradley-Terry with bootstrap intervals, the Nash mixture."""
+    from volleybots.eval.ranking import format_table, run_elo
+
+    report, path = run_elo(list(args or []), out, progress=None if as_json else _pair_progress)
+    _show(report, format_table(report), as_json, [path / "ratings.json", path / "ratings.png"])
+
+
+def _free_path(path: Path) -> Path:
+    stem, n = path.stem, 2
+    while path.exists():
+        path = path.with_name(f"{stem}_{n}{path.suffix}")
+        n += 1
+    return path
+
+
+@app.command(context_settings=_PASS_THROUGH)
+@_user_errors
+def replay(
+    args: List[str] = typer.Argument(..., help="TARGET [overrides]: a run dir, a checkpoint, 'scripted' or 'random' with seed=0 deterministic=true (for scripted/random also task=NAME env.action_space=ctbr); or A B [task=3v3 seed=0 scenario=any|serve|receive]: a match between two competitors (name=PATH labels one)."),
+    out: Optional[Path] = typer.Option(None, "--out", help="The .rrd file to write (never overwritten)."),
+    no_viewer: bool = typer.Option(False, "--no-viewer", help="Do not open the rerun viewer even when a display exists."),
+) -> None:
+    """Record one episode to a rerun file: court, net, drones, ball trail, hits / violations, rewards; for two
+    competitors, one match with each team's colour, the touches and the fault that ended the rally."""
+    from volleybots.replay import has_display
+    from volleybots.runs import check_writable
+
+    _refuse_flags(args, "--out FILE.rrd, --no-viewer, --help")
+    if out is not None and out.suffix != ".rrd":
+        raise ConfigError(f"--out {str(out)!r} must end in .rrd")
+    if out is not None and (out.exists() or out.is_symlink()):
+        raise ConfigError(f"--out {str(out)!r} exists; choose another file (replays never overwrite)")
+    if out is not None:
+        check_writable(out.parent, "the folder of --out")
+    viewer = not no_viewer and has_display()
+    from volleybots.eval.crossplay import is_competitor_spec, replay_match
+
+    if sum(map(is_competitor_spec, args)) >= 2:
+        stats, out, labels = replay_match(args, out, viewer)
+        where = str(out) if out is not None else "the viewer"
+        who = {0: f"{labels[0]} (blue) won", 1: f"{labels[1]} (red) won", -1: "a draw"}[int(stats["winner"])]
+        typer.echo(f"recorded one match of {labels[0]} (blue) against {labels[1]} (red) to {where}: {who}")
+        return
+    _replay_one(args[0], args[1:], out, viewer)
+
+
+def _replay_one(target: str, overrides: list[str], out: Path | None, viewer: bool) -> None:
+    from volleybots.config import make_env
+    from volleybots.policies import resolve_target
+    from volleybots.replay import record_episode
+    from volleybots.runs import check_writable, make_dir
+
+    t = resolve_target(target, overrides)
+    if out is None and not viewer:
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        base = Path(target) if Path(target).is_dir() else Path("outputs") / "replays"
+        check_writable(base, "the replay folder (choose another with --out)")
+        out = _free_path(base / f"replay_{t.cfg.task.name}_{t.label.replace('@', '_')}_{stamp}.rrd")
+    if out is not None:
+        make_dir(out.parent, "the folder of --out")
+    env = make_env(t.cfg, num_envs=1, seed=t.cfg.seed)
+    stats = record_episode(env, t.make_policy(env), out, viewer=viewer)
+    where = str(out) if out is not None else "the viewer"
+    typer.echo(f"recorded one episode of {t.label} on {t.cfg.task.name} to {where}: {env.metric} {stats[env.metric]:.4g}, return {stats['return']:.4g}")
+
+

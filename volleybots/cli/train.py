@@ -1,0 +1,169 @@
+"""``volleybots train``: Hydra overrides to a run directory (or a sweep of them), or ``resume=RUN``."""
+
+from __future__ import annotations
+
+import itertools
+import sys
+from typing import List, Optional
+
+import typer
+
+from volleybots.cli.app import _PASS_THROUGH, _refuse_flags, _user_errors, app
+from volleybots.errors import ConfigError
+
+
+def _jobs(overrides: list[str], multirun: bool) -> list[list[str]]:
+    """The override lists of the jobs a command line asks for (one without -m; the sweep's product with)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import HydraException
+
+    try:
+        parsed = OverridesParser.create().parse_overrides(overrides)
+    except HydraException as e:
+        raise ConfigError(f"bad override: {' '.join(str(e).split())}") from None
+    sweeps = [o for o in parsed if o.is_sweep_override()]
+    if sweeps and not multirun:
+        raise ConfigError(f"override {sweeps[0].input_line!r} sweeps several values; add -m to run one job per value")
+    choices = [
+        [f"{o.get_key_element()}={v}" for v in o.sweep_string_iterator()] if o.is_sweep_override() else [o.input_line]
+        for o in parsed
+    ]
+    return [list(c) for c in itertools.product(*choices)] or [[]]
+
+
+_DIR_KEYS = {False: "hydra.run.dir", True: "hydra.sweep.dir"}
+_NONEMPTY = ("resume", "hydra.run.dir", "hydra.sweep.dir", "hydra.sweep.subdir", "hydra.job.name")
+
+
+def _refuse_empty(overrides: list[str]) -> None:
+    """``resume=`` or ``hydra.run.dir=`` with nothing after the '=' would silently mean "none" / "here"."""
+    for o in overrides:
+        key, eq, value = o.partition("=")
+        if eq and key.lstrip("+") in _NONEMPTY and not value.strip():
+            raise ConfigError(f"{key}= is empty; give it a value ({key}=DIR) or leave it out")
+
+
+def _claim_dir(job: list[str], overrides: list[str], multirun: bool) -> str:
+    """Resolve the run directory (the sweep's with -m) that Hydra would use and lock it for this
+    process; the default, time-stamped one gets a suffix when taken (two starts in one second)."""
+    from volleybots.config import compose
+    from volleybots.runs import claim_run_dir
+
+    key = _DIR_KEYS[multirun]
+    cfg = compose(job, hydra_node=True)
+    path = str(cfg.hydra.sweep.dir if multirun else cfg.hydra.run.dir)
+    if not path.strip():
+        raise ConfigError(f"{key} is empty; give it a directory")
+    explicit = any(o.partition("=")[0].lstrip("+") == key for o in overrides)
+    return str(claim_run_dir(path, unique=not explicit, sweep=multirun))
+
+
+def _hydra_quote(value: str) -> str:
+    return "'" + value.replace("\\", "\\\\").replace("'", "\\'") + "'"
+
+
+def _run_hydra(overrides: list[str], multirun: bool, extra: list[str]) -> None:
+    import hydra
+
+    from volleybots.paths import conf_dir
+
+    @hydra.main(config_path=str(conf_dir()), config_name="config", version_base="1.3")
+    def _job(cfg) -> None:
+        from hydra.core.hydra_config import HydraConfig
+
+        from volleybots.config import algo_action_space, validate
+        from volleybots.population.run import start as train_run
+
+        try:
+            cfg = algo_action_space(cfg, HydraConfig.get().overrides.task)
+            summary = train_run(validate(cfg), HydraConfig.get().runtime.output_dir)
+        except ConfigError as e:
+            # SystemExit passes through Hydra's error report (which would exit 1 with a banner)
+            typer.echo(f"error: {e}", err=True)
+            sys.exit(2)
+        _echo_summary(summary, HydraConfig.get().runtime.output_dir)
+
+    argv = sys.argv
+    sys.argv = ["volleybots-train", *overrides, *(["--multirun"] if multirun else []), *extra]
+    try:
+        _job()
+    finally:
+        sys.argv = argv
+
+
+def _echo_summary(summary: dict, run_dir) -> None:
+    if "population" in summary:
+        pop = summary["population"]
+        mix = ", ".join(f"{m} {w:.2f}" for m, w in zip(pop["members"], pop["mixture"]))
+        typer.echo(
+            f"run {run_dir}: {summary['frames']} frames in {summary['wall_time_s']:.0f} s ({summary['frames_per_s']:,.0f} frames/s); "
+            f"{summary['iterations']} iteration(s), population {len(pop['members'])}, meta-strategy ({pop['solver']}): {mix}"
+        )
+        return
+    ev = summary["final_eval"]["stats"][summary["metric"]]
+    typer.echo(
+        f"run {run_dir}: {summary['frames']} frames in {summary['wall_time_s']:.0f} s "
+        f"({summary['frames_per_s']:,.0f} frames/s); eval {summary['metric']} {ev['mean']:.4g} +- {ev['std']:.3g}"
+    )
+
+
+@app.command(context_settings=_PASS_THROUGH)
+@_user_errors
+def train(
+    overrides: Optional[List[str]] = typer.Argument(None, help="Hydra overrides: task=solo_bump algo=ppo env.num_envs=256 env.action_space=ctbr seed=3 total_frames=2e6 hydra.run.dir=DIR, or resume=RUN_DIR [total_frames=N]."),
+    multirun: bool = typer.Option(False, "-m", "--multirun", help="Sweep: one job per combination of comma-separated values (seed=0,1,2)."),
+    show: Optional[str] = typer.Option(None, "--cfg", "-c", help="Print the composed config (job, hydra or all) instead of training."),
+) -> None:
+    """Train a policy; writes a run directory (config, metrics.csv, checkpoints, summary.json, recordings)."""
+    overrides = list(overrides or [])
+    _refuse_flags(overrides, "-m/--multirun, --cfg job|hydra|all, --help")
+    _refuse_empty(overrides)
+    if show is not None and show not in ("job", "hydra", "all"):
+        raise ConfigError(f"unknown --cfg {show!r}; allowed: job, hydra, all")
+    if show is not None and multirun:
+        raise ConfigError("--cfg prints the config of one job; it cannot be combined with -m")
+    from volleybots.launchers import check_launcher
+
+    check_launcher(overrides)
+    resume_dir = next((o.partition("=")[2] for o in overrides if o.startswith("resume=")), None)
+    if resume_dir is not None and resume_dir != "null":
+        from volleybots.population.run import resume
+
+        if multirun or show:
+            raise ConfigError("resume= continues one run; it takes neither -m nor --cfg")
+        summary = resume(resume_dir, [o for o in overrides if not o.startswith("resume=")])
+        _echo_summary(summary, resume_dir)
+        return
+    from volleybots.config import check_memory, compose, validate
+
+    jobs = _jobs(overrides, multirun)
+    cfgs = [validate(compose(job)) for job in jobs]
+    if show is None:
+        from volleybots.policies import check_references
+        from volleybots.train import check_init
+
+        for c in cfgs:
+            check_references(c)  # opponent= and algo.seed_members exist and fit, before Hydra writes the run dir
+            check_init(c)  # init= fits, likewise
+    if not any(o.split("=", 1)[0].lstrip("+~") == "algo" for o in overrides):
+        # the task's own default (MAPPO for cooperative tasks, SP for matches) when no algo is named
+        algos = sorted({c.algo.name for c in cfgs})
+        if len(algos) > 1:
+            raise ConfigError(f"the swept tasks train with different default algorithms ({', '.join(algos)}); name one with algo=NAME")
+        overrides = [*overrides, f"algo={algos[0]}"]
+    if show is not None:
+        _run_hydra(overrides, multirun, ["--cfg", show])
+        return
+    for cfg in cfgs:
+        check_memory(cfg)
+    from volleybots.runs import unlock
+
+    key = _DIR_KEYS[multirun]
+    run_dir = _claim_dir(_jobs(overrides, multirun)[0], overrides, multirun)
+    try:
+        pinned = [o for o in overrides if o.partition("=")[0].lstrip("+") != key]
+        _run_hydra([*pinned, f"{key}={_hydra_quote(run_dir)}"], multirun, [])
+    finally:
+        unlock(run_dir)
+
+

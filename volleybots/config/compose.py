@@ -1,0 +1,148 @@
+"""Composition: Hydra overrides to a config, and ``key=value`` values read the way Hydra reads them.
+
+``load`` composes and validates once; every verb that takes overrides goes through it (or through
+``apply_overrides`` for a saved run's config), so a misspelt key or a bad group option is reported the
+same way everywhere.
+"""
+
+from __future__ import annotations
+
+from omegaconf import DictConfig, OmegaConf
+
+from volleybots.config.schema import GROUPS, group_options, to_dict
+from volleybots.config.validate import OPPONENT_LEARNERS, validate
+from volleybots.errors import ConfigError
+from volleybots.paths import conf_dir
+
+
+def _check_overrides(overrides: list[str]) -> None:
+    """Name the bad value of a group override before Hydra does (with the allowed options)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import OverrideParseException
+
+    try:
+        parsed = OverridesParser.create().parse_overrides(overrides)
+    except OverrideParseException as e:
+        raise ConfigError(f"bad override: {str(e).splitlines()[0]}") from None
+    for o in parsed:
+        key = o.get_key_element()
+        if key in GROUPS and not o.is_delete():
+            values = list(o.sweep_string_iterator()) if o.is_sweep_override() else [o.value()]
+            for v in values:
+                if str(v) not in group_options(key):
+                    raise ConfigError(f"unknown {key} {v!r}; allowed: {', '.join(group_options(key))}")
+
+
+def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = False) -> DictConfig:
+    """Compose ``conf/config.yaml`` with Hydra overrides (no sweeps). Raises ``ConfigError``.
+
+    A misspelt key is reported with the keys allowed beside it."""
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_dir
+    from hydra.errors import HydraException
+
+    overrides = list(overrides)
+    _check_overrides(overrides)
+    with initialize_config_dir(config_dir=str(conf_dir()), version_base="1.3"):
+        try:
+            cfg = hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node)
+            default = _task_default_algo(cfg, overrides)
+            if default is not None:
+                cfg = hydra_compose("config", overrides=[*overrides, f"algo={default}"], return_hydra_config=hydra_node)
+            return algo_action_space(cfg, overrides)
+        except HydraException as e:
+            _explain_unknown_key(overrides, hydra_compose)
+            raise ConfigError(f"bad override: {_one_line(e)}") from None
+
+
+def _explain_unknown_key(overrides: list[str], hydra_compose) -> None:
+    """After a failed composition: raise a ConfigError naming an override's key that does not exist,
+    with the keys allowed beside it (Hydra's own message lists none)."""
+    from hydra.errors import HydraException
+
+    try:
+        base = hydra_compose("config", overrides=[o for o in overrides if o.split("=", 1)[0].lstrip("~+") in GROUPS])
+    except HydraException:
+        return
+    for o in overrides:
+        key = o.split("=", 1)[0]
+        if "=" not in o or key.startswith(("+", "~", "hydra.")) or key in GROUPS:
+            continue
+        if OmegaConf.select(base, key, default=_ABSENT) is _ABSENT:
+            parent = key.rpartition(".")[0]
+            node = OmegaConf.select(base, parent) if parent else base
+            allowed = ", ".join(str(k) for k in node.keys()) if isinstance(node, DictConfig) else "(none: not a section)"
+            raise ConfigError(f"unknown config key {key!r}; allowed{' under ' + repr(parent) if parent else ''}: {allowed}")
+
+
+_ABSENT = object()
+
+
+def _task_default_algo(cfg: DictConfig, overrides) -> str | None:
+    """The algorithm a task trains with when the command line names none (the task's
+    ``default_algo``: MAPPO for the cooperative tasks, SP for the matches, MAPPO against an
+    ``opponent=``), if it is not the config's
+    default already. ``eval scripted task=3v3`` needs no algo at all, and ``train task=3v3`` then does
+    what one expects. A named algo that cannot train the task is still an error."""
+    from volleybots.algos.base import class_attr
+    from volleybots.tasks import TASKS
+
+    if any(o.split("=", 1)[0].lstrip("+~") == "algo" for o in overrides):
+        return None
+    task_cls = TASKS.get(OmegaConf.select(cfg, "task.name", default=None))
+    if task_cls is None:
+        return None
+    default = OPPONENT_LEARNERS[0] if OmegaConf.select(cfg, "opponent", default=None) is not None else class_attr(task_cls, "default_algo")
+    return None if default == OmegaConf.select(cfg, "algo.name", default=None) else default
+
+
+def algo_action_space(cfg: DictConfig, overrides) -> DictConfig:
+    """An algorithm that cannot act in the default action space (``dqn``: discrete only) gets its own
+    first one, unless the command line names ``env.action_space`` (then ``validate`` rejects a bad one)."""
+    from volleybots.algos import ALGOS
+
+    if any(o.split("=", 1)[0].lstrip("+~") == "env.action_space" for o in overrides):
+        return cfg
+    algo_cls = ALGOS.get(OmegaConf.select(cfg, "algo.name", default=None))
+    if algo_cls is not None and cfg.env.action_space not in algo_cls.action_spaces:
+        cfg.env.action_space = algo_cls.action_spaces[0]
+    return cfg
+
+
+def _one_line(e: BaseException) -> str:
+    """The innermost message of an exception chain, on one line."""
+    while e.__cause__ is not None:
+        e = e.__cause__
+    return " ".join(str(e).split())
+
+
+def load(overrides=()) -> DictConfig:
+    """Compose and validate: the typed config for ``overrides``."""
+    return validate(compose(overrides))
+
+
+def parse_value(value: str):
+    """A command-line value as Hydra reads it (numbers, booleans, null, lists, strings)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import HydraException
+
+    try:
+        return OverridesParser.create().parse_override(f"k={value}").value()
+    except HydraException as e:
+        raise ConfigError(f"bad value {value!r}: {_one_line(e)}") from None
+
+
+def apply_overrides(base: dict, overrides, allowed: tuple[str, ...], what: str) -> DictConfig:
+    """Validate a saved config ``base`` with ``key=value`` overrides restricted to the keys (or
+    sections) in ``allowed``: a run or checkpoint keeps the task, algorithm and env it was made with."""
+    data = OmegaConf.create(base)
+    for o in overrides:
+        key, eq, value = o.partition("=")
+        if not eq:
+            raise ConfigError(f"bad override {o!r}: expected key=value")
+        if not any(key == a or key.startswith(a + ".") for a in allowed):
+            raise ConfigError(f"cannot change {key!r} of {what}; allowed: {', '.join(allowed)}")
+        OmegaConf.update(data, key, parse_value(value), merge=True)
+    return validate(to_dict(data))
+
+

@@ -1,0 +1,138 @@
+"""Resources: counts checked against the memory they need before anything is written."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Optional
+
+from volleybots.config.envs import build_env, make_env
+from volleybots.config.schema import MAX_THREADS, _typed, check_values, to_dict
+from volleybots.errors import ConfigError, check_device, ranged
+
+
+def check_memory(cfg, worlds: int | None = None) -> None:
+    """Refuse a batch, replay buffer or episode count that cannot fit in memory, before anything is
+    written: a training run (``worlds=None``) holds a batch of ``env.num_envs x algo.steps_per_batch``
+    env steps, its replay buffer and the evaluation's ``evaluation.episodes`` worlds; ``eval`` holds
+    ``worlds`` (its episodes) worlds.
+
+    The need is a lower bound measured on a one-world probe env (the bytes of one env step's
+    tensordict), so a refusal is certain; counts that pass can still run out of memory in the
+    update, which the CLI reports as one line too."""
+    probe = make_env(cfg, num_envs=1, seed=cfg.seed)
+    step_bytes, obs_dim = _step_bytes(probe), int(probe.obs_dim)
+    if worlds is not None:
+        needs = [(worlds * step_bytes, f"episodes={worlds} ({step_bytes} bytes per world)", "episodes", cfg.env.device)]
+    else:
+        a = cfg.algo
+        needs = [
+            (cfg.env.num_envs * a.steps_per_batch * step_bytes,
+             f"env.num_envs={cfg.env.num_envs} x algo.steps_per_batch={a.steps_per_batch} ({step_bytes} bytes per world and step)",
+             "env.num_envs or algo.steps_per_batch", cfg.env.device),
+            (cfg.evaluation.episodes * step_bytes, f"evaluation.episodes={cfg.evaluation.episodes} ({step_bytes} bytes per world)", "evaluation.episodes", cfg.env.device),
+        ]
+        if "buffer_size" in a:  # flat per-drone transitions: observation, next observation, action, reward, flags
+            per = 4 * (2 * obs_dim + max(1, probe.actions.dim if probe.actions.continuous else 1) + 3)
+            needs.append((a.buffer_size * per, f"algo.buffer_size={a.buffer_size} ({per} bytes per transition)", "algo.buffer_size", a.get("buffer_device") or cfg.env.device))
+    check_fits(needs)
+
+
+def check_fits(needs) -> None:
+    """``needs``: (bytes, what needs them, the keys to lower, device); their sums per device must fit."""
+    per_device: dict[str, int] = {}
+    for n, _, _, device in needs:
+        per_device[str(device)] = per_device.get(str(device), 0) + n
+    for device, total in per_device.items():
+        free = available_memory(device)
+        if free is not None and total > free:
+            n, what, keys, _ = max((x for x in needs if str(x[3]) == device), key=lambda x: x[0])
+            raise ConfigError(
+                f"{what} needs at least {_gib(n)} of memory but {device} has {_gib(free)} available; lower {keys}"
+            )
+
+
+def available_memory(device) -> int | None:
+    """Bytes that can still be allocated on ``device`` (RAM plus free swap for the CPU); None if unknown."""
+    import torch
+
+    dev = torch.device(device)
+    if dev.type == "cuda":
+        return int(torch.cuda.mem_get_info(dev)[0])
+    if dev.type != "cpu":
+        return None
+    try:
+        import psutil
+    except ImportError:
+        return None
+    return int(psutil.virtual_memory().available + psutil.swap_memory().free)
+
+
+def _gib(n: int) -> str:
+    return f"{n / 2**30:,.1f} GiB"
+
+
+def _step_bytes(probe) -> int:
+    """The bytes of one step of a one-world ``probe`` env (closed afterwards): the tensordict of
+    observations, actions, rewards, flags and statistics that a batch holds per world and step."""
+    n = int(probe.rand_step(probe.reset()).bytes())
+    close = getattr(probe.physics, "close", None)
+    if close is not None:
+        close()
+    return n
+
+
+@dataclass
+class BenchOptions:
+    """The options of ``volleybots bench`` (the keywords of ``volleybots.bench.run_bench``), typed and
+    ranged like the config; a scalar where a list is expected is taken as a list of one."""
+
+    tasks: Optional[list[str]] = None
+    backends: Optional[list[str]] = None
+    num_envs: Optional[list[int]] = ranged(None, ge=1)
+    devices: Optional[list[str]] = None
+    compile: Any = None  # a bool, or a list of bools to measure both ways
+    repeats: int = ranged(3, ge=1)
+    steps: Optional[int] = ranged(None, ge=1)
+    action_space: str = "prt"
+    threads: Optional[int] = ranged(None, ge=0, le=MAX_THREADS)
+    train: bool = False  # also measure PPO (solo_bump) / MAPPO (3v3) training frames/s
+    train_batches: int = ranged(3, ge=1)  # timed training batches per training row
+
+
+def check_bench_options(options: dict) -> dict:
+    """The ``volleybots bench`` options ``options`` checked (types, names, ranges, memory) and as
+    plain values; raises ``ConfigError`` naming the first bad one. Only the given keys are returned."""
+
+    from volleybots.physics import ACTION_SPACES, BACKENDS
+    from volleybots.tasks import TASKS
+
+    lists = ("tasks", "backends", "num_envs", "devices")
+    data = {k: (v if isinstance(v, list) or k not in lists else [v]) for k, v in options.items()}
+    for k in lists:
+        if data.get(k) == []:
+            raise ConfigError(f"bad value for {k!r}: an empty list measures nothing")
+    typed = _typed(BenchOptions, data, "")
+    check_values(BenchOptions, typed, "")
+    out = {k: to_dict(typed)[k] for k in data}
+    for key, allowed in (("tasks", sorted(TASKS)), ("backends", list(BACKENDS)), ("action_space", list(ACTION_SPACES))):
+        given = out.get(key)
+        for v in given if isinstance(given, list) else [given] if given is not None else []:
+            if v not in allowed:
+                raise ConfigError(f"unknown {key} {v!r}; allowed: {', '.join(allowed)}")
+    comp = out.get("compile")
+    if comp is not None and not all(isinstance(c, bool) for c in (comp if isinstance(comp, list) else [comp])):
+        raise ConfigError(f"bad value for 'compile': {comp!r} (must be true, false or a list of them)")
+    for d in out.get("devices") or ():
+        check_device("devices", d)
+    n = max(out.get("num_envs") or [1])
+    for task in out.get("tasks") or ["solo_bump"]:
+        step_bytes = _step_bytes(build_env(task, num_envs=1, action_space=out.get("action_space", "prt")))
+        check_fits([(n * step_bytes, f"num_envs={n} ({task}, {step_bytes} bytes per world)", "num_envs", d) for d in out.get("devices") or ["cpu"]])
+    return out
+
+
+__all__ = [
+    "Config", "ConfigError", "EnvConfig", "algo_action_space", "apply_overrides", "compose", "parse_value", "group_options", "load", "make_env", "task_kwargs",
+    "task_schema", "to_dict", "validate", "check_values", "check_memory", "check_bench_options", "BenchOptions", "available_memory",
+]
+

@@ -1,0 +1,94 @@
+"""Validation: a composed config checked against the schemas and the registries, in one pass.
+
+``validate`` checks names, types, ranges and the choices that depend on each other (an algorithm that
+cannot act in the action space, ``opponent=`` on a task that is no match). It never opens the files a
+config names (``opponent=``, ``init=``, ``algo.seed_members``): a saved run's config stays valid after
+the files it was trained against have moved. Whether those files exist and fit is the pre-flight
+check of whoever is about to use them (``volleybots.policies.check_references``).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+
+from omegaconf import DictConfig, OmegaConf
+
+from volleybots.config.schema import Config, LOGGERS, WANDB_MODES, _typed, check_values, group_options, task_schema
+from volleybots.errors import ConfigError, check_device
+
+
+def validate(cfg) -> DictConfig:
+    """Check a composed config (DictConfig or dict) against the schemas and the registries.
+
+    Returns a typed, resolved DictConfig without the ``hydra`` node. Raises ``ConfigError``."""
+    from volleybots.algos import ALGOS
+    from volleybots.algos.base import class_attr
+    from volleybots.physics import ACTION_SPACES, BACKENDS
+    from volleybots.tasks import TASKS
+
+    data = cfg if isinstance(cfg, dict) else OmegaConf.to_container(cfg, resolve=True)
+    data = {k: v for k, v in data.items() if k != "hydra"}
+    task, algo = data.get("task"), data.get("algo")
+    if isinstance(task, dict) and "compile_physics" in task:
+        # saved by versions whose task constructor took compile_physics (now env.compile): the
+        # runs and checkpoints they wrote still load; the value only ever mirrored env.compile
+        task = {k: v for k, v in task.items() if k != "compile_physics"}
+    if not isinstance(task, dict) or "name" not in task:
+        raise ConfigError(f"the config has no task; choose one with task=NAME, allowed: {', '.join(sorted(TASKS))}")
+    if task["name"] not in TASKS:
+        raise ConfigError(f"unknown task {task['name']!r}; allowed: {', '.join(sorted(TASKS))}")
+    if not isinstance(algo, dict) or "name" not in algo:
+        raise ConfigError(f"the config has no algo; choose one with algo=NAME, allowed: {', '.join(ALGOS)}")
+    if algo["name"] not in ALGOS:
+        raise ConfigError(f"unknown algo {algo['name']!r}; allowed: {', '.join(ALGOS)}")
+    task_cls_schema = task_schema(task["name"])
+    typed_task = _typed(task_cls_schema, task, "task.")
+    algo_cls = ALGOS[algo["name"]]
+    typed_algo = _typed(algo_cls.config_cls, algo, "algo.")
+    rest = _typed(Config, {k: v for k, v in data.items() if k not in ("task", "algo")}, "")
+    rest.task, rest.algo = typed_task, typed_algo
+
+    check_values(Config, rest, "")
+    check_values(task_cls_schema, typed_task, "task.")
+    check_values(algo_cls.config_cls, typed_algo, "algo.")
+    env = rest.env
+    for value, allowed, what in (
+        (env.action_space, ACTION_SPACES, "env.action_space"),
+        (env.physics, BACKENDS, "env.physics"),
+        (rest.logger, LOGGERS, "logger"),
+        (rest.wandb.mode, WANDB_MODES, "wandb.mode"),
+        (env.drone, group_options("env/drone"), "env.drone"),
+    ):
+        if value not in allowed:
+            raise ConfigError(f"unknown {what} {value!r}; allowed: {', '.join(allowed)}")
+    check_device("env.device", env.device)
+    if rest.logger == "wandb":
+        if importlib.util.find_spec("wandb") is None:
+            raise ConfigError("logger=wandb needs the wandb package: pip install 'volleybots[wandb]' (or use logger=csv)")
+    algo_cls.check(typed_algo, TASKS[typed_task.name], env)
+    if rest.opponent is not None:
+        _check_opponent(rest, TASKS[typed_task.name], algo_cls)
+    elif getattr(algo_cls, "needs_seat_on_matches", False) and class_attr(TASKS[typed_task.name], "competitive"):
+        raise ConfigError(
+            f"algo {algo_cls.name!r} on a match learns one team: give it opponent=COMPETITOR (scripted, random, a run dir, ...)"
+        )
+    return rest
+
+
+
+OPPONENT_LEARNERS = ("mappo", "bc")  # learners that can play one team (MAPPO over one drone is PPO; bc clones the team's scripted player)
+
+
+def _check_opponent(cfg, task_cls, algo_cls) -> None:
+    """``opponent=``: a match and a learner that plays one team (whether the competitor it names
+    exists and fits is ``volleybots.policies.check_references``'s: this opens no file)."""
+    from volleybots.algos.base import class_attr
+
+    if not class_attr(task_cls, "competitive"):
+        raise ConfigError(f"opponent={cfg.opponent!r} is for matches (1v1, 3v3, 6v6), not task {task_cls.name!r}")
+    if getattr(algo_cls, "population", False):
+        raise ConfigError(f"algo {algo_cls.name!r} chooses its own opponents; give it algo.seed_members=[...] instead of opponent=")
+    if algo_cls.name not in OPPONENT_LEARNERS:
+        raise ConfigError(f"algo {algo_cls.name!r} cannot learn one team against opponent=; allowed: {', '.join(OPPONENT_LEARNERS)}")
+
+

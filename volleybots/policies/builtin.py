@@ -1,0 +1,153 @@
+"""The built-in players: ``scripted``, ``random`` and ``hierarchical`` (3v3), by name in ``PLAYERS``.
+
+Each acts for whichever agents the tensordict holds (one team of a match, or every drone), so the same
+player serves ``eval scripted``, a cross-play competitor, an ``opponent=`` and a population's seed
+member. Add a player by registering a ``Player`` here; ``tests/test_registries.py`` holds every entry
+to the contract (it builds, acts with actions in the space, and is listed by ``volleybots list``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import torch
+from tensordict import TensorDictBase
+
+from volleybots.errors import ConfigError
+from volleybots.runs import RunDir, read_checkpoint
+
+HIERARCHICAL_TASK = "3v3"
+
+
+def acted(policy, td: TensorDictBase) -> TensorDictBase:
+    """Call ``policy`` on ``td`` and return the tensordict with ``("agents", "action")`` set (scripted
+    players may return the action tensor itself)."""
+    out = policy(td)
+    if isinstance(out, torch.Tensor):
+        td.set(("agents", "action"), out)
+        return td
+    return td if out is None else out
+
+
+def random_policy(env) -> Callable[[TensorDictBase], TensorDictBase]:
+    """Uniform actions for whichever agents the tensordict holds (one team or all)."""
+    acts = env.actions
+
+    def act(td: TensorDictBase) -> TensorDictBase:
+        n, a = td.get("agents").batch_size
+        if acts.continuous:
+            action = torch.rand(n, a, acts.dim, device=td.device) * 2 - 1
+        else:
+            action = torch.randint(0, acts.n, (n, a), device=td.device)
+        td.set(("agents", "action"), action)
+        return td
+
+    return act
+
+
+def scripted_policy(env, action_space: str | None = None) -> Callable[[TensorDictBase], TensorDictBase]:
+    """The task's scripted model-based player (``volleybots.scripted``), as a ``td -> td`` policy."""
+    from volleybots.scripted import make_scripted_policy
+
+    action_space = action_space or env.action_space_name
+    try:
+        pol = make_scripted_policy(env, action_space)
+    except (ValueError, KeyError) as e:
+        raise ConfigError(f"no scripted policy for task {env.name!r} with env.action_space={action_space!r}: {e}") from None
+    return lambda td: acted(pol, td)
+
+
+def learned_drill(name: str, spec, env, deterministic: bool = True):
+    """A trained drill policy (checkpoint file or run dir ``spec``) for the hierarchical team of ``env``,
+    checked against the drill it claims to play."""
+    from volleybots.config import build_env
+    from volleybots.policies.store import load_learner, parse_spec
+
+    s = parse_spec(str(spec), builtins=(), what=f"drill {name!r}")
+    if s.kind not in ("checkpoint", "run"):
+        raise ConfigError(f"drill {name!r}: {str(spec)!r} is not a trained policy; name a checkpoint file or a run directory")
+    path = s.path if s.kind == "checkpoint" else RunDir(s.path).policy_checkpoint(f"drill {name!r}: run {s.target!r}")
+    state = read_checkpoint(path)
+    if "algo" not in state:
+        raise ConfigError(f"drill {name!r}: {str(path)!r} is a built-in player, not a trained drill")
+    drill_env = build_env(name, num_envs=1, action_space=env.action_space_name)
+    for what, theirs, mine in (("task", state.get("task"), name), ("env.action_space", state.get("action_space"), env.action_space_name),
+                               ("observation size", state.get("obs_dim"), drill_env.obs_dim)):
+        if theirs != mine:
+            raise ConfigError(f"drill {name!r}: {str(path)!r} was trained with {what} {theirs!r}, the drill needs {mine!r}")
+    return load_learner(path, drill_env)[0].policy(deterministic=deterministic)
+
+
+def hierarchical_policy(env, drills: dict | None = None) -> Callable[[TensorDictBase], TensorDictBase]:
+    """The hierarchical 3v3 team (``volleybots.scripted.hierarchical``): scripted drills, or the
+    trained checkpoints of ``drills`` (drill name -> checkpoint file or run dir). **Decision:** trained
+    drills act on their mean, also where the competitor is asked for sampled play: a drill is a skill
+    under the high level, whose own randomness is the attack's side (a Pass clone, seed 0, 100
+    episodes: 0.41 success on its mean, 0.24 sampling its Gaussian); the scripted drills are
+    deterministic too."""
+    from volleybots.scripted.hierarchical import DRILLS, make_hierarchical
+
+    drills = dict(drills or {})
+    unknown = set(drills) - set(DRILLS)
+    if unknown:
+        raise ConfigError(f"competitor 'hierarchical': unknown drills {sorted(unknown)}; allowed: {', '.join(DRILLS)}")
+    try:
+        return make_hierarchical(env, {k: learned_drill(k, v, env, True) for k, v in drills.items()})
+    except ValueError as e:
+        raise ConfigError(f"competitor 'hierarchical': {e}") from None
+
+
+def hierarchical_both_sides(env):
+    """The hierarchical team playing both teams of a 3v3 env."""
+    from volleybots.tasks.multi import TeamPolicies
+
+    if env.name != HIERARCHICAL_TASK:
+        raise ConfigError(f"the hierarchical policy plays task {HIERARCHICAL_TASK} only, not {env.name!r}")
+    return TeamPolicies(env, (hierarchical_policy(env), hierarchical_policy(env)))
+
+
+def read_drills_file(path: Path) -> dict:
+    """A hierarchical team's drill checkpoints from a YAML file ``hierarchical: {drill: path}``
+    (relative paths are relative to the file)."""
+    from omegaconf import OmegaConf
+
+    try:
+        data = OmegaConf.to_container(OmegaConf.load(path), resolve=False)
+    except Exception as e:  # noqa: BLE001 - YAML and OmegaConf errors alike: the file is damaged
+        raise ConfigError(f"{str(path)!r} is no hierarchical team file ({' '.join(str(e).split())[:160]})") from None
+    drills = data.get("hierarchical") if isinstance(data, dict) else None
+    if not isinstance(drills, dict) or not all(isinstance(v, str) and v for v in drills.values()):
+        raise ConfigError(f"{str(path)!r} is no hierarchical team: expected a mapping 'hierarchical: {{drill: checkpoint}}'")
+    return {str(k): str((Path(path).parent / v) if not Path(v).is_absolute() else v) for k, v in drills.items()}
+
+
+@dataclass(frozen=True)
+class Player:
+    """A built-in player: ``team(env)`` acts for one team (or every drone); ``both(env)`` plays the
+    whole env (``eval NAME``); ``task`` None fits every task."""
+
+    name: str
+    description: str
+    team: Callable
+    both: Callable
+    task: str | None = None
+
+
+PLAYERS: dict[str, Player] = {
+    p.name: p
+    for p in (
+        Player("scripted", "the task's scripted model-based player (plans on an exact model of the simulator)",
+               lambda env: scripted_policy(env), lambda env: scripted_policy(env)),
+        Player("random", "uniform random actions", random_policy, random_policy),
+        Player("hierarchical", "3v3 only: drills under an event-driven high level (scripted drills, or trained ones from a YAML file)",
+               hierarchical_policy, hierarchical_both_sides, HIERARCHICAL_TASK),
+    )
+}
+BUILTIN = tuple(PLAYERS)
+
+__all__ = [
+    "BUILTIN", "HIERARCHICAL_TASK", "PLAYERS", "Player", "acted", "hierarchical_both_sides", "hierarchical_policy", "learned_drill",
+    "random_policy", "read_drills_file", "scripted_policy",
+]

@@ -1,0 +1,138 @@
+"""The policy store: the one place where a checkpoint becomes a policy, and the one grammar for naming
+what plays.
+
+``load_policy(path, env)`` reads a checkpoint (``weights_only=True``), rebuilds the learner it was
+saved from (a population preset's learner where the run was one) for ``env``'s agents, loads its
+weights and returns its acting function. Loaded networks are kept per file content (sha256), device and
+agent shape, so a cross-play of several runs builds each network once however many pairs and sides it
+plays, and a file changed on disk is read again.
+
+The grammar (``parse_spec``), used by ``eval``, ``replay``, ``eval crossplay``, ``opponent=``,
+``algo.seed_members`` and ``init=``::
+
+    scripted | random | hierarchical     a built-in player (``volleybots.policies.builtin.PLAYERS``)
+    PATH.pt                              a checkpoint file (a run's, or a population member)
+    RUN_DIR                              a run: its population (members and final mixture) if it is a
+                                         population run, else its final (else latest) checkpoint
+    PATH.yaml                            a hierarchical team with trained drills: ``hierarchical: {drill: checkpoint}``
+    NAME=any of the above                the same, labelled NAME
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import torch
+
+from volleybots.errors import ConfigError
+from volleybots.runs import RunDir, load_algo_state, read_checkpoint
+
+KINDS = ("builtin", "checkpoint", "run", "drills")
+# (sha256, device, n_agents, obs_dim, action_space) -> the learner with its weights loaded; shared safely because
+# acting never changes a learner (observation statistics move only in ``update``)
+_CACHE: dict[tuple, object] = {}
+_CACHE_SIZE = 64  # distinct networks kept; a cross-play of many populations still fits in a few hundred MB
+
+
+@dataclass(frozen=True)
+class Spec:
+    """A parsed name of what plays."""
+
+    label: str  # the given label, or "" (the caller derives one)
+    kind: str  # one of KINDS
+    target: str  # the built-in's name or the path as given
+
+    @property
+    def path(self) -> Path:
+        return Path(self.target)
+
+
+def parse_spec(spec: str, builtins=("scripted", "random", "hierarchical"), what: str = "competitor") -> Spec:
+    """Split ``[NAME=]TARGET`` and say what TARGET is; a missing file is one ``ConfigError`` line."""
+    label, eq, target = str(spec).partition("=")
+    if not eq:
+        label, target = "", str(spec)
+    allowed = f"a run dir, a checkpoint file, or one of: {', '.join(builtins)}"
+    if not target.strip():
+        raise ConfigError(f"{what} {spec!r} names no policy; expected {allowed}")
+    if target in builtins:
+        return Spec(label, "builtin", target)
+    path = Path(target)
+    if path.is_file():
+        return Spec(label, "drills" if path.suffix in (".yaml", ".yml") else "checkpoint", target)
+    if path.is_dir():
+        if not RunDir(path).is_run():
+            raise ConfigError(f"{target!r} is not a run directory (no config.yaml) nor a checkpoint file")
+        return Spec(label, "run", target)
+    raise ConfigError(f"{what} {target!r} does not exist; expected {allowed}")
+
+
+def sha256(path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def learner_class(algo_name: str):
+    """The class whose networks a checkpoint of ``algo_name`` holds (a population preset trains MAPPO)."""
+    from volleybots.algos import ALGOS
+
+    cls = ALGOS[algo_name]
+    return getattr(cls, "learner_cls", cls)
+
+
+def saved_config(state: dict, what: str):
+    """A checkpoint's config, validated (files it names are not opened)."""
+    from volleybots.config import validate
+
+    try:
+        return validate(state["config"])
+    except ConfigError as e:
+        raise ConfigError(f"{what}: its saved config is not valid here ({e})") from None
+
+
+def build_learner(state: dict, spec, what: str, cfg=None, side: str = "run"):
+    """The learner of a checkpoint ``state`` built for ``spec`` (an ``AgentSpec``) with its weights;
+    ``cfg`` (default: the saved config) is what the checkpoint is compared with, named ``side``."""
+    saved = saved_config(state, what)
+    # the initial weights are overwritten at once: drawing them must not move the caller's random
+    # stream (a resumed run builds its opponents after restoring that stream)
+    with torch.random.fork_rng(devices=[]):
+        algo = learner_class(saved.algo.name)(saved.algo, spec, seed=saved.seed)
+    load_algo_state(algo, state, what, cfg if cfg is not None else saved, side=side)
+    return algo
+
+
+def load_learner(path, env, n_agents: int | None = None, cfg=None, side: str = "its config"):
+    """The learner saved in checkpoint ``path``, built for ``n_agents`` agents of ``env`` (default: the
+    count it was saved with), from the cache when the same file was loaded for the same shape before."""
+    from volleybots.algos.base import AgentSpec
+
+    path = Path(path)
+    state = read_checkpoint(path)
+    if "algo" not in state:
+        raise ConfigError(f"{str(path)!r} is a built-in player ({state.get('builtin')}), not a trained policy")
+    n = int(n_agents or state.get("n_agents", env.n_drones))
+    spec = AgentSpec.of(env, n)
+    key = (sha256(path), str(spec.device), n, int(spec.obs_dim), env.action_space_name)
+    algo = _CACHE.get(key)
+    if algo is None:
+        algo = build_learner(state, spec, f"checkpoint {str(path)!r}", cfg, side)
+        if len(_CACHE) >= _CACHE_SIZE:
+            _CACHE.pop(next(iter(_CACHE)))
+        _CACHE[key] = algo
+    return algo, state
+
+
+def load_policy(path, env, deterministic: bool = True, n_agents: int | None = None):
+    """A checkpoint's acting function for ``env`` (``td -> td``, writes ``("agents", "action")``)."""
+    algo, _ = load_learner(path, env, n_agents)
+    return algo.policy(deterministic=deterministic)
+
+
+def run_checkpoint(run_path, what: str) -> Path:
+    """The checkpoint that stands for a run's policy: final.pt, else the latest."""
+    return RunDir(run_path).policy_checkpoint(what)
+
+
+__all__ = ["KINDS", "Spec", "build_learner", "learner_class", "load_learner", "load_policy", "parse_spec", "run_checkpoint", "saved_config", "sha256"]

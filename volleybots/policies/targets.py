@@ -1,0 +1,104 @@
+"""Targets: one policy playing a whole env (``eval TARGET``, ``replay TARGET``, ``eval compare``), and the
+pre-flight check of the files a config names.
+
+A target is a run directory (its final or latest checkpoint), a checkpoint file, or a built-in player
+(``scripted``, ``random``, and for 3v3 ``hierarchical`` on both sides); see ``store.parse_spec``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+from volleybots.errors import ConfigError
+from volleybots.policies.builtin import BUILTIN, PLAYERS
+from volleybots.policies.store import load_learner, parse_spec
+from volleybots.runs import RunDir, read_checkpoint
+
+# keys of a checkpoint's config that evaluation may change; the rest fix what the policy was trained on.
+# The episode limit and Solo Bump's start curriculum are in no observation, so a run trained on short
+# episodes or far starts plays the task's own.
+EVAL_KEYS = ("episodes", "deterministic", "seed", "progress", "threads", "env.device", "env.physics", "env.compile", "env.num_envs",
+             "task.episode_len", "task.far_starts")
+
+
+@dataclass
+class Target:
+    label: str  # what plays, for tables and file names
+    cfg: object  # the validated config of the env it plays in
+    checkpoint: Path | None  # the checkpoint file, for trained policies
+    make_policy: Callable  # env -> (td -> td)
+
+
+def policy_checkpoint(spec: str, what: str) -> Path:
+    """The checkpoint a single-policy name stands for: the file, or a run's final (else latest) one."""
+    s = parse_spec(spec, what=what)
+    if s.kind == "checkpoint":
+        return s.path
+    if s.kind == "run":
+        return RunDir(s.path).policy_checkpoint(f"{what} {s.target!r}")
+    raise ConfigError(f"{what} {spec!r} is not a trained policy; expected a run directory or a checkpoint file")
+
+
+def resolve_target(target: str, overrides=()) -> Target:
+    """Turn an eval/replay target and its overrides into a config and a policy factory."""
+    from volleybots.config import apply_overrides, load
+
+    s = parse_spec(target, what="target")
+    if s.label:
+        raise ConfigError(f"target {target!r}: a label (NAME=) is for competitors of a match; name the run or checkpoint alone")
+    if s.kind == "builtin":
+        cfg = load(list(overrides))
+        return Target(s.target, cfg, None, PLAYERS[s.target].both)
+    if s.kind == "drills":
+        raise ConfigError(f"target {target!r} is a hierarchical team file: it plays a match (eval crossplay, replay A B)")
+    ckpt = policy_checkpoint(target, "target")
+    state = read_checkpoint(ckpt)
+    if "algo" not in state:
+        raise ConfigError(f"{str(ckpt)!r} is a built-in player ({state.get('builtin')}): evaluate it by name")
+    cfg = apply_overrides(state["config"], overrides, EVAL_KEYS, f"checkpoint {str(ckpt)!r}")
+
+    def make_policy(env):
+        # built for the agents it learned for (a team's learner acts for every drone alike: its actor is per drone)
+        algo, _ = load_learner(ckpt, env, int(state.get("n_agents", env.n_drones)), cfg, "its config")
+        return algo.policy(deterministic=cfg.deterministic)
+
+    return Target(f"{cfg.algo.name}@{int(state['frames'])}", cfg, Path(ckpt), make_policy)
+
+
+def check_references(cfg) -> None:
+    """Open and check the files a config names, before a run starts (``validate`` opens none):
+    ``opponent=`` and ``algo.seed_members`` must be competitors made for the run's task, action space
+    and observation, ``algo.eval_opponent`` a built-in player of the task, and ``algo.payoff_pool=ray``
+    needs ray installed. ``init=`` is checked by ``volleybots.train.check_init``, which builds the networks."""
+    from volleybots.algos.base import class_attr
+    from volleybots.policies.competitors import resolve_competitor
+    from volleybots.tasks import TASKS
+
+    task_cls = TASKS[cfg.task.name]
+    obs_dim = class_attr(task_cls, "obs_dim_prt") - (4 if cfg.env.action_space == "ctbr" else 0)
+    if cfg.get("opponent") is not None:
+        resolve_competitor(cfg.opponent).check_fits(task_cls.name, cfg.env.action_space, obs_dim)
+    yardstick = cfg.algo.get("eval_opponent")
+    if yardstick is not None:
+        if yardstick not in PLAYERS:
+            raise ConfigError(f"unknown algo.eval_opponent {yardstick!r}; allowed: {', '.join(PLAYERS)}")
+        fits = PLAYERS[yardstick].task
+        if fits is not None and fits != task_cls.name:
+            raise ConfigError(f"algo.eval_opponent={yardstick!r} plays task {fits!r} only, not {task_cls.name!r}; allowed here: "
+                              f"{', '.join(n for n, p in PLAYERS.items() if p.task in (None, task_cls.name))}")
+    pool = cfg.algo.get("payoff_pool")
+    if pool == "ray":
+        import importlib.util
+
+        if importlib.util.find_spec("ray") is None:
+            raise ConfigError("algo.payoff_pool=ray needs the ray package: pip install 'volleybots[cluster]' (or use algo.payoff_pool=serial)")
+    for spec in cfg.algo.get("seed_members") or ():
+        comp = resolve_competitor(str(spec))
+        if len(comp.members) != 1:
+            raise ConfigError(f"algo.seed_members entry {spec!r} is a population; name single policies (its member files)")
+        comp.check_fits(task_cls.name, cfg.env.action_space, obs_dim)
+
+
+__all__ = ["BUILTIN", "EVAL_KEYS", "Target", "check_references", "policy_checkpoint", "resolve_target"]

@@ -1,0 +1,83 @@
+"""Training a learner: ``train`` starts a run, ``resume`` continues one (``volleybots train``).
+
+Modules: ``trainer`` (the run loop every algorithm shares), ``init`` (``init=``: start from another
+run's networks), ``wandb`` (the optional W&B mirror). Population presets (``sp``, ``fsp``, ``psro_*``)
+run the population loop over this trainer: ``volleybots.population.start`` dispatches.
+"""
+
+from __future__ import annotations
+
+from volleybots.config import apply_overrides, check_memory, to_dict
+from volleybots.errors import ConfigError
+from volleybots.play.episodes import collect, finished_stats
+from volleybots.play.seats import AllAgents, SelfPlay, Versus, default_seat
+from volleybots.policies.targets import check_references
+from volleybots.runs import RunDir, check_writable, lock, memory_errors_as, read_checkpoint, unlock
+from volleybots.train.init import apply_init, check_init, init_checkpoint, learner_spec
+from volleybots.train.trainer import EVAL_SEED_OFFSET, RESUME_KEYS, Trainer
+
+
+def train(cfg, run_dir) -> dict:
+    """Start a new run of the validated config ``cfg`` in ``run_dir``, holding its lock while it trains."""
+    check_memory(cfg)
+    check_references(cfg)
+    check_init(cfg)
+    run = RunDir(run_dir)
+    run.create(cfg)
+    try:
+        with memory_errors_as(_counts(cfg)):
+            return Trainer(cfg, run).fit()
+    finally:
+        unlock(run.path)
+
+
+def resume_config(run_dir, overrides=(), keys=RESUME_KEYS):
+    """The saved config of the run in ``run_dir`` with the overrides a resume may make (``keys``)."""
+    base = RunDir(run_dir).load_config()
+    return apply_overrides(to_dict(base), overrides, keys, f"run {str(run_dir)!r} (resume)")
+
+
+def resume(run_dir, overrides=()) -> dict:
+    """Continue the run in ``run_dir`` from its latest checkpoint (``train resume=DIR``); a run killed
+    before its first checkpoint starts afresh, saying so.
+
+    Everything is checked before anything is written (the config and overrides, the checkpoint
+    against the run's task and networks, metrics.csv, memory); the run's lock is then taken, so a
+    second resume of the same run is refused."""
+    if not str(run_dir).strip():
+        raise ConfigError("resume= needs a run directory: resume=RUN_DIR")
+    run = RunDir(run_dir)
+    cfg = resume_config(run_dir, overrides)
+    check_writable(run.path, "the run directory")
+    ckpt = run.latest_checkpoint()
+    stamp = run.checkpoint_stamp()
+    if ckpt is not None:
+        done = int(read_checkpoint(ckpt)["frames"])
+        if done >= cfg.total_frames:
+            raise ConfigError(f"run {str(run_dir)!r} already has {done} frames >= total_frames={cfg.total_frames}; raise total_frames to continue it")
+        run.check_metrics()
+    check_memory(cfg)
+    check_references(cfg)
+    with memory_errors_as(_counts(cfg)):
+        trainer = Trainer(cfg, run, checkpoint=ckpt)  # a checkpoint that does not fit the run fails here
+        lock(run.path)
+        try:
+            if run.checkpoint_stamp() != stamp:
+                raise ConfigError(f"run {str(run_dir)!r} was trained by another process while this one checked it; run the command again")
+            if ckpt is None:
+                run.clear_unfinished()
+            run.write_config(cfg)
+            return trainer.fit()
+        finally:
+            unlock(run.path)
+
+
+def _counts(cfg) -> str:
+    """The config's counts that decide the memory a run takes, for an out-of-memory message."""
+    buffer = f", algo.buffer_size={cfg.algo.buffer_size}" if "buffer_size" in cfg.algo else ""
+    return f"env.num_envs={cfg.env.num_envs}, algo.steps_per_batch={cfg.algo.steps_per_batch}, evaluation.episodes={cfg.evaluation.episodes}{buffer}"
+
+__all__ = [
+    "AllAgents", "EVAL_SEED_OFFSET", "RESUME_KEYS", "SelfPlay", "Trainer", "Versus", "apply_init", "check_init", "collect", "default_seat",
+    "finished_stats", "init_checkpoint", "learner_spec", "resume", "resume_config", "train",
+]
