@@ -72,15 +72,12 @@ def bench(
         from volleybots.bench import format_table, run_bench
     except ImportError:
         raise ConfigError("the benchmark module volleybots.bench is not available in this install") from None
-    from volleybots.config import check_bench_options, parse_value
+    from volleybots.config import check_bench_options
+    from volleybots.config.args import parse_options
 
     allowed = [p for p in inspect.signature(run_bench).parameters if p != "progress"]
     kwargs = {"compile": True} if compile else {}
-    for o in options or []:
-        key, eq, value = o.partition("=")
-        if not eq or key not in allowed:
-            raise ConfigError(f"unknown bench option {key!r}; allowed: {', '.join(allowed)}")
-        kwargs[key] = parse_value(value)
+    kwargs.update(parse_options(options or [], allowed, "bench"))
     kwargs = check_bench_options(kwargs)
     try:
         rows = run_bench(**kwargs, progress=lambda row: typer.echo(f"  measured {row.get('task')} {row.get('kind', 'env')} {row.get('backend')} x{row.get('num_envs')}: {row.get('env_steps_per_s', 0):,.0f}/s", err=True))

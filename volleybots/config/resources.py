@@ -131,8 +131,4 @@ def check_bench_options(options: dict) -> dict:
     return out
 
 
-__all__ = [
-    "Config", "ConfigError", "EnvConfig", "algo_action_space", "apply_overrides", "compose", "parse_value", "group_options", "load", "make_env", "task_kwargs",
-    "task_schema", "to_dict", "validate", "check_values", "check_memory", "check_bench_options", "BenchOptions", "available_memory",
-]
-
+__all__ = ["BenchOptions", "available_memory", "check_bench_options", "check_fits", "check_memory"]

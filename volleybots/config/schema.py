@@ -14,7 +14,7 @@ from typing import Any, Optional
 from omegaconf import MISSING, DictConfig, ListConfig, OmegaConf
 from omegaconf.errors import ConfigKeyError, OmegaConfBaseException, ValidationError
 
-from volleybots.errors import ConfigError, Range, check_device, field_range, ranged
+from volleybots.errors import ConfigError, Range, field_range, ranged
 from volleybots.paths import conf_dir
 
 GROUPS = ("task", "algo", "env")  # config groups selected by `group=option`

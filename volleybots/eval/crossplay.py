@@ -20,7 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from volleybots.config import ConfigError, load, make_env, parse_value, to_dict
+from volleybots.config import load, make_env, to_dict
+from volleybots.config.args import split_args
+from volleybots.errors import ConfigError
 from volleybots.play.games import DEFAULT_BATCH, check_scenario, play_games
 from volleybots.ratings import wilson_interval
 
@@ -131,29 +133,8 @@ def versions() -> dict:
 OPTIONS = {"games": int, "seed": int, "batch": int, "scenario": str, "deterministic": bool}
 
 
-def split_args(args, options: dict) -> tuple[list[str], dict, list[str]]:
-    """A command line's competitor specs, its ``options`` (typed) and its config overrides
-    (``task=``, ``task.KEY=``, ``env.KEY=``). Anything else is a competitor, ``name=PATH`` included."""
-    specs, opts, overrides = [], {}, []
-    for arg in args:
-        key, eq, value = arg.partition("=")
-        if eq and key in options:
-            v = parse_value(value)
-            kind = options[key]
-            if kind is float and isinstance(v, int) and not isinstance(v, bool):
-                v = float(v)
-            if not isinstance(v, kind) or (kind is int and isinstance(v, bool)):
-                raise ConfigError(f"{key}={value!r} must be {'an integer' if kind is int else 'true or false' if kind is bool else 'a ' + kind.__name__}")
-            opts[key] = v
-        elif eq and (key in ("task", "threads") or key.startswith(("task.", "env."))):
-            overrides.append(arg)
-        else:
-            specs.append(arg)
-    return specs, opts, overrides
-
-
 def resolve_all(specs) -> list:
-    """Competitors from their specs (``volleybots.competitors``); labels must differ."""
+    """Competitors from their specs (``volleybots.policies.resolve_competitor``); labels must differ."""
     from volleybots.policies import resolve_competitor
 
     comps = [resolve_competitor(s) for s in specs]

@@ -1,0 +1,54 @@
+"""Command-line arguments of the verbs: ``key=value`` options, config overrides and positional names.
+
+One grammar for every verb (``eval crossplay``, ``elo``, ``exploitability``, ``replay A B``, ``bench``):
+an argument whose key is one of the verb's options is that option, typed by ``parse_value`` (as Hydra
+reads values) and checked against its type; ``task=``, ``task.KEY=``, ``env.KEY=`` and ``threads=`` are
+config overrides; anything else names what plays (``name=PATH`` included).
+"""
+
+from __future__ import annotations
+
+from volleybots.config.compose import parse_value
+from volleybots.errors import ConfigError
+
+OVERRIDE_KEYS = ("task", "threads")  # and every task.KEY / env.KEY
+OVERRIDE_PREFIXES = ("task.", "env.")
+
+
+def typed_option(key: str, value: str, kind: type):
+    """``value`` of option ``key`` read as ``kind`` (an int is a float where a float is asked)."""
+    v = parse_value(value)
+    if kind is float and isinstance(v, int) and not isinstance(v, bool):
+        v = float(v)
+    if not isinstance(v, kind) or (kind is int and isinstance(v, bool)):
+        raise ConfigError(f"{key}={value!r} must be {'an integer' if kind is int else 'true or false' if kind is bool else 'a ' + kind.__name__}")
+    return v
+
+
+def split_args(args, options: dict) -> tuple[list[str], dict, list[str]]:
+    """A command line's names of what plays, its ``options`` (typed: key -> type) and its config
+    overrides. Anything that is neither option nor override is a name, ``name=PATH`` included."""
+    specs, opts, overrides = [], {}, []
+    for arg in args:
+        key, eq, value = arg.partition("=")
+        if eq and key in options:
+            opts[key] = typed_option(key, value, options[key])
+        elif eq and (key in OVERRIDE_KEYS or key.startswith(OVERRIDE_PREFIXES)):
+            overrides.append(arg)
+        else:
+            specs.append(arg)
+    return specs, opts, overrides
+
+
+def parse_options(args, allowed, what: str) -> dict:
+    """Only ``key=value`` options (``bench``): each key one of ``allowed``, values as Hydra reads them."""
+    out = {}
+    for o in args:
+        key, eq, value = o.partition("=")
+        if not eq or key not in allowed:
+            raise ConfigError(f"unknown {what} option {key!r}; allowed: {', '.join(allowed)}")
+        out[key] = parse_value(value)
+    return out
+
+
+__all__ = ["parse_options", "split_args", "typed_option"]
