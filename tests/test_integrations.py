@@ -18,7 +18,12 @@ from gymnasium.vector import AutoresetMode
 from pettingzoo.test import parallel_api_test
 
 import volleybots
-from volleybots.integrations import IDS, VolleyGymEnv, VolleyParallelEnv, VolleyVectorEnv
+from volleybots.integrations import (
+    IDS,
+    VolleyGymEnv,
+    VolleyParallelEnv,
+    VolleyVectorEnv,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 UNBOUNDED = ("minimum value is -infinity", "maximum value is infinity")  # the observations are unbounded, as the env's spec says
@@ -113,7 +118,7 @@ def test_3v3_passes_the_parallel_api_test_with_agents_per_team():
     assert [env.team_of[a] for a in env.possible_agents] == list(env.env.teams)
     assert env.observation_space("team1_drone2").shape == (57,) and env.action_space("team0_drone0").shape == (4,)
     # the same seed gives the batched env's observations, each agent its row
-    obs, infos = env.reset(seed=21)
+    obs, _ = env.reset(seed=21)
     ref = volleybots.make_env("3v3", num_envs=1, seed=21).reset()["agents", "observation"][0].numpy()
     for i, agent in enumerate(env.possible_agents):
         np.testing.assert_array_equal(obs[agent], ref[i])
@@ -126,7 +131,7 @@ def test_parallel_env_episode_end_and_cooperative_names():
     assert env.possible_agents == ["drone_0", "drone_1"] and env.groups == {"agents": ["drone_0", "drone_1"]}
     env.reset(seed=0)
     for _ in range(3):
-        obs, rew, term, trunc, info = env.step({a: 5 for a in env.agents})
+        *_, trunc, info = env.step({a: 5 for a in env.agents})
     assert trunc == {"drone_0": True, "drone_1": True} and env.agents == []
     assert info["drone_0"]["episode"]["episode_len"] == 3.0 and np.isfinite(info["drone_1"]["episode"]["return"])
     with pytest.raises(RuntimeError, match="call reset"):
@@ -136,18 +141,20 @@ def test_parallel_env_episode_end_and_cooperative_names():
 def test_missing_extras_are_named(monkeypatch):
     # the re-imports below rebind volleybots.integrations: put the real one back afterwards
     monkeypatch.setattr(volleybots, "integrations", sys.modules["volleybots.integrations"])
-    for mod in [m for m in sys.modules if m.startswith("volleybots.integrations")]:
-        monkeypatch.delitem(sys.modules, mod)
-    monkeypatch.setitem(sys.modules, "pettingzoo", None)  # None in sys.modules: "import pettingzoo" fails
-    import volleybots.integrations as integrations  # the Gymnasium side needs no pettingzoo
 
+    def fresh_import():
+        for mod in [m for m in sys.modules if m.startswith("volleybots.integrations")]:
+            monkeypatch.delitem(sys.modules, mod)
+        return importlib.import_module("volleybots.integrations")
+
+    monkeypatch.setitem(sys.modules, "pettingzoo", None)  # None in sys.modules: "import pettingzoo" fails
+    integrations = fresh_import()  # the Gymnasium side needs no pettingzoo
+    assert integrations.VolleyVectorEnv.__name__ == "VolleyVectorEnv"
     with pytest.raises(ImportError, match=r"pip install 'volleybots\[pettingzoo\]'"):
         integrations.VolleyParallelEnv  # noqa: B018
-    for mod in [m for m in sys.modules if m.startswith("volleybots.integrations")]:
-        monkeypatch.delitem(sys.modules, mod)
     monkeypatch.setitem(sys.modules, "gymnasium", None)
     with pytest.raises(ImportError, match=r"pip install 'volleybots\[gym\]'"):
-        import volleybots.integrations  # noqa: F401
+        fresh_import()
 
 
 def test_cleanrl_example_trains_on_solo_bump():
