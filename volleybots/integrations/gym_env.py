@@ -68,8 +68,9 @@ class VolleyVectorEnv(VectorEnv):
 
     def __init__(self, task: str = "solo_bump", num_envs: int = 1, action_space: str = "prt", physics: str = "torch",
                  device="cpu", seed: int = 0, render_mode: str | None = None, **task_overrides):
-        if render_mode is not None:
-            raise ValueError(f"render_mode {render_mode!r} is not supported; allowed: None (replays: `volleybots replay`)")
+        # a render_mode is accepted and ignored (tools such as SB3's make_vec_env pass one): nothing
+        # renders here; a replay of the task comes from `volleybots replay`
+        self.render_mode = None
         self.env = _make(task, num_envs, action_space=action_space, physics=physics, device=device, seed=seed, **task_overrides)
         self.task, self.num_envs = task, num_envs
         self.single_observation_space = sp.observation_space(self.env)
@@ -124,8 +125,9 @@ class VolleyGymEnv(gym.Env):
 
     def __init__(self, task: str = "solo_bump", action_space: str = "prt", physics: str = "torch", device="cpu",
                  seed: int = 0, render_mode: str | None = None, **task_overrides):
-        if render_mode is not None:
-            raise ValueError(f"render_mode {render_mode!r} is not supported; allowed: None (replays: `volleybots replay`)")
+        # a render_mode is accepted and ignored (tools such as SB3's make_vec_env pass one): nothing
+        # renders here; a replay of the task comes from `volleybots replay`
+        self.render_mode = None
         self.env = _make(task, 1, action_space=action_space, physics=physics, device=device, seed=seed, **task_overrides)
         self.task = task
         self.observation_space = sp.observation_space(self.env)

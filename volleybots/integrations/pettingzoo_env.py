@@ -57,11 +57,12 @@ class VolleyParallelEnv(ParallelEnv):
 
     def __init__(self, task: str = "3v3", action_space: str = "prt", physics: str = "torch", device="cpu", seed: int = 0,
                  render_mode: str | None = None, **task_overrides):
-        if render_mode is not None:
-            raise ValueError(f"render_mode {render_mode!r} is not supported; allowed: None (replays: `volleybots replay`)")
+        # a render_mode is accepted and ignored (tools such as SB3's make_vec_env pass one): nothing
+        # renders here; a replay of the task comes from `volleybots replay`
+        self.render_mode = None
         self.env = volleybots.make_env(task, num_envs=1, action_space=action_space, physics=physics, device=device, seed=seed,
                                        **task_overrides)
-        self.task, self.render_mode = task, None
+        self.task = task
         teams = tuple(self.env.teams)
         self.possible_agents = agent_names(teams, self.env.competitive)
         self.n_agents = len(self.possible_agents)
