@@ -106,3 +106,26 @@ def test_a_launcher_that_is_not_installed_names_the_extra(monkeypatch, tmp_path,
     err = res.stderr.strip()
     assert err == f"error: hydra/launcher={launcher} needs the {package} plugin: pip install 'volleybots[cluster]'"
     assert not any(tmp_path.iterdir())  # nothing ran, nothing was written
+
+
+class _NoHydraPlugins:
+    """A finder that makes ``hydra_plugins`` (and every plugin under it) unimportable, as on a plain
+    ``pip install -e .``: hydra-core itself ships no ``hydra_plugins`` package."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name == "hydra_plugins" or name.startswith("hydra_plugins."):
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+        return None
+
+
+def test_a_plain_install_without_any_plugin_names_the_extra(monkeypatch, tmp_path):
+    import sys
+
+    for mod in [m for m in sys.modules if m == "hydra_plugins" or m.startswith("hydra_plugins.")]:
+        monkeypatch.delitem(sys.modules, mod)
+    monkeypatch.setattr(sys, "meta_path", [_NoHydraPlugins(), *sys.meta_path])
+    monkeypatch.chdir(tmp_path)
+    res = CliRunner().invoke(app, ["train", "-m", "hydra/launcher=joblib", "seed=0,1"])
+    assert res.exit_code == 2, res.output
+    assert res.stderr.strip() == "error: hydra/launcher=joblib needs the hydra-joblib-launcher plugin: pip install 'volleybots[cluster]'"
+    assert not any(tmp_path.iterdir())

@@ -169,3 +169,25 @@ def test_report_bad_input_exits_2_with_one_line(sweep, tmp_path):
         err = res.stderr.strip()
         assert len(err.splitlines()) == 1 and err.startswith("error: ") and all(w in err for w in words), (args, err)
     assert (tmp_path / "taken" / "report.md").read_text() == "an older report"
+
+
+def test_few_seeds_are_warned_and_each_metric_says_which_way_is_better(sweep):
+    from volleybots.report import format_markdown, higher_is_better
+
+    root, _ = sweep
+    rep = build_report([root])
+    sac, ppo, lone = _cell(rep, "sac"), _cell(rep, "ppo", variant="algo.lr=0.001"), _cell(rep, "ppo", variant="algo.lr=0.01")
+    assert sac["warning"] == ("hover / sac: only 2 seeds; with fewer than 5 the 95% bootstrap interval is about the seeds' "
+                              "[min, max] (exactly it here), not a reliable interval")
+    assert sac["mean_ci"] == [min(sac["values"]), max(sac["values"])]  # what the warning says
+    assert ppo["warning"] is None and lone["warning"] is None  # five seeds: enough; one seed: no interval to warn about
+    assert sac["higher_is_better"] is False  # hover's distance: lower is better
+    assert _cell(rep, "ppo", task="solo_bump")["higher_is_better"] is None  # "hits" is not solo_bump's metric: unknown
+    assert higher_is_better("solo_bump", "bumps") is True and higher_is_better("no_such_task", "x") is None
+    md = format_markdown(rep)
+    assert "## hover: final `distance` across seeds (lower is better)" in md
+    assert "## solo_bump: final `hits` across seeds (direction unknown)" in md
+    warnings = [line for line in md.splitlines() if line.startswith("Warning:")]
+    assert warnings == [f"Warning: {sac['warning']}."]
+    res = runner.invoke(app, ["report", str(root / "sac")])
+    assert res.exit_code == 0 and f"Warning: {sac['warning']}." in res.stdout

@@ -27,7 +27,14 @@ LAUNCHERS = {
 def installed(name: str) -> bool:
     """Whether the plugin that provides launcher ``name`` can be imported here."""
     module = LAUNCHERS[name][0]
-    return module is None or importlib.util.find_spec(module) is not None
+    if module is None:
+        return True
+    try:
+        return importlib.util.find_spec(module) is not None
+    except ModuleNotFoundError:
+        # hydra-core ships no ``hydra_plugins`` package: on an install without any plugin, looking up
+        # a plugin module fails on its missing parent instead of returning None
+        return False
 
 
 def check_launcher(overrides: list[str]) -> None:

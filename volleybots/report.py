@@ -6,7 +6,10 @@ before training began) and groups the runs whose configs differ only in their se
 were run (threads, logging, checkpoints, device). For each group it reports the final evaluation's
 task metric across seeds as rliable recommends (Agarwal et al., "Deep RL at the edge of the
 statistical precipice", 2021): the mean, the interquartile mean (the mean of the middle 50 %, robust
-to one odd seed) and 95 % percentile-bootstrap intervals of both.
+to one odd seed) and 95 % percentile-bootstrap intervals of both. With fewer than ``FEW_SEEDS`` seeds
+a percentile bootstrap can only reach the seeds' own extremes (with 2 or 3 seeds the interval of the
+mean is exactly [min, max]), so such a cell carries a warning saying so, with its seed count; every
+table says whether its metric improves upwards or downwards (the task's ``metric_higher_is_better``).
 
 The statistics are scipy's (``scipy.stats.trim_mean``, ``scipy.stats.bootstrap``), computed exactly as
 rliable computes them for one task; rliable itself pins ``arch<8``, whose releases for Python 3.11 do
@@ -35,6 +38,7 @@ from volleybots.runs import RunDir, read_metrics
 CONFIDENCE = 0.95
 RESAMPLES = 10_000  # bootstrap resamples (seeds are few: this costs milliseconds)
 BOOTSTRAP_SEED = 0  # the intervals of the same runs are the same every time
+FEW_SEEDS = 5  # below this many seeds a bootstrap interval is about the seeds' [min, max]: warned
 STALE_AFTER_S = 1800.0  # a run without summary.json untouched this long is counted as failed
 
 # config keys that say how a run was executed, not what it trained: runs differing only here are seeds
@@ -221,13 +225,34 @@ def interval(values: np.ndarray, statistic) -> tuple[float, float] | None:
     return res.confidence_interval.low, res.confidence_interval.high
 
 
+def higher_is_better(task: str, metric: str) -> bool | None:
+    """Whether ``task``'s ``metric`` improves upwards (the task's own ``metric_higher_is_better``);
+    None for a task or metric this version does not know (a run of an older or newer volleybots)."""
+    from volleybots.tasks import TASKS
+
+    cls = TASKS.get(task)
+    return cls.metric_higher_is_better if cls is not None and cls.metric == metric else None
+
+
+def few_seeds_warning(cell: dict) -> str | None:
+    """The warning of a cell whose intervals rest on too few seeds to mean much (None: enough, or one
+    seed, which has no interval at all)."""
+    n = len(cell["seeds"])
+    if not 2 <= n < FEW_SEEDS:
+        return None
+    label = cell["algo"] + (f" ({cell['variant']})" if cell["variant"] else "")
+    return (f"{cell['task']} / {label}: only {n} seeds; with fewer than {FEW_SEEDS} the {CONFIDENCE:.0%} bootstrap interval "
+            f"is about the seeds' [min, max] ({'exactly' if n <= 3 else 'close to'} it here), not a reliable interval")
+
+
 def cell_stats(cell: dict) -> dict:
     runs = cell["runs"]
     x = np.array([r.final() for r in runs])
     mean_ci, iqm_ci = interval(x, np.mean), interval(x, iqm)
-    return {
+    metric = runs[0].summary["metric"]
+    row = {
         "task": cell["task"], "algo": cell["algo"], "variant": cell["variant"],
-        "metric": runs[0].summary["metric"],
+        "metric": metric, "higher_is_better": higher_is_better(cell["task"], metric),
         "total_frames": runs[0].config.get("total_frames"),
         "seeds": [r.config["seed"] for r in runs],
         "values": x.tolist(),
@@ -235,6 +260,8 @@ def cell_stats(cell: dict) -> dict:
         "iqm": float(iqm(x)), "iqm_ci": None if iqm_ci is None else [float(v) for v in iqm_ci],
         "runs": [str(r.path) for r in runs],
     }
+    row["warning"] = few_seeds_warning(row)
+    return row
 
 
 def curve_band(runs: list[Run]) -> dict:
@@ -283,6 +310,10 @@ def _frames(n: int) -> str:
     return f"{n / 1e6:g}M" if n >= 1e6 and n % 100_000 == 0 else f"{n:,}"
 
 
+def _direction(higher: bool | None) -> str:
+    return "direction unknown" if higher is None else "higher is better" if higher else "lower is better"
+
+
 def _ci(ci) -> str:
     return "n/a (1 seed)" if ci is None else f"[{_fmt(ci[0])}, {_fmt(ci[1])}]"
 
@@ -292,13 +323,15 @@ def format_markdown(report: dict) -> str:
     lines = ["# Sweep report", ""]
     for task in dict.fromkeys(c["task"] for c in report["cells"]):
         cells = [c for c in report["cells"] if c["task"] == task]
-        lines += [f"## {task}: final `{cells[0]['metric']}` across seeds", "",
+        lines += [f"## {task}: final `{cells[0]['metric']}` across seeds ({_direction(cells[0]['higher_is_better'])})", "",
                   "| algorithm | variant | frames | seeds | mean | 95% CI | IQM | 95% CI |", "|---|---|---|---|---|---|---|---|"]
         for c in cells:
             seeds = ",".join(map(str, c["seeds"]))
             lines.append(f"| {c['algo']} | {c['variant'] or '-'} | {_frames(c['total_frames'])} | {seeds} | {_fmt(c['mean'])} | "
                          f"{_ci(c['mean_ci'])} | {_fmt(c['iqm'])} | {_ci(c['iqm_ci'])} |")
         lines.append("")
+        lines += [f"Warning: {c['warning']}." for c in cells if c["warning"]]
+        lines += [""] if any(c["warning"] for c in cells) else []
     if not report["cells"]:
         lines += ["No complete run: nothing to aggregate yet.", ""]
     stats = report["statistics"]

@@ -1,0 +1,36 @@
+"""The tasks as Gymnasium and PettingZoo environments, for trainers written against those APIs.
+
+- ``VolleyVectorEnv`` / ``VolleyGymEnv``: the single-drone tasks as a Gymnasium vector env (the
+  batched env, numpy in and out) and as one ``gymnasium.Env``; importing this package registers
+  ``volleybots/<Task>-v0`` (``gymnasium.make("volleybots/SoloBump-v0")``, ``gymnasium.make_vec(...)``).
+- ``VolleyParallelEnv``: any task, the multi-drone ones above all, as a PettingZoo ``ParallelEnv``
+  with agents named per team and a ``groups`` map (one group per team).
+
+Both are views of the TorchRL env (``volleybots.make_env``): nothing of a task is written again here.
+They need optional extras, so that the core install stays as it is: ``pip install 'volleybots[gym]'``
+(gymnasium) and ``pip install 'volleybots[pettingzoo]'`` (pettingzoo and gymnasium).
+"""
+
+from __future__ import annotations
+
+try:
+    import gymnasium  # noqa: F401
+except ImportError:  # the message names the extra: a bare "No module named gymnasium" does not
+    raise ImportError("volleybots.integrations needs gymnasium: pip install 'volleybots[gym]' "
+                      "(or 'volleybots[pettingzoo]' for the PettingZoo env)") from None
+
+from volleybots.integrations.gym_env import IDS, VolleyGymEnv, VolleyVectorEnv, register
+
+register()
+
+
+def __getattr__(name: str):
+    # PettingZoo is imported on first use, so that the gym extra alone is enough for the Gymnasium envs
+    if name in ("VolleyParallelEnv", "parallel_env"):
+        from volleybots.integrations import pettingzoo_env
+
+        return getattr(pettingzoo_env, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+__all__ = ["IDS", "VolleyGymEnv", "VolleyParallelEnv", "VolleyVectorEnv", "parallel_env", "register"]
