@@ -216,3 +216,17 @@ def test_wilson_interval_refuses_what_is_not_a_count(wins, games, words):
 def test_elo_refuses_a_step_that_is_not_finite_and_positive(k):
     with pytest.raises(ValueError, match=f"k={k}"):
         elo([(0, 1, 1.0)], 2, k=k)
+
+
+def test_draws_narrow_the_interval_to_the_variance_of_a_score():
+    # 25 wins, 50 draws, 25 losses: a game's score (1, 1/2, 0) has variance 1/4 - 1/8 = 1/8, half the
+    # 1/4 of a win-or-loss game, so the gap's 95 % half-width is 1.96 sqrt(1/8 / 100) / (1/4) logits
+    from volleybots.ratings.bradley_terry import draw_dispersion
+
+    half = 1.959964 * math.sqrt(0.125 / 100) / 0.25 * ELO_SCALE
+    r, lo, hi = bradley_terry_intervals(record(25, 50, 25))
+    assert draw_dispersion(record(25, 50, 25), np.zeros(2)) == pytest.approx(0.5)
+    assert hi[0] - lo[0] == pytest.approx(half, rel=0.05)  # a competitor's rating moves by half the gap
+    r, lo, hi = bradley_terry_intervals(record(50, 0, 50))  # no draws: the binomial width, sqrt(2) wider
+    assert draw_dispersion(record(50, 0, 50), np.zeros(2)) == 1.0
+    assert hi[0] - lo[0] == pytest.approx(math.sqrt(2) * half, rel=0.05)

@@ -98,10 +98,30 @@ def bradley_terry(wdl, prior_sd: float = PRIOR_SD, firth: bool = True) -> np.nda
     return 1000.0 + ELO_SCALE * (s - s.mean())
 
 
+def draw_dispersion(wdl, s) -> float:
+    """The variance of a game's score (1, 1/2, 0) over the binomial variance the half-win likelihood
+    assumes, pooled over all games at strengths ``s``: a game of half-win probability p with draw
+    probability d has variance p q - d / 4, not p q, so the likelihood understates what draws tell
+    and its intervals would be too wide. 1 without draws; floored at 0.1 so that a record of nearly
+    all draws cannot shrink an interval to a point (the quasi-likelihood dispersion of McCullagh and
+    Nelder, estimated from the draws alone: estimating it from the wins as well would make it near 0
+    on an unbeaten record)."""
+    wdl = np.asarray(wdl, float)
+    iu = np.triu_indices(wdl.shape[0], 1)
+    x = (s[:, None] - s[None, :])[iu]
+    pq = np.exp(log_expit(x) + log_expit(-x))
+    binomial = float(np.sum(wdl[iu].sum(-1) * pq))
+    draws = float(np.sum(wdl[iu][:, 1]))
+    if draws == 0 or binomial <= 0:
+        return 1.0
+    return float(np.clip(1.0 - draws / 4.0 / binomial, 0.1, 1.0))
+
+
 def bradley_terry_intervals(wdl, confidence: float = 0.95, prior_sd: float = PRIOR_SD):
     """(ratings [n], low [n], high [n]) on the Elo scale: the Firth-penalised fit and, for every
     competitor, the penalised profile-likelihood interval of its rating (its strength minus the
-    mean strength), at ``confidence``."""
+    mean strength), at ``confidence``. With draws the allowed drop of the log-likelihood is scaled by
+    ``draw_dispersion`` (draws make a game's score less variable than a win or a loss)."""
     if not 0.0 < confidence < 1.0:
         raise ValueError(f"confidence={confidence} must be in (0, 1)")
     wins = _check(wdl)
@@ -111,7 +131,7 @@ def bradley_terry_intervals(wdl, confidence: float = 0.95, prior_sd: float = PRI
     theta = s_hat - s_hat.mean()
     lo, hi = theta.copy(), theta.copy()
     if n > 1:
-        limit = chi2.ppf(confidence, 1) / 2.0
+        limit = chi2.ppf(confidence, 1) / 2.0 * draw_dispersion(wdl, s_hat)
         for i in range(n):
             rest = np.arange(n) != i
             warm = [s_hat[rest]]
