@@ -9,7 +9,6 @@ from itertools import combinations
 import numpy as np
 import pytest
 
-from volleybots.ratings.bradley_terry import ELO_SCALE
 from volleybots.ratings import (
     bradley_terry,
     bradley_terry_intervals,
@@ -19,6 +18,7 @@ from volleybots.ratings import (
     sample_round_robin,
     wilson_interval,
 )
+from volleybots.ratings.bradley_terry import ELO_SCALE
 
 TRUE = np.array([1000.0, 1200.0, 1400.0, 1600.0])  # Elo-scale strengths: 200 points apart
 
@@ -224,9 +224,9 @@ def test_draws_narrow_the_interval_to_the_variance_of_a_score():
     from volleybots.ratings.bradley_terry import draw_dispersion
 
     half = 1.959964 * math.sqrt(0.125 / 100) / 0.25 * ELO_SCALE
-    r, lo, hi = bradley_terry_intervals(record(25, 50, 25))
+    _, lo, hi = bradley_terry_intervals(record(25, 50, 25))
     assert draw_dispersion(record(25, 50, 25), np.zeros(2)) == pytest.approx(0.5)
     assert hi[0] - lo[0] == pytest.approx(half, rel=0.05)  # a competitor's rating moves by half the gap
-    r, lo, hi = bradley_terry_intervals(record(50, 0, 50))  # no draws: the binomial width, sqrt(2) wider
+    _, lo, hi = bradley_terry_intervals(record(50, 0, 50))  # no draws: the binomial width, sqrt(2) wider
     assert draw_dispersion(record(50, 0, 50), np.zeros(2)) == 1.0
     assert hi[0] - lo[0] == pytest.approx(math.sqrt(2) * half, rel=0.05)

@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
+from volleybots.errors import ConfigError, Range
 from volleybots.eval.crossplay import CrossPlay, _nan_to_none
 from volleybots.population.solvers import exploitability, member_exploitability, nash
-from volleybots.errors import ConfigError, Range
 from volleybots.ratings import ELO_K, ELO_START, bradley_terry_intervals, elo_history, round_robin, sample_round_robin
 
 SCORE = {"W": 1.0, "D": 0.5, "L": 0.0}
