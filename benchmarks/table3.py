@@ -1,5 +1,5 @@
 """Paper table 3's layout for 1 vs 1: for each competitor its average win rate, Elo and Bradley-Terry
-rating (with its 95 % bootstrap interval), its Nash weight in the cross-play meta-game and its
+rating (with its 95 % profile-likelihood interval), its Nash weight in the cross-play meta-game and its
 exploitability within that population, plus the heatmap and the ratings plot.
 
     python benchmarks/table3.py scripted random                                    # what exists without training
@@ -34,7 +34,6 @@ def main(argv=None) -> int:
     p.add_argument("--k", type=float, default=168.0, help="Elo K")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--batch", type=int, default=256, help="worlds per batch of games")
-    p.add_argument("--bootstrap", type=int, default=1000)
     p.add_argument("--out", type=Path, default=ROOT / "docs")
     p.add_argument("--br-budget", type=int, default=0, help="frames of best-response training per competitor (0: no BR column)")
     p.add_argument("--br-games", type=int, default=400, help="games of each best response against its target")
@@ -50,7 +49,7 @@ def main(argv=None) -> int:
     res = crossplay(cfg, comps, a.games, seed=a.seed, batch=a.batch, specs=specs,
                     progress=lambda i, j, g: print(f"  {comps[i].label} vs {comps[j].label}: W/D/L {g.total.tolist()}", flush=True))
     wall = time.time() - t0
-    rep = ratings(res, a.rounds, a.k, a.seed, sample=True, bootstrap=a.bootstrap)
+    rep = ratings(res, a.rounds, a.k, a.seed, sample=True)
     rep["exploitability_br"] = [best_response(spec, a) for spec in specs] if a.br_budget else [None] * len(specs)
     a.out.mkdir(parents=True, exist_ok=True)
     heatmap(res, a.out / "table3_crossplay.png")
@@ -77,7 +76,7 @@ def table(rep: dict, res, a, wall: float) -> str:
     bt, elo = rep["bradley_terry"], rep["elo"]
     lines = [
         f"Task {a.task}: {a.games} games per pair (both sides equally), cross-play seed {a.seed}; Elo K={a.k:g} over "
-        f"{a.rounds} rounds sampled from the counts; BT with {a.bootstrap} bootstrap resamples; {wall:.0f} s of games; "
+        f"{a.rounds} rounds sampled from the counts; BT with 95 % profile-likelihood intervals; {wall:.0f} s of games; "
         + (f"best responses: {a.br_budget:,} frames, {a.br_games} games each." if a.br_budget else "no best responses."),
         "",
         "| competitor | exploitability (BR) | exploitability in population (pp) | avg win rate | Elo | Bradley-Terry [95 %] | Nash weight |",

@@ -51,3 +51,75 @@ def test_the_verdict_is_about_the_mean_not_the_typical_episode():
     c = paired(base, other)
     assert c.diff == pytest.approx(-0.4) and c.low < 0 < c.high and c.verdict == "level"
     assert c.rank_biserial > 0.5 and c.p < 1e-6  # yet the typical episode is better
+
+
+def test_a_nan_episode_is_refused_not_counted_as_level():
+    from volleybots.errors import ConfigError
+
+    base = np.arange(6.0)
+    other = base + 1.0
+    other[3] = np.nan  # a nan difference is neither > 0, < 0 nor == 0: it used to vanish from W/T/L
+    with pytest.raises(ConfigError, match=r"other's metric is not a finite number in 1 of 6 episodes \(episode 3\)"):
+        paired(base, other)
+    base[[0, 5]] = np.inf
+    with pytest.raises(ConfigError, match=r"baseline's .* 2 of 6 episodes \(episode 0, 5\)"):
+        paired(base, base + 1.0)
+
+
+def test_one_episode_is_refused():
+    from volleybots.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="length >= 2"):
+        paired(np.array([1.0]), np.array([2.0]))
+
+
+# ------------------------------------------------------------------ the command line
+class _Env:
+    metric, metric_higher_is_better = "distance", False
+
+
+def _fake_play(metrics: dict):
+    """A stand-in for compare's ``_play``: per target label, its per-episode metric (same first observation)."""
+    import torch
+
+    def play(target, episodes):
+        return _Env(), {"distance": torch.tensor(metrics[target.label], dtype=torch.float64)}, torch.zeros(4, 1, 3)
+
+    return play
+
+
+def _cli(args):
+    from typer.testing import CliRunner
+
+    from volleybots.cli import app
+
+    return CliRunner().invoke(app, ["eval", "compare", *args, "task=hover", "--json"])
+
+
+def test_cli_refuses_a_nan_episode_with_one_line(monkeypatch):
+    import volleybots.eval.compare as compare_mod
+
+    monkeypatch.setattr(compare_mod, "_play", _fake_play({"random": [3.0, 2.0, 4.0, 1.0], "scripted": [1.0, float("nan"), 2.0, 0.5]}))
+    res = _cli(["random", "scripted", "episodes=4"])
+    assert res.exit_code == 2, res.output
+    err = res.stderr.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in res.output
+    assert "'scripted'" in err and "distance" in err and "episode 1" in err
+    # without the nan the same fake comparison goes through: the refusal is the nan's
+    monkeypatch.setattr(compare_mod, "_play", _fake_play({"random": [3.0, 2.0, 4.0, 1.0], "scripted": [2.0, 1.0, 3.0, 0.0]}))
+    res = _cli(["random", "scripted", "episodes=4"])
+    assert res.exit_code == 0, res.output
+    assert '"verdict": "better"' in res.stdout
+
+
+def test_cli_refuses_one_episode_before_playing(monkeypatch):
+    import volleybots.eval.compare as compare_mod
+
+    def never(*a, **k):
+        raise AssertionError("an episode was played")
+
+    monkeypatch.setattr(compare_mod, "_play", never)
+    res = _cli(["random", "scripted", "episodes=1"])
+    assert res.exit_code == 2, res.output
+    err = res.stderr.strip()
+    assert len(err.splitlines()) == 1 and "episodes=1" in err and "episodes >= 2" in err

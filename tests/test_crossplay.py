@@ -110,7 +110,7 @@ def test_crossplay_cli_writes_results_with_every_file_hash(tiny_ckpt, tmp_path):
 
 def test_elo_cli_played_and_from_a_results_file(tmp_path):
     out = tmp_path / "elo"
-    res = runner.invoke(app, ["eval", "elo", "scripted", "random", "task=1v1", "rounds=40", "batch=20", "k=32", "bootstrap=100", "--out", str(out), "--json"])
+    res = runner.invoke(app, ["eval", "elo", "scripted", "random", "task=1v1", "rounds=40", "batch=20", "k=32", "--out", str(out), "--json"])
     assert res.exit_code == 0, res.output
     rep = json.loads(res.stdout)
     assert rep["elo"]["games"] == "played" and rep["elo"]["k"] == 32
@@ -122,7 +122,7 @@ def test_elo_cli_played_and_from_a_results_file(tmp_path):
     for f in ("crossplay.json", "crossplay.png", "ratings.json", "ratings.png"):
         assert (out / f).is_file(), f
     # Elo sampled from the file's frequencies: same order, BT identical (same counts)
-    res = runner.invoke(app, ["eval", "elo", f"from={out / 'crossplay.json'}", "rounds=200", "k=16", "bootstrap=100", "--out", str(tmp_path / "again"), "--json"])
+    res = runner.invoke(app, ["eval", "elo", f"from={out / 'crossplay.json'}", "rounds=200", "k=16", "--out", str(tmp_path / "again"), "--json"])
     assert res.exit_code == 0, res.output
     rep2 = json.loads(res.stdout)
     assert rep2["elo"]["games"] == "sampled" and rep2["elo"]["rounds"] == 200

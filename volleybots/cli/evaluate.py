@@ -128,11 +128,11 @@ def exploitability_cmd(
 @eval_app.command("elo", context_settings=_PASS_THROUGH)
 @_user_errors
 def elo_cmd(
-    args: Optional[List[str]] = typer.Argument(None, help=f"{_COMPETITORS}, or from=CROSSPLAY_JSON; then rounds=2000 k=168 bootstrap=1000 seed=0 and cross-play's options."),
+    args: Optional[List[str]] = typer.Argument(None, help=f"{_COMPETITORS}, or from=CROSSPLAY_JSON; then rounds=2000 k=168 seed=0 and cross-play's options."),
     as_json: bool = typer.Option(False, "--json", help="Print the ratings JSON instead of the table."),
     out: Optional[Path] = typer.Option(None, "--out", help="Folder for ratings.json, ratings.png (and the games played); new or empty."),
 ) -> None:
-    """Elo over rounds in which every pair meets once (the paper's), Bradley-Terry with bootstrap intervals, the Nash mixture."""
+    """Elo over rounds in which every pair meets once (the paper's), Bradley-Terry with profile-likelihood intervals, the Nash mixture."""
     from volleybots.eval.ranking import format_table, run_elo
 
     report, path = run_elo(list(args or []), out, progress=None if as_json else _pair_progress)

@@ -53,10 +53,16 @@ class Paired:
 
 
 def paired(base, other, higher_is_better: bool = True) -> Paired:
-    """Compare per-episode metrics ``other`` with ``base`` (same length, same episodes)."""
+    """Compare per-episode metrics ``other`` with ``base`` (same length, same episodes).
+
+    Every metric must be finite: a nan difference is neither > 0 nor < 0 nor 0, so it would be
+    counted as none of better, level and worse while turning the mean and its interval into nan;
+    an episode whose metric is not a number is refused (``ConfigError``) rather than compared."""
     base, other = np.asarray(base, dtype=np.float64), np.asarray(other, dtype=np.float64)
     if base.shape != other.shape or base.ndim != 1 or base.size < 2:
-        raise ValueError(f"paired metrics need two vectors of the same length >= 2, got {base.shape} and {other.shape}")
+        raise ConfigError(f"paired metrics need two vectors of the same length >= 2, got {base.shape} and {other.shape}")
+    for which, m in (("baseline", base), ("other", other)):
+        check_finite(m, which)
     d = (other - base) * (1.0 if higher_is_better else -1.0)
     n = d.size
     mean, se = float(d.mean()), float(d.std(ddof=1) / math.sqrt(n))
@@ -70,6 +76,15 @@ def paired(base, other, higher_is_better: bool = True) -> Paired:
     else:
         r, p = 0.0, 1.0
     return Paired(mean, se, mean - half, mean + half, int((d > 0).sum()), int((d == 0).sum()), int((d < 0).sum()), r, p)
+
+
+def check_finite(metric: np.ndarray, who: str, name: str = "metric") -> None:
+    """Refuse per-episode values that are nan or infinite, naming the episodes."""
+    bad = np.flatnonzero(~np.isfinite(metric))
+    if bad.size:
+        shown = ", ".join(map(str, bad[:5].tolist())) + (f" and {bad.size - 5} more" if bad.size > 5 else "")
+        raise ConfigError(f"{who}'s {name} is not a finite number in {bad.size} of {metric.size} episodes (episode {shown}); "
+                          "a nan episode cannot be paired, so nothing is compared")
 
 
 def split(args) -> tuple[list[str], list[str]]:
@@ -113,10 +128,16 @@ def compare(args, episodes: int | None = None) -> dict:
     tasks = {t.cfg.task.name for t in targets}
     if len(tasks) > 1:
         raise ConfigError(f"eval compare plays one task, but the targets are of {sorted(tasks)}: " + ", ".join(f"{n} ({t.cfg.task.name})" for n, t in zip(names, targets)))
+    for name, t in zip(names, targets):
+        n = int(episodes or t.cfg.episodes)
+        if n < 2:
+            # before any episode is played: the t-interval of the mean difference needs two of them
+            raise ConfigError(f"episodes={n} for {name!r}: eval compare needs episodes >= 2 (the 95 % interval of a paired difference needs two episodes)")
     rows, base, base_obs = [], None, None
     for name, t in zip(names, targets):
         env, res, obs = _play(t, episodes)
         metric = res[env.metric].double().cpu().numpy()
+        check_finite(metric, repr(name), env.metric)
         if base is None:
             base, base_obs = metric, obs
         elif obs.shape != base_obs.shape or not torch.equal(obs, base_obs):

@@ -1,11 +1,19 @@
-"""Ratings of a cross-play result: the paper's Elo, Bradley-Terry with bootstrap intervals, and the
+"""Ratings of a cross-play result: the paper's Elo, Bradley-Terry with profile-likelihood intervals, and the
 Nash mixture of the meta-game with each competitor's exploitability within the population
 (spec: evaluation.md, "Ratings"). The arithmetic lives in ``volleybots.ratings`` and
 ``volleybots.population.solvers``; this module applies it to a ``CrossPlay`` and draws the plot.
 
 Elo's games: when the cross-play played at least ``rounds`` games per pair, round r is every pair's
-r-th played game (in a seeded random order of the pairs); otherwise (or with ``sample=True``) each
-round's results are drawn from the pairs' win/draw/loss frequencies, as the paper sampled them.
+r-th game after a seeded shuffle of that pair's games (and the pairs of a round come in a seeded
+random order); otherwise (or with ``sample=True``) each round's results are drawn from the pairs'
+win/draw/loss frequencies, as the paper sampled them.
+
+Why the shuffle: a cross-play plays each pair in batches, half its games with one competitor on team
+0 and then half on team 1, and records them in that order. Sequential Elo weighs the latest games
+most (with K = 168 a rating forgets within a few dozen games), so in play order the last side's batch
+would decide the rating, and a side advantage would pass for a difference in strength. The games of
+a pair are put in a canonical order and then permuted by the seeded generator, so the games used
+depend on the pair's results and the seed only, never on the order in which they were played.
 """
 
 from __future__ import annotations
@@ -15,23 +23,26 @@ from pathlib import Path
 
 import numpy as np
 
+from volleybots.errors import ConfigError, Range
 from volleybots.eval.crossplay import CrossPlay, _nan_to_none
 from volleybots.population.solvers import exploitability, member_exploitability, nash
-from volleybots.ratings import ELO_K, ELO_START, bradley_terry_bootstrap, elo_history, round_robin, sample_round_robin
+from volleybots.ratings import ELO_K, ELO_START, bradley_terry_intervals, elo_history, round_robin, sample_round_robin
 
 SCORE = {"W": 1.0, "D": 0.5, "L": 0.0}
-BOOTSTRAP = 1000  # bootstrap resamples of Bradley-Terry
+K_RANGE = Range(low=0.0, low_open=True)  # Elo's K: a finite step > 0 (nan or inf would make every rating nan)
 
 
 def elo_games(result: CrossPlay, rounds: int, rng: np.random.Generator, sample: bool = False) -> tuple[np.ndarray, str]:
     """The round-robin games [rounds x pairs, 3] for Elo and how they were obtained ("played" or "sampled")."""
     played = min((len(s) for s in result.outcomes.values()), default=0)
     if not sample and played >= rounds and len(result.outcomes) == result.n * (result.n - 1) // 2:
-        return round_robin(result.n, rounds, lambda a, b, r: SCORE[result.outcomes[f"{a},{b}"][r]], rng), "played"
+        # sorted first, so that the shuffled games depend on the results and the seed, not the play order
+        shuffled = {key: rng.permutation(sorted(seq)) for key, seq in sorted(result.outcomes.items())}
+        return round_robin(result.n, rounds, lambda a, b, r: SCORE[shuffled[f"{a},{b}"][r]], rng), "played"
     return sample_round_robin(result.wdl, rounds, rng), "sampled"
 
 
-def ratings(result: CrossPlay, rounds: int = 2000, k: float = ELO_K, seed: int = 0, sample: bool = False, bootstrap: int = BOOTSTRAP) -> dict:
+def ratings(result: CrossPlay, rounds: int = 2000, k: float = ELO_K, seed: int = 0, sample: bool = False) -> dict:
     """Elo (and its trajectory, one point per round), BT with 95 % intervals, the Nash mixture and
     the exploitabilities, as a JSON-ready dict."""
     rng = np.random.default_rng(seed)
@@ -39,14 +50,15 @@ def ratings(result: CrossPlay, rounds: int = 2000, k: float = ELO_K, seed: int =
     pairs = result.n * (result.n - 1) // 2
     history = elo_history(games, result.n, k)
     points = _trajectory_rounds(rounds)
-    bt, lo, hi = bradley_terry_bootstrap(result.wdl, samples=bootstrap, rng=rng)
+    bt, lo, hi = bradley_terry_intervals(result.wdl)
     pay = result.payoffs()
     mix = nash(pay)
     return {
         "labels": result.labels,
         "elo": {"k": k, "start": ELO_START, "rounds": rounds, "games": how, "seed": seed, "ratings": history[-1].tolist(),
                 "trajectory_rounds": [r + 1 for r in points], "trajectory": history[[(r + 1) * pairs for r in points]].tolist()},
-        "bradley_terry": {"ratings": bt.tolist(), "low": lo.tolist(), "high": hi.tolist(), "bootstrap": bootstrap, "draws": "half a win"},
+        "bradley_terry": {"ratings": bt.tolist(), "low": lo.tolist(), "high": hi.tolist(),
+                           "interval": "95 % Firth-penalised profile likelihood", "draws": "half a win"},
         "average_win_rate": _nan_to_none(result.average_win_rate()),
         "payoffs": pay.tolist(),
         "nash": mix.tolist(),
@@ -80,7 +92,7 @@ def plot(report: dict, path: Path) -> None:
     left.legend(fontsize=8)
     x = np.arange(len(labels))
     r, lo, hi = (np.asarray(bt[k]) for k in ("ratings", "low", "high"))
-    right.errorbar(x + 0.1, r, yerr=[r - lo, hi - r], fmt="o", capsize=4, label="Bradley-Terry (95 % bootstrap)")
+    right.errorbar(x + 0.1, r, yerr=[r - lo, hi - r], fmt="o", capsize=4, label="Bradley-Terry (95 % profile likelihood)")
     right.plot(x - 0.1, e["ratings"], "s", label="Elo (final)")
     right.set_xticks(x, labels, rotation=30, ha="right")
     cp = report["crossplay"]
@@ -95,7 +107,7 @@ def format_table(report: dict):
     from rich.table import Table
 
     e, bt = report["elo"], report["bradley_terry"]
-    table = Table(title=f"ratings on {report['crossplay']['task']}: Elo K={e['k']:g} over {e['rounds']} rounds ({e['games']} games); BT with 95 % bootstrap intervals")
+    table = Table(title=f"ratings on {report['crossplay']['task']}: Elo K={e['k']:g} over {e['rounds']} rounds ({e['games']} games); BT with 95 % profile-likelihood intervals")
     for col in ("competitor", "Elo", "Bradley-Terry [95 %]", "avg win rate", "Nash weight", "exploitability in population (pp)"):
         table.add_column(col, justify="left" if col == "competitor" else "right")
     for i, lab in enumerate(report["labels"]):
@@ -113,7 +125,7 @@ def format_table(report: dict):
 
 # ------------------------------------------------------------------ command line
 # options of `volleybots eval elo` besides cross-play's (rounds replaces games)
-ELO_OPTIONS = {"rounds": int, "k": float, "bootstrap": int, "sample": bool, "from": str}
+ELO_OPTIONS = {"rounds": int, "k": float, "sample": bool, "from": str}
 REPORT = "ratings.json"
 PLOT = "ratings.png"
 
@@ -121,16 +133,18 @@ PLOT = "ratings.png"
 def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
     """``volleybots eval elo``: ratings of games played now (``rounds`` games per pair) or of a
     cross-play results file (``from=FILE``, whose competitors must be the ones named, if any)."""
-    from volleybots.errors import ConfigError
     from volleybots.eval.crossplay import HEATMAP, OPTIONS, RESULTS, heatmap, out_dir, resolve_all, run_crossplay, split_args
 
+    if any(a.partition("=")[0] == "bootstrap" for a in args):
+        raise ConfigError("bootstrap= is no longer an option of eval elo: Bradley-Terry's intervals are profile-likelihood intervals, which draw no resamples; leave it out")
     options = {**{k: v for k, v in OPTIONS.items() if k != "games"}, **ELO_OPTIONS}
     specs, opts, _ = split_args(args, options)
     rounds = opts.get("rounds", 2000)
     if rounds < 1:
         raise ConfigError(f"rounds={rounds} must be >= 1")
-    if opts.get("k", ELO_K) <= 0 or opts.get("bootstrap", BOOTSTRAP) < 1:
-        raise ConfigError(f"k={opts.get('k')} must be > 0 and bootstrap={opts.get('bootstrap')} >= 1")
+    k = opts.get("k", ELO_K)
+    if k not in K_RANGE:
+        raise ConfigError(f"k={k} must be a finite number > 0 (Elo's step; the paper's is {ELO_K:g})")
     source = opts.get("from")
     if source is not None:
         result = CrossPlay.load(source)
@@ -145,7 +159,7 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
         play = [a for a in args if a.partition("=")[0] not in ELO_OPTIONS] + [f"games={rounds}"]
         result, path = run_crossplay(play, out, progress, verb="elo")
         sample = opts.get("sample", False)
-    report = ratings(result, rounds, opts.get("k", ELO_K), opts.get("seed", 0), sample, opts.get("bootstrap", BOOTSTRAP))
+    report = ratings(result, rounds, k, opts.get("seed", 0), sample)
     report["source"] = str(source) if source is not None else str(path / RESULTS)
     (path / REPORT).write_text(json.dumps(report, indent=1) + "\n")
     plot(report, path / PLOT)
@@ -156,8 +170,6 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
 
 def _check_same_competitors(result: CrossPlay, competitors, source) -> None:
     """The competitors named must be the file's: the same labels and the same member files."""
-    from volleybots.errors import ConfigError
-
     mine = [(c.label, [m.get("sha256") for m in c.sources]) for c in competitors]
     theirs = [(p["label"], [m.get("sha256") for m in p["members"]]) for p in result.meta.get("competitors", [])]
     if mine != theirs:

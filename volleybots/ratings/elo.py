@@ -7,6 +7,7 @@ of the pairs within a round shuffled by a seeded generator) so that a seed gives
 
 from __future__ import annotations
 
+import math
 from itertools import combinations
 from typing import Callable, Iterable
 
@@ -28,6 +29,8 @@ def elo(games: Iterable, n: int, k: float = ELO_K, start: float = ELO_START) -> 
 
 def elo_history(games: Iterable, n: int, k: float = ELO_K, start: float = ELO_START) -> np.ndarray:
     """Ratings [1 + games, n]: at the start and after every game."""
+    if not (math.isfinite(k) and k > 0):
+        raise ValueError(f"k={k} must be a finite number > 0 (Elo's step)")
     r = np.full(n, float(start))
     out = [r.copy()]
     for a, b, score in games:

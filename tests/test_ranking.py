@@ -1,0 +1,89 @@
+"""`eval elo`'s statistics at their edges: sequential Elo does not depend on the order in which a
+cross-play played a pair's games, K must be a finite step, and each competitor's exploitability
+within the population is never below 0 (the CLI's normal path is tested in test_crossplay.py)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from volleybots.cli import app
+from volleybots.eval.crossplay import CrossPlay
+from volleybots.eval.ranking import ratings
+from volleybots.population.solvers import member_exploitability
+
+runner = CliRunner()
+
+
+def _even_pair(outcomes: str) -> CrossPlay:
+    wins, losses = outcomes.count("W"), outcomes.count("L")
+    wdl = np.zeros((2, 2, 3))
+    wdl[0, 1], wdl[1, 0] = (wins, 0, losses), (losses, 0, wins)
+    return CrossPlay(["a", "b"], wdl, outcomes={"0,1": outcomes})
+
+
+def test_elo_of_played_games_does_not_depend_on_the_order_of_the_side_batches():
+    # a side advantage, recorded batch by batch: a wins all 100 games on team 0, then loses all 100
+    # on team 1. In play order the last batch decided Elo (a ended about 300 points below b).
+    first, last = "W" * 100 + "L" * 100, "L" * 100 + "W" * 100
+    ra, rb = (ratings(_even_pair(s), rounds=200, k=32, seed=0)["elo"] for s in (first, last))
+    assert ra["games"] == rb["games"] == "played"
+    assert ra["ratings"] == pytest.approx(rb["ratings"], abs=1e-9)
+    for seed in range(3):  # and an even record rates even, whatever the seed's shuffle
+        r = ratings(_even_pair(first), rounds=200, k=32, seed=seed)["elo"]["ratings"]
+        assert abs(r[0] - r[1]) < 120, (seed, r)
+    again = ratings(_even_pair(first), rounds=200, k=32, seed=0)["elo"]
+    assert again["ratings"] == ra["ratings"] and again["trajectory"] == ra["trajectory"]  # a seed gives one answer
+
+
+def test_ratings_report_profile_likelihood_intervals_even_for_an_unbeaten_pair():
+    rep = ratings(_even_pair("W" * 10), rounds=10, k=32)["bradley_terry"]
+    assert rep["interval"].startswith("95 % Firth")
+    assert rep["high"][0] - rep["low"][0] > 300 and rep["low"][0] > 1000 > rep["high"][1]
+
+
+def test_member_exploitability_includes_the_member_itself():
+    # rock-paper-scissors and a fourth member that beats everyone
+    a = np.array([[0, 1, -1, -1], [-1, 0, 1, -1], [1, -1, 0, -1], [1, 1, 1, 0]], dtype=float)
+    ex = member_exploitability(a)
+    assert ex == pytest.approx([1.0, 1.0, 1.0, 0.0])  # the dominant member: no member does better against it than itself
+    others = np.array([max(a[j, i] for j in range(4) if j != i) for i in range(4)])
+    assert others[3] == -1.0 and ex[3] > others[3]  # "over the others only" would say -1: not an exploitability
+
+
+def _crossplay_file(tmp_path) -> str:
+    path = tmp_path / "cp.json"
+    _even_pair("WL" * 20).save(path)
+    return str(path)
+
+
+@pytest.mark.parametrize("k", ["nan", "inf", "-inf", "0", "-5"])
+def test_elo_cli_refuses_a_k_that_is_not_a_finite_positive_step(tmp_path, k):
+    out = tmp_path / "out"
+    res = runner.invoke(app, ["eval", "elo", f"from={_crossplay_file(tmp_path)}", f"k={k}", "rounds=10", "--out", str(out)])
+    assert res.exit_code == 2, res.output
+    err = res.stderr.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in res.output
+    assert f"k={float(k)}" in err and "finite number > 0" in err
+    assert not out.exists()
+
+
+def test_elo_cli_refuses_the_former_bootstrap_option(tmp_path):
+    res = runner.invoke(app, ["eval", "elo", f"from={_crossplay_file(tmp_path)}", "bootstrap=100", "--out", str(tmp_path / "out")])
+    assert res.exit_code == 2 and "bootstrap=" in res.stderr and "profile-likelihood" in res.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_elo_cli_from_a_file_is_finite_and_the_same_for_a_seed(tmp_path):
+    src = _crossplay_file(tmp_path)
+    reps = []
+    for name in ("one", "two"):
+        res = runner.invoke(app, ["eval", "elo", f"from={src}", "k=16", "rounds=50", "seed=3", "--out", str(tmp_path / name), "--json"])
+        assert res.exit_code == 0, res.output
+        reps.append(json.loads(res.stdout))
+    assert reps[0]["elo"]["ratings"] == reps[1]["elo"]["ratings"]
+    assert all(math.isfinite(x) for x in reps[0]["elo"]["ratings"] + reps[0]["bradley_terry"]["low"] + reps[0]["bradley_terry"]["high"])
