@@ -183,15 +183,25 @@ def test_payoff_table_adds_rows_antisymmetric():
 
 
 def test_bad_seed_members_are_refused_before_anything_is_written(tmp_path):
+    """Validation opens no file (a saved config stays valid when its files move); the pre-flight check
+    that every start runs before writing anything does."""
+    from volleybots.policies import check_references
+
+    bad = tiny("fsp", f"algo.seed_members=[{tmp_path / 'nope.pt'}]")
     with pytest.raises(ConfigError, match="does not exist"):
-        tiny("fsp", f"algo.seed_members=[{tmp_path / 'nope.pt'}]")
+        check_references(bad)
+    with pytest.raises(ConfigError, match="does not exist"):
+        start(bad, tmp_path / "never")
+    assert not (tmp_path / "never").exists()
     start(tiny("sp", "total_frames=256"), tmp_path / "sp1v1")
     ckpt = tmp_path / "sp1v1" / "checkpoints" / "final.pt"
-    assert tiny("fsp", f"algo.seed_members=[random,{ckpt}]").algo.seed_members[1] == str(ckpt)
+    ok = tiny("fsp", f"algo.seed_members=[random,{ckpt}]")
+    check_references(ok)
+    assert ok.algo.seed_members[1] == str(ckpt)
     with pytest.raises(ConfigError, match="plays task '1v1', not '3v3'"):
-        load(["task=3v3", "algo=fsp", f"algo.seed_members=[{ckpt}]"])
+        check_references(load(["task=3v3", "algo=fsp", f"algo.seed_members=[{ckpt}]"]))
     # an SP run is a single policy (its one member), so it may seed a population
-    assert tiny("fsp", f"algo.seed_members=[{tmp_path / 'sp1v1'}]").algo.name == "fsp"
+    check_references(tiny("fsp", f"algo.seed_members=[{tmp_path / 'sp1v1'}]"))
 
 
 def test_a_learner_trains_against_a_named_opponent_and_learns_from_its_team_only(tmp_path):

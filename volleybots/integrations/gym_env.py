@@ -28,7 +28,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from tensordict import TensorDict
 
-import volleybots
+from volleybots.config import build_env
 from volleybots.integrations import spaces as sp
 from volleybots.integrations.spaces import (
     SINGLE_TASKS,
@@ -48,7 +48,7 @@ def _make(task: str, num_envs: int, **kw):
     if task not in SINGLE_TASKS:
         others = "; use volleybots.integrations.VolleyParallelEnv (PettingZoo) for it" if task in TASKS else ""
         raise ValueError(f"task {task!r} is not a single-drone task{others}; allowed: {list(SINGLE_TASKS)}")
-    return volleybots.make_env(task, num_envs=num_envs, **kw)
+    return build_env(task, num_envs=num_envs, **kw)
 
 
 class VolleyVectorEnv(VectorEnv):

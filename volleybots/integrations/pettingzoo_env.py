@@ -24,7 +24,7 @@ try:
 except ImportError:  # the message names the extra: a bare "No module named pettingzoo" does not
     raise ImportError("volleybots.integrations.VolleyParallelEnv needs pettingzoo: pip install 'volleybots[pettingzoo]'") from None
 
-import volleybots
+from volleybots.config import build_env
 from volleybots.integrations import spaces as sp
 from volleybots.integrations.spaces import action_tensor, episode_stats, to_numpy
 
@@ -60,7 +60,7 @@ class VolleyParallelEnv(ParallelEnv):
         # a render_mode is accepted and ignored (tools such as SB3's make_vec_env pass one): nothing
         # renders here; a replay of the task comes from `volleybots replay`
         self.render_mode = None
-        self.env = volleybots.make_env(task, num_envs=1, action_space=action_space, physics=physics, device=device, seed=seed,
+        self.env = build_env(task, num_envs=1, action_space=action_space, physics=physics, device=device, seed=seed,
                                        **task_overrides)
         self.task = task
         teams = tuple(self.env.teams)

@@ -1,37 +1,12 @@
-"""The run directory: resolved config, metrics.csv, checkpoints, summary.json, recordings.
-
-Layout of a run::
-
-    config.yaml            the resolved, validated config (what `train resume=` and `eval` read)
-    metrics.csv            one row per training batch, plus rows of the periodic evaluations
-    checkpoints/           ckpt_<frames>.pt (the last `checkpoint.keep`), final.pt and best.pt (the
-                           policy at the best evaluation; for `eval` and `init=`, never resumed from)
-    summary.json           frames, wall time, final evaluation, checkpoints
-    curves.rrd             the training curves as a rerun recording (rebuilt from metrics.csv)
-    eval_<frames>.rrd      one recorded evaluation episode per periodic evaluation
-    .hydra/                Hydra's own record of the overrides (when started by `volleybots train`)
-    .lock                  locked (``fcntl.flock``) by the process training in the directory
-
-A directory is used by one process at a time: the one holding the lock on ``.lock``. The operating
-system drops the lock when that process ends, however it ends, so a killed run never leaves its
-directory stuck. A directory whose run wrote no checkpoint (killed or crashed early) holds nothing
-worth keeping: a new run or ``resume=`` starts it afresh.
-
-Checkpoints hold tensors, numbers, strings and plain containers only, so that
-``torch.load(path, weights_only=True)`` reads them.
-"""
+"""``RunDir``: a run's files, its checkpoints (read with ``weights_only=True``), and claiming a directory for a new run."""
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import itertools
 import json
-import math
 import os
 import re
-import socket
-import sys
 from pathlib import Path
 
 import torch
@@ -39,15 +14,11 @@ from omegaconf import OmegaConf
 
 from volleybots.config import to_dict, validate
 from volleybots.errors import ConfigError
-
-try:
-    import fcntl
-except ImportError:  # not on Windows: run directories are then not locked
-    fcntl = None
+from volleybots.runs.locks import InUseError, lock, make_dir, note, unlock
+from volleybots.runs.metrics import _is_number
 
 CKPT_FORMAT = 1
 _CKPT = re.compile(r"ckpt_(\d+)\.pt$")
-LOCK_NAME = ".lock"
 
 
 class RunDir:
@@ -235,153 +206,6 @@ def _describe(task, obs_dim, action_space, algo) -> str:
     return f"{task or '?'} ({detail})"
 
 
-class MetricsLog:
-    """metrics.csv: the header is the first row's keys; a resumed run drops the rows after its checkpoint."""
-
-    def __init__(self, path: Path, keep_until_frames: int | None = None):
-        self.path = Path(path)
-        self.fields: list[str] | None = None
-        if keep_until_frames is not None and self.path.is_file():
-            with self.path.open(newline="") as f:
-                reader = csv.DictReader(f)
-                self.fields = list(reader.fieldnames or [])
-                # a row cut short by a kill has no number in frames (RunDir.check_metrics allows it last)
-                rows = [r for r in reader if _is_number(r["frames"]) and float(r["frames"]) <= keep_until_frames]
-            with self.path.open("w", newline="") as f:
-                w = csv.DictWriter(f, self.fields)
-                w.writeheader()
-                w.writerows(rows)
-
-    def write(self, row: dict) -> None:
-        new = self.fields is None
-        if new:
-            self.fields = list(row)
-        with self.path.open("a" if not new else "x", newline="") as f:
-            w = csv.DictWriter(f, self.fields, extrasaction="ignore")
-            if new:
-                w.writeheader()
-            w.writerow({k: _fmt(row.get(k)) for k in self.fields})
-
-
-def _fmt(v):
-    if v is None or (isinstance(v, float) and math.isnan(v)):
-        return ""
-    if isinstance(v, float):
-        return f"{v:.6g}"
-    return v
-
-
-def read_metrics(path) -> list[dict[str, float | str]]:
-    out = []
-    with Path(path).open(newline="") as f:
-        for r in csv.DictReader(f):
-            out.append({k: (float(v) if _is_number(v) else v) for k, v in r.items()})
-    return out
-
-
-def _is_number(v) -> bool:
-    try:
-        float(v)
-    except (TypeError, ValueError):
-        return False
-    return True
-
-
-def write_curves(metrics_csv, out_path) -> None:
-    """The training curves of metrics.csv as a rerun recording: one time series per numeric column,
-    on a ``frames`` timeline (rebuilt whole, so it is always complete and a resumed run needs no merge)."""
-    import rerun as rr
-
-    from volleybots.replay import recording
-
-    rows = read_metrics(metrics_csv)
-    with recording(Path(out_path), "volleybots_curves") as rec:
-        for r in rows:
-            rec.set_time("frames", sequence=int(r["frames"]))
-            phase = r.get("phase", "train") or "train"
-            for k, v in r.items():
-                if k in ("frames", "phase") or not isinstance(v, float) or math.isnan(v):
-                    continue
-                rec.log(f"{phase}/{k}", rr.Scalars(v))
-
-
-# ------------------------------------------------------------------------------ locks and directories
-_HELD: dict[str, list] = {}  # resolved path -> [lock file descriptor, times locked by this process]
-
-
-class InUseError(ConfigError):
-    """The directory is locked by another process."""
-
-
-def lock(path) -> None:
-    """Take the exclusive lock of the directory ``path`` for this process (again: counted), or raise
-    ``ConfigError`` naming the process that holds it. ``fcntl.flock`` locks die with their process."""
-    key = str(Path(path).resolve())
-    if key in _HELD:
-        _HELD[key][1] += 1
-        return
-    if fcntl is None:
-        return
-    lock_path = Path(key) / LOCK_NAME
-    try:
-        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
-    except OSError as e:
-        raise ConfigError(f"cannot lock {str(path)!r}: {e.strerror} ({lock_path})") from None
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        holder = os.read(fd, 200).decode(errors="replace").strip() or "another process"
-        os.close(fd)
-        raise InUseError(f"{path} is in use by {holder}; wait for it to finish or choose another directory") from None
-    os.ftruncate(fd, 0)
-    os.write(fd, f"process {os.getpid()} on {socket.gethostname()}\n".encode())
-    _HELD[key] = [fd, 1]
-
-
-def unlock(path) -> None:
-    key = str(Path(path).resolve())
-    held = _HELD.get(key)
-    if held is None:
-        return
-    held[1] -= 1
-    if held[1] == 0:
-        del _HELD[key]
-        os.close(held[0])  # closing the descriptor drops the flock
-
-
-@contextlib.contextmanager
-def locked(path):
-    lock(path)
-    try:
-        yield
-    finally:
-        unlock(path)
-
-
-def check_writable(path, what: str) -> None:
-    """Raise ``ConfigError`` unless the directory ``path`` exists and is writable or can be created:
-    no file in the way and permission to write in its nearest existing ancestor. Writes nothing."""
-    path = Path(path).absolute()
-    probe = path
-    while not probe.exists() and probe != probe.parent:
-        if probe.is_symlink():  # a dangling link: mkdir would fail on it
-            raise ConfigError(f"{what} {str(path)!r} cannot be created: {probe} is a broken link")
-        probe = probe.parent
-    if not probe.is_dir():
-        raise ConfigError(f"{what} {str(path)!r} cannot be created: {probe} is a file, not a directory")
-    if not os.access(probe, os.W_OK | os.X_OK):
-        raise ConfigError(f"{what} {str(path)!r} cannot be written: no permission to write in {probe}")
-
-
-def make_dir(path, what: str) -> Path:
-    """Create the directory ``path`` (with its parents) or raise ``ConfigError`` naming it."""
-    check_writable(path, what)
-    try:
-        Path(path).mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise ConfigError(f"{what} {str(path)!r} cannot be created: {e.strerror}") from None
-    return Path(path)
-
 
 def claim_run_dir(path, unique: bool, sweep: bool = False) -> Path:
     """Lock a directory for a new run (or, with ``sweep``, a ``-m`` sweep's parent) and return it.
@@ -429,19 +253,3 @@ def _taken(path: Path, unique: bool, sweep: bool) -> bool:
     return False
 
 
-@contextlib.contextmanager
-def memory_errors_as(what: str):
-    """Turn an out-of-memory error of torch (CPU or CUDA) or Python into one ``ConfigError`` line
-    naming ``what`` (the counts that asked for the memory): ``check_memory`` only knows a lower bound."""
-    try:
-        yield
-    except (MemoryError, RuntimeError) as e:
-        oom = isinstance(e, (MemoryError, torch.OutOfMemoryError)) or any(s in str(e) for s in ("can't allocate memory", "out of memory"))
-        if not oom:
-            raise
-        raise ConfigError(f"ran out of memory with {what}; lower them ({' '.join(str(e).split())[:160]})") from None
-
-
-def note(msg: str) -> None:
-    """A line on stderr for what the user should know but that is no error (a run started afresh)."""
-    print(f"note: {msg}", file=sys.stderr, flush=True)

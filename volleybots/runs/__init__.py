@@ -1,0 +1,32 @@
+"""The run directory: resolved config, metrics.csv, checkpoints, summary.json, recordings.
+
+Layout of a run::
+
+    config.yaml            the resolved, validated config (what `train resume=` and `eval` read)
+    metrics.csv            one row per training batch, plus rows of the periodic evaluations
+    checkpoints/           ckpt_<frames>.pt (the last `checkpoint.keep`), final.pt and best.pt (the
+                           policy at the best evaluation; for `eval` and `init=`, never resumed from)
+    summary.json           frames, wall time, final evaluation, checkpoints
+    curves.rrd             the training curves as a rerun recording (rebuilt from metrics.csv)
+    eval_<frames>.rrd      one recorded evaluation episode per periodic evaluation
+    .hydra/                Hydra's own record of the overrides (when started by `volleybots train`)
+    .lock                  locked (``fcntl.flock``) by the process training in the directory
+
+A directory whose run wrote no checkpoint (killed or crashed early) holds nothing worth keeping: a new
+run or ``resume=`` starts it afresh. Checkpoints hold tensors, numbers, strings and plain containers
+only, so that ``torch.load(path, weights_only=True)`` reads them.
+
+Persistence only: ``rundir`` (RunDir, checkpoints, claiming a directory), ``metrics`` (metrics.csv),
+``locks`` (the directory lock, writable paths, out-of-memory as one line).
+"""
+
+from volleybots.runs.locks import (
+    LOCK_NAME, InUseError, check_writable, lock, locked, make_dir, memory_errors_as, note, unlock,
+)
+from volleybots.runs.metrics import MetricsLog, read_metrics, write_curves
+from volleybots.runs.rundir import CKPT_FORMAT, RunDir, claim_run_dir, load_algo_state, read_checkpoint
+
+__all__ = [
+    "CKPT_FORMAT", "LOCK_NAME", "InUseError", "MetricsLog", "RunDir", "check_writable", "claim_run_dir", "load_algo_state", "lock",
+    "locked", "make_dir", "memory_errors_as", "note", "read_checkpoint", "read_metrics", "unlock", "write_curves",
+]

@@ -1,0 +1,79 @@
+"""metrics.csv: one row per training batch and per evaluation, and the training curves recorded from it."""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+
+class MetricsLog:
+    """metrics.csv: the header is the first row's keys; a resumed run drops the rows after its checkpoint."""
+
+    def __init__(self, path: Path, keep_until_frames: int | None = None):
+        self.path = Path(path)
+        self.fields: list[str] | None = None
+        if keep_until_frames is not None and self.path.is_file():
+            with self.path.open(newline="") as f:
+                reader = csv.DictReader(f)
+                self.fields = list(reader.fieldnames or [])
+                # a row cut short by a kill has no number in frames (RunDir.check_metrics allows it last)
+                rows = [r for r in reader if _is_number(r["frames"]) and float(r["frames"]) <= keep_until_frames]
+            with self.path.open("w", newline="") as f:
+                w = csv.DictWriter(f, self.fields)
+                w.writeheader()
+                w.writerows(rows)
+
+    def write(self, row: dict) -> None:
+        new = self.fields is None
+        if new:
+            self.fields = list(row)
+        with self.path.open("a" if not new else "x", newline="") as f:
+            w = csv.DictWriter(f, self.fields, extrasaction="ignore")
+            if new:
+                w.writeheader()
+            w.writerow({k: _fmt(row.get(k)) for k in self.fields})
+
+
+def _fmt(v):
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return ""
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return v
+
+
+def read_metrics(path) -> list[dict[str, float | str]]:
+    out = []
+    with Path(path).open(newline="") as f:
+        for r in csv.DictReader(f):
+            out.append({k: (float(v) if _is_number(v) else v) for k, v in r.items()})
+    return out
+
+
+def _is_number(v) -> bool:
+    try:
+        float(v)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
+def write_curves(metrics_csv, out_path) -> None:
+    """The training curves of metrics.csv as a rerun recording: one time series per numeric column,
+    on a ``frames`` timeline (rebuilt whole, so it is always complete and a resumed run needs no merge)."""
+    import rerun as rr
+
+    from volleybots.replay import recording
+
+    rows = read_metrics(metrics_csv)
+    with recording(Path(out_path), "volleybots_curves") as rec:
+        for r in rows:
+            rec.set_time("frames", sequence=int(r["frames"]))
+            phase = r.get("phase", "train") or "train"
+            for k, v in r.items():
+                if k in ("frames", "phase") or not isinstance(v, float) or math.isnan(v):
+                    continue
+                rec.log(f"{phase}/{k}", rr.Scalars(v))
+
+
