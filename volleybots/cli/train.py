@@ -134,17 +134,17 @@ def train(
         summary = resume(resume_dir, [o for o in overrides if not o.startswith("resume=")])
         _echo_summary(summary, resume_dir)
         return
-    from volleybots.config import check_memory, compose, validate
+    if not multirun and show is None:
+        _single_run(overrides)
+        return
+    from volleybots.config import compose, validate
+    from volleybots.train import preflight
 
     jobs = _jobs(overrides, multirun)
     cfgs = [validate(compose(job)) for job in jobs]
     if show is None:
-        from volleybots.policies import check_references
-        from volleybots.train import check_init
-
         for c in cfgs:
-            check_references(c)  # opponent= and algo.seed_members exist and fit, before Hydra writes the run dir
-            check_init(c)  # init= fits, likewise
+            preflight(c)  # memory, opponent= / seed_members / init= files: before Hydra writes any run dir
     if not any(o.split("=", 1)[0].lstrip("+~") == "algo" for o in overrides):
         # the task's own default (MAPPO for cooperative tasks, SP for matches) when no algo is named
         algos = sorted({c.algo.name for c in cfgs})
@@ -154,8 +154,6 @@ def train(
     if show is not None:
         _run_hydra(overrides, multirun, ["--cfg", show])
         return
-    for cfg in cfgs:
-        check_memory(cfg)
     from volleybots.runs import unlock
 
     key = _DIR_KEYS[multirun]
@@ -165,5 +163,45 @@ def train(
         _run_hydra([*pinned, f"{key}={_hydra_quote(run_dir)}"], multirun, [])
     finally:
         unlock(run_dir)
+
+
+def _single_run(overrides: list[str]) -> None:
+    """One run without a sweep: the config is composed once (its ``hydra`` node gives the run dir) and
+    validated once, every file it names is checked, and only then is the directory claimed and
+    written. Hydra's launcher machinery is for sweeps; a single run records its overrides in
+    ``.hydra/`` as Hydra would."""
+    from volleybots.config import compose, validate
+    from volleybots.population.run import start
+    from volleybots.runs import claim_run_dir, unlock
+    from volleybots.train import preflight
+
+    _jobs(overrides, False)  # a sweep value without -m is one clear line
+    full = compose(overrides, hydra_node=True)
+    key = _DIR_KEYS[False]
+    path = str(full.hydra.run.dir)
+    if not path.strip():
+        raise ConfigError(f"{key} is empty; give it a directory")
+    cfg = validate(full)
+    preflight(cfg)
+    explicit = any(o.partition("=")[0].lstrip("+") == key for o in overrides)
+    run_dir = claim_run_dir(path, unique=not explicit)
+    try:
+        _write_hydra_record(run_dir, full, overrides)
+        summary = start(cfg, run_dir, checked=True)
+    finally:
+        unlock(run_dir)
+    _echo_summary(summary, run_dir)
+
+
+def _write_hydra_record(run_dir, full, overrides: list[str]) -> None:
+    """``.hydra/config.yaml``, ``hydra.yaml`` and ``overrides.yaml`` as ``hydra.main`` writes them."""
+    from omegaconf import OmegaConf
+
+    record = run_dir / ".hydra"
+    record.mkdir(exist_ok=True)
+    job = OmegaConf.masked_copy(full, [k for k in full if k != "hydra"])
+    (record / "config.yaml").write_text(OmegaConf.to_yaml(job))
+    (record / "hydra.yaml").write_text(OmegaConf.to_yaml(OmegaConf.create({"hydra": OmegaConf.to_container(full.hydra, resolve=False)})))
+    (record / "overrides.yaml").write_text(OmegaConf.to_yaml(OmegaConf.create(list(overrides))))
 
 

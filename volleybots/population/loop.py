@@ -277,8 +277,8 @@ class PopulationLoop:
 def start(cfg, run_dir) -> dict:
     """A new population run of the validated config ``cfg`` in ``run_dir``."""
     run = RunDir(run_dir)
-    run.create(cfg)
-    return PopulationLoop(cfg, run).fit()
+    with run.new_run(cfg):
+        return PopulationLoop(cfg, run).fit()
 
 
 RESUME_KEYS = (*TRAIN_RESUME_KEYS, "algo.iterations")  # a population run may also be given more iterations

@@ -4,28 +4,25 @@ loop over the trainer; any other algorithm the trainer alone."""
 from __future__ import annotations
 
 from volleybots.algos import ALGOS
-from volleybots.policies.targets import check_references
-from volleybots.runs import RunDir, unlock
+from volleybots.runs import RunDir
 
 
 def is_population(cfg) -> bool:
     return bool(getattr(ALGOS[cfg.algo.name], "population", False))
 
 
-def start(cfg, run_dir) -> dict:
-    """Start a new run of the validated config ``cfg`` in ``run_dir`` (locked by the caller or not)."""
-    from volleybots.train import check_init, train
+def start(cfg, run_dir, checked: bool = False) -> dict:
+    """Start a new run of the validated config ``cfg`` in ``run_dir`` (``checked``: the caller ran
+    ``volleybots.train.preflight`` already)."""
+    from volleybots.train import preflight, train
 
     if not is_population(cfg):
-        return train(cfg, run_dir)
+        return train(cfg, run_dir, checked=checked)
     from volleybots.population.loop import start as start_population
 
-    check_references(cfg)
-    check_init(cfg)
-    try:
-        return start_population(cfg, run_dir)
-    finally:
-        unlock(run_dir)  # taken by RunDir.create
+    if not checked:
+        preflight(cfg)
+    return start_population(cfg, run_dir)
 
 
 def resume(run_dir, overrides=()) -> dict:

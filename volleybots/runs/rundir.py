@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import itertools
 import json
@@ -48,9 +49,20 @@ class RunDir:
         paths = [*self.periodic_checkpoints(), *([self.final_path] if self.final_path.is_file() else [])]
         return tuple((p.name, p.stat().st_mtime_ns) for p in paths)
 
+    @contextlib.contextmanager
+    def new_run(self, cfg):
+        """Hold the directory's lock while a new run writes and trains in it (``create``, then the
+        body); the lock is released however the body ends. Every start goes through here."""
+        self.create(cfg)
+        try:
+            yield self
+        finally:
+            unlock(self.path)
+
     def create(self, cfg) -> None:
-        """Write the config of a new run, holding the directory's lock (``train`` releases it). A run
-        killed before its first checkpoint is cleared first; one with a checkpoint is refused."""
+        """Write the config of a new run, taking the directory's lock for the caller (``new_run``
+        releases it). A run killed before its first checkpoint is cleared first; one with a checkpoint
+        is refused."""
         make_dir(self.path, "the run directory")
         lock(self.path)
         if self.has_checkpoint():

@@ -12,23 +12,26 @@ from volleybots.errors import ConfigError
 from volleybots.play.episodes import collect, finished_stats
 from volleybots.play.seats import AllAgents, SelfPlay, Versus, default_seat
 from volleybots.policies.targets import check_references
-from volleybots.runs import RunDir, check_writable, lock, memory_errors_as, read_checkpoint, unlock
+from volleybots.runs import RunDir, check_writable, locked, memory_errors_as, read_checkpoint
 from volleybots.train.init import apply_init, check_init, init_checkpoint, learner_spec
 from volleybots.train.trainer import EVAL_SEED_OFFSET, RESUME_KEYS, Trainer
 
 
-def train(cfg, run_dir) -> dict:
-    """Start a new run of the validated config ``cfg`` in ``run_dir``, holding its lock while it trains."""
+def preflight(cfg) -> None:
+    """Everything a start checks before writing: memory, the files the config names, ``init=``."""
     check_memory(cfg)
     check_references(cfg)
     check_init(cfg)
+
+
+def train(cfg, run_dir, checked: bool = False) -> dict:
+    """Start a new run of the validated config ``cfg`` in ``run_dir``, holding its lock while it trains
+    (``checked``: the caller ran ``preflight`` already)."""
+    if not checked:
+        preflight(cfg)
     run = RunDir(run_dir)
-    run.create(cfg)
-    try:
-        with memory_errors_as(_counts(cfg)):
-            return Trainer(cfg, run).fit()
-    finally:
-        unlock(run.path)
+    with run.new_run(cfg), memory_errors_as(_counts(cfg)):
+        return Trainer(cfg, run).fit()
 
 
 def resume_config(run_dir, overrides=(), keys=RESUME_KEYS):
@@ -60,16 +63,13 @@ def resume(run_dir, overrides=()) -> dict:
     check_references(cfg)
     with memory_errors_as(_counts(cfg)):
         trainer = Trainer(cfg, run, checkpoint=ckpt)  # a checkpoint that does not fit the run fails here
-        lock(run.path)
-        try:
+        with locked(run.path):
             if run.checkpoint_stamp() != stamp:
                 raise ConfigError(f"run {str(run_dir)!r} was trained by another process while this one checked it; run the command again")
             if ckpt is None:
                 run.clear_unfinished()
             run.write_config(cfg)
             return trainer.fit()
-        finally:
-            unlock(run.path)
 
 
 def _counts(cfg) -> str:
@@ -79,5 +79,5 @@ def _counts(cfg) -> str:
 
 __all__ = [
     "AllAgents", "EVAL_SEED_OFFSET", "RESUME_KEYS", "SelfPlay", "Trainer", "Versus", "apply_init", "check_init", "collect", "default_seat",
-    "finished_stats", "init_checkpoint", "learner_spec", "resume", "resume_config", "train",
+    "finished_stats", "init_checkpoint", "learner_spec", "preflight", "resume", "resume_config", "train",
 ]
