@@ -37,8 +37,8 @@ from volleybots.errors import ConfigError
 from volleybots.eval import run_episodes, summarize
 from volleybots.runs import (
     CKPT_FORMAT, MetricsLog, RunDir, WandbLogger, check_writable, load_algo_state, lock, memory_errors_as, read_checkpoint, unlock,
-    write_curves,
 )
+from volleybots.replay import write_curves
 
 # keys a resumed run may change: how long it goes on and how it reports, not what it learns
 RESUME_KEYS = ("total_frames", "time_limit", "progress", "threads", "logger", "wandb", "checkpoint", "evaluation", "env.device")
