@@ -160,7 +160,7 @@ def _record(path, task, **task_kw):
 def _chunks_per_entity(path) -> dict[str, int]:
     out = subprocess.run(["rerun", "rrd", "stats", str(path)], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
-    return {m[0]: int(m[1]) for m in re.findall(r"^(/[\w/\-]+): (\d+)$", out.stdout, re.M)}
+    return {m[0]: int(m[1]) for m in re.findall(r"^(/[\w/\-]+): (\d+)$", out.stdout, re.MULTILINE)}
 
 
 def _dump(path) -> str:

@@ -43,12 +43,16 @@ class Episode:
 
 
 class EpisodeRecorder:
+    """The ``on_step`` hook that keeps env ``env_index``'s episode and sends it as columns when it
+    ends (``flush`` sends what was kept earlier); ``labels`` name a match's teams in the summary."""
+
     def __init__(self, rec, env, env_index: int = 0, prefix: str = "", labels: tuple[str, str] | None = None):
         self.rec, self.env, self.i, self.labels = rec, env, env_index, labels
         self.prefix = prefix.rstrip("/") + "/" if prefix else ""
         self.teams = tuple(int(t) for t in env.teams)
         self.step = 0
         self.done = self.sent = False
+        self.why = ""  # "terminated" or "truncated" once the episode ends
         self.trail: deque = deque(maxlen=TRAIL)
         self.pos, self.quat, self.ball, self.strips, self.rewards = [], [], [], [], []
         self.stats: dict[str, list[float]] = {}
@@ -210,8 +214,7 @@ class EpisodeRecorder:
         if two_teams:
             self._score(steps)
         self.rec.log(self._p("summary"), rr.TextDocument(self.summary(), media_type="text/markdown"), static=True)
-        if hasattr(self.rec, "send_blueprint"):
-            self.rec.send_blueprint(episode_blueprint(self.teams, list(self.stats), bool(self.drills), self.prefix))
+        self.rec.send_blueprint(episode_blueprint(self.teams, list(self.stats), bool(self.drills), self.prefix))
 
     def _score(self, steps) -> None:
         """A match's touches per team over the rally and its point (1 to the winner at the last step)."""
@@ -277,6 +280,8 @@ class MatchLog:
         from volleybots.rules import Referee
 
         i = self.i
+        # the recorder's columns carry their own steps, these lines take the stream's time (a stand-in
+        # stream without timelines takes them untimed)
         if hasattr(self.rec, "set_time"):
             self.rec.set_time("step", sequence=self.step)
         self.step += 1

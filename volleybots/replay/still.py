@@ -43,6 +43,9 @@ def draw_still(ep: Episode, out: Path, title: str = "") -> Path:
     lx, ly = length / 2, width / 2
     fig = plt.figure(figsize=(8, 4.6), dpi=100)
     ax = fig.add_subplot(projection="3d", computed_zorder=False)
+    for team, sign in ((0, 1.0), (1, -1.0)):  # each half tinted in the colour of the team that defends it
+        xs = np.array([[0.0, sign * lx], [0.0, sign * lx]])
+        ax.plot_surface(xs, np.array([[-ly, -ly], [ly, ly]]), np.zeros((2, 2)), color=_rgb(TEAM_COLOURS[team]), alpha=0.08, shade=False)
     ax.plot([-lx, lx, lx, -lx, -lx], [-ly, -ly, ly, ly, -ly], [0] * 5, color="0.45", lw=1.2)
     ax.plot([0, 0], [-ly, ly], [0, 0], color="0.45", lw=1.0)
     ax.plot_surface(np.zeros((2, 2)), np.array([[-ly, ly], [-ly, ly]]), np.array([[0, 0], [net, net]]), color="0.6", alpha=0.35, shade=False)
@@ -64,8 +67,9 @@ def draw_still(ep: Episode, out: Path, title: str = "") -> Path:
         ax.scatter([], [], [], color=_rgb(TEAM_COLOURS[t]), marker="s", label=f"team {t} ({TEAM_NAMES[t]})")
     ax.plot([], [], color=_rgb(BALL_COLOUR), lw=2.0, label="ball")
     top = max(float(ball[:, 2].max()), float(ep.pos[..., 2].max()), net) * 1.05
-    ax.set(xlim=(-lx, lx), ylim=(-ly, ly), zlim=(0, top), xlabel="x (m)", ylabel="y (m)", zlabel="z (m)")
-    ax.set_box_aspect((length, width, top))
+    pad = 0.5  # so the court's lines stand clear of the axes' edges
+    ax.set(xlim=(-lx - pad, lx + pad), ylim=(-ly - pad, ly + pad), zlim=(0, top), xlabel="x (m)", ylabel="y (m)", zlabel="z (m)")
+    ax.set_box_aspect((length + 2 * pad, width + 2 * pad, top))
     ax.view_init(elev=22, azim=-62)
     ax.tick_params(labelsize=7)
     ax.legend(loc="upper left", fontsize=8, frameon=False)
