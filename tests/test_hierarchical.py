@@ -194,6 +194,7 @@ def test_replay_logs_the_high_levels_decisions():
         td = env.step(td)
         recorder(env, td, td["next"])
         td = step_mdp(td, keep_other=True, exclude_action=True)
+    recorder.flush()  # the recorder sends its columns when the episode ends or on flush
     texts = [str(t.text.as_arrow_array().to_pylist()[0]) for t in rec.at("decisions")]
     assert "step 0: drone 2 -> serve" in texts and "step 0: drone 0 -> hover" in texts
     assert len(texts) == 3  # logged when a drill changes, not every step; the other team is not driven

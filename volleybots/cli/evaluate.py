@@ -153,32 +153,36 @@ def replay(
     args: List[str] = typer.Argument(..., help="TARGET [overrides]: a run dir, a checkpoint, 'scripted' or 'random' with seed=0 deterministic=true (for scripted/random also task=NAME env.action_space=ctbr); or A B [task=3v3 seed=0 scenario=any|serve|receive]: a match between two competitors (name=PATH labels one)."),
     out: Optional[Path] = typer.Option(None, "--out", help="The .rrd file to write (never overwritten)."),
     no_viewer: bool = typer.Option(False, "--no-viewer", help="Do not open the rerun viewer even when a display exists."),
+    still: Optional[Path] = typer.Option(None, "--still", help="Also draw the episode to this .png (court, drones, ball flight; needs the 'plot' extra; never overwritten)."),
 ) -> None:
     """Record one episode to a rerun file: court, net, drones, ball trail, hits / violations, rewards; for two
     competitors, one match with each team's colour, the touches and the fault that ended the rally."""
     from volleybots.replay import has_display
     from volleybots.runs import check_writable
 
-    _refuse_flags(args, "--out FILE.rrd, --no-viewer, --help")
-    if out is not None and out.suffix != ".rrd":
-        raise ConfigError(f"--out {str(out)!r} must end in .rrd")
-    if out is not None and (out.exists() or out.is_symlink()):
-        raise ConfigError(f"--out {str(out)!r} exists; choose another file (replays never overwrite)")
-    if out is not None:
-        check_writable(out.parent, "the folder of --out")
+    _refuse_flags(args, "--out FILE.rrd, --still FILE.png, --no-viewer, --help")
+    for opt, path, suffix in (("--out", out, ".rrd"), ("--still", still, ".png")):
+        if path is not None and path.suffix != suffix:
+            raise ConfigError(f"{opt} {str(path)!r} must end in {suffix}")
+        if path is not None and (path.exists() or path.is_symlink()):
+            raise ConfigError(f"{opt} {str(path)!r} exists; choose another file (replays never overwrite)")
+        if path is not None:
+            check_writable(path.parent, f"the folder of {opt}")
     viewer = not no_viewer and has_display()
     from volleybots.eval.crossplay import is_competitor_spec, replay_match
 
     if sum(map(is_competitor_spec, args)) >= 2:
+        if still is not None:
+            raise ConfigError("--still draws one policy's episode (replay TARGET ...); a match replay takes --out and --no-viewer only")
         stats, out, labels = replay_match(args, out, viewer)
         where = str(out) if out is not None else "the viewer"
         who = {0: f"{labels[0]} (blue) won", 1: f"{labels[1]} (red) won", -1: "a draw"}[int(stats["winner"])]
         typer.echo(f"recorded one match of {labels[0]} (blue) against {labels[1]} (red) to {where}: {who}")
         return
-    _replay_one(args[0], args[1:], out, viewer)
+    _replay_one(args[0], args[1:], out, viewer, still)
 
 
-def _replay_one(target: str, overrides: list[str], out: Path | None, viewer: bool) -> None:
+def _replay_one(target: str, overrides: list[str], out: Path | None, viewer: bool, still: Path | None = None) -> None:
     from volleybots.config import make_env
     from volleybots.policies import resolve_target
     from volleybots.replay import record_episode
@@ -193,8 +197,9 @@ def _replay_one(target: str, overrides: list[str], out: Path | None, viewer: boo
     if out is not None:
         make_dir(out.parent, "the folder of --out")
     env = make_env(t.cfg, num_envs=1, seed=t.cfg.seed)
-    stats = record_episode(env, t.make_policy(env), out, viewer=viewer)
+    stats = record_episode(env, t.make_policy(env), out, viewer=viewer, still=still)
     where = str(out) if out is not None else "the viewer"
+    where += f" and {still}" if still is not None else ""
     typer.echo(f"recorded one episode of {t.label} on {t.cfg.task.name} to {where}: {env.metric} {stats[env.metric]:.4g}, return {stats['return']:.4g}")
 
 

@@ -7,7 +7,7 @@ Layout of a run::
     checkpoints/           ckpt_<frames>.pt (the last `checkpoint.keep`), final.pt and best.pt (the
                            policy at the best evaluation; for `eval` and `init=`, never resumed from)
     summary.json           frames, wall time, final evaluation, checkpoints
-    curves.rrd             the training curves as a rerun recording (rebuilt from metrics.csv)
+    curves.rrd             the training curves as a rerun recording (rebuilt from metrics.csv by volleybots.replay)
     eval_<frames>.rrd      one recorded evaluation episode per periodic evaluation
     .hydra/                Hydra's own record of the overrides (when started by `volleybots train`)
     .lock                  locked (``fcntl.flock``) by the process training in the directory
@@ -23,10 +23,10 @@ Persistence only: ``rundir`` (RunDir, checkpoints, claiming a directory), ``metr
 from volleybots.runs.locks import (
     LOCK_NAME, InUseError, check_writable, lock, locked, make_dir, memory_errors_as, note, unlock,
 )
-from volleybots.runs.metrics import MetricsLog, read_metrics, write_curves
+from volleybots.runs.metrics import MetricsLog, read_metrics
 from volleybots.runs.rundir import CKPT_FORMAT, RunDir, claim_run_dir, load_algo_state, read_checkpoint
 
 __all__ = [
     "CKPT_FORMAT", "LOCK_NAME", "InUseError", "MetricsLog", "RunDir", "check_writable", "claim_run_dir", "load_algo_state", "lock",
-    "locked", "make_dir", "memory_errors_as", "note", "read_checkpoint", "read_metrics", "unlock", "write_curves",
+    "locked", "make_dir", "memory_errors_as", "note", "read_checkpoint", "read_metrics", "unlock",
 ]

@@ -57,23 +57,3 @@ def _is_number(v) -> bool:
     except (TypeError, ValueError):
         return False
     return True
-
-
-def write_curves(metrics_csv, out_path) -> None:
-    """The training curves of metrics.csv as a rerun recording: one time series per numeric column,
-    on a ``frames`` timeline (rebuilt whole, so it is always complete and a resumed run needs no merge)."""
-    import rerun as rr
-
-    from volleybots.replay import recording
-
-    rows = read_metrics(metrics_csv)
-    with recording(Path(out_path), "volleybots_curves") as rec:
-        for r in rows:
-            rec.set_time("frames", sequence=int(r["frames"]))
-            phase = r.get("phase", "train") or "train"
-            for k, v in r.items():
-                if k in ("frames", "phase") or not isinstance(v, float) or math.isnan(v):
-                    continue
-                rec.log(f"{phase}/{k}", rr.Scalars(v))
-
-

@@ -29,7 +29,8 @@ import torch
 from volleybots.config import make_env, to_dict
 from volleybots.play.episodes import collect, finished_stats, run_episodes, summarize
 from volleybots.play.seats import default_seat
-from volleybots.runs import CKPT_FORMAT, MetricsLog, RunDir, load_algo_state, read_checkpoint, write_curves
+from volleybots.replay import write_curves
+from volleybots.runs import CKPT_FORMAT, MetricsLog, RunDir, load_algo_state, read_checkpoint
 from volleybots.train.init import apply_init
 from volleybots.train.wandb import WandbLogger
 from volleybots.version import __version__
