@@ -15,7 +15,7 @@ throughput.
 
 from __future__ import annotations
 
-from volleybots.replay.recorder import TEAM_NAMES
+from volleybots.replay.style import TEAM_NAMES
 
 # statistics that are bookkeeping of a match (who won, why, who served), shown in the summary
 MATCH_BOOKKEEPING = ("winner", "reason", "serve_team", "win", "loss", "draw", "hits_team0", "hits_team1")

@@ -17,10 +17,8 @@ from collections import deque
 import numpy as np
 import torch
 
-TEAM_COLOURS = ((40, 110, 230), (225, 60, 50))  # team 0 (+x half) blue, team 1 (-x half) red
-TEAM_NAMES = ("blue", "red")
-BALL_COLOUR = (250, 210, 40)
-HIT_COLOUR, FAULT_COLOUR = (60, 220, 90), (240, 40, 40)
+from volleybots.replay.style import BALL_COLOUR, FAULT_COLOUR, HIT_COLOUR, TEAM_COLOURS, TEAM_NAMES  # noqa: F401 - re-exported
+
 HIT_EVENTS = ("racket_hit",)
 # referee events that are not faults: "hit" repeats racket/body hits, the rest are bookkeeping
 INFO_EVENTS = ("ball_crossed",)
