@@ -73,6 +73,38 @@ def test_getting_started_walks_to_a_crossplay_heatmap(site):
         assert step.replace('"', "&quot;") in text or step in text, step
 
 
+def test_markdown_is_lint_clean():
+    """pymarkdown with the rules of .pymarkdown.yml (blank lines around lists and headings, no bare URL,
+    heading levels one step at a time, fenced code with a language, ...) over every page and the README."""
+    from pymarkdown.api import PyMarkdownApi
+
+    failures = []
+    for path in (ROOT / "docs", ROOT / "README.md"):
+        api = PyMarkdownApi().enable_strict_configuration().configuration_file_path(str(ROOT / ".pymarkdown.yml"))
+        result = api.scan_path(str(path), recurse_if_directory=True)
+        assert not result.critical_errors and not result.pragma_errors, (result.critical_errors, result.pragma_errors)
+        failures += [f"{f.scan_file}:{f.line_number}: {f.rule_id} {f.rule_description}" for f in result.scan_failures]
+    assert not failures, "\n".join(failures)
+
+
+def test_no_list_renders_as_a_paragraph(site):
+    """Python-Markdown starts a list only after a blank line and nests one only at 4 spaces; a list that
+    misses either renders as "- a - b" inside a paragraph."""
+    runs = []
+    for page in site.rglob("*.html"):
+        for para in re.findall(r"<p>(.*?)</p>", page.read_text(), re.S):
+            if re.search(r"\n\s*[-*+] \S", para):
+                runs.append(f"{page.relative_to(site)}: {para[:80]!r}")
+    assert not runs, "\n".join(runs)
+
+
+def test_docs_cite_nothing_outside_the_repository():
+    pages = [*ROOT.joinpath("docs").rglob("*.md"), ROOT / "README.md"]
+    outside = [f"{p.relative_to(ROOT)}:{i}" for p in pages for i, line in enumerate(p.read_text().splitlines(), 1)
+               if re.search(r"\.\./shared|shared/(spec|paper|gpu|hooks)", line)]
+    assert not outside, outside
+
+
 def test_license_matches_pyproject():
     license_id = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["license"]["text"]
     assert license_id == "MIT"
