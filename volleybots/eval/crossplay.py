@@ -1,4 +1,4 @@
-"""Cross-play: every pair of competitors plays N games, both sides equally often (spec: evaluation.md).
+"""Cross-play: every pair of competitors plays N games, both sides equally often (docs/evaluation.md).
 
 ``crossplay`` fills a ``CrossPlay``: the wins, draws and losses of each row competitor against each
 column one, the game-by-game outcomes (for Elo rounds), and the provenance of every competitor (path,
@@ -60,7 +60,7 @@ class CrossPlay:
             return np.array([np.nanmean(r) if np.isfinite(r).any() else np.nan for r in wr])
 
     def payoffs(self) -> np.ndarray:
-        """[n, n] the zero-sum payoff (wins - losses) / games of the row (spec: populations.md); the
+        """[n, n] the zero-sum payoff (wins - losses) / games of the row (docs/competitive.md); the
         diagonal is 0, a competitor's value against itself in a symmetric game."""
         games = self.wdl.sum(-1)
         return np.divide(self.wdl[..., 0] - self.wdl[..., 2], games, out=np.zeros(games.shape), where=games > 0)

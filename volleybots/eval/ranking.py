@@ -1,6 +1,6 @@
 """Ratings of a cross-play result: the paper's Elo, Bradley-Terry with bootstrap intervals, and the
 Nash mixture of the meta-game with each competitor's exploitability within the population
-(spec: evaluation.md, "Ratings"). The arithmetic lives in ``volleybots.ratings`` and
+(docs/evaluation.md). The arithmetic lives in ``volleybots.ratings`` and
 ``volleybots.population.solvers``; this module applies it to a ``CrossPlay`` and draws the plot.
 
 Elo's games: when the cross-play played at least ``rounds`` games per pair, round r is every pair's

@@ -107,7 +107,7 @@ def exploitability(payoffs, mixture) -> float:
 
 def member_exploitability(payoffs) -> np.ndarray:
     """[n]: for each member i, max_j A[j, i] - A[i, i], the most another member gains against it
-    beyond what i gets against itself (spec evaluation.md's exploitability within the population)."""
+    beyond what i gets against itself (the exploitability within the population of docs/evaluation.md)."""
     a = _square(payoffs)
     return a.max(0) - np.diag(a)
 

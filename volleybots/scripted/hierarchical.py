@@ -1,5 +1,5 @@
 """The hierarchical 3 vs 3 policy: a rule-based, event-driven high level over drills (paper section
-5.4 and appendix E; spec: tasks.md "Drills of the hierarchical policy").
+5.4 and appendix E; docs/hierarchical.md).
 
 It acts for one team like any team policy (``("agents", "observation")`` [N, 3] in, ``("agents",
 "action")`` out, the match's mirrored view, so either side). At every hit the high level assigns
