@@ -60,10 +60,27 @@ def test_task_and_algorithm_references_have_every_entry(site):
 
 
 def test_api_reference_is_generated_from_the_docstrings(site):
-    text = _text(site, "reference/api")
+    text = _text(site, "reference/api/volleybots")
     assert "make_env" in text and "Build the TorchRL env of" in text  # volleybots.make_env's docstring
     assert "build_report" in text and "Interquartile mean" in text  # volleybots.report
     assert "check_launcher" in text
+    assert "wilson_interval" in _text(site, "reference/api/ratings") and "Referee" in _text(site, "reference/api/rules")
+
+
+def test_every_package_has_an_api_page(site):
+    """One page per package of volleybots/ (found from the tree, as a new package would be), listed on the
+    index page and in the sidebar, documenting each of its modules."""
+    packages = sorted(p.parent for p in (ROOT / "volleybots").glob("*/__init__.py"))
+    assert {p.name for p in packages} >= {"physics", "rules", "tasks", "scripted", "algos", "population", "ratings", "eval"}
+    index = (site / "reference" / "api" / "index.html").read_text()
+    top = (site / "reference" / "api" / "volleybots" / "index.html").read_text()
+    for pkg in packages:
+        html = (site / "reference" / "api" / pkg.name / "index.html").read_text()
+        assert f'href="{pkg.name}/"' in index and f'href="../{pkg.name}/"' in top, pkg.name  # index table, sidebar
+        for module in pkg.glob("[!_]*.py"):
+            assert f'id="volleybots.{pkg.name}.{module.stem}"' in html, (pkg.name, module.stem)
+    for module in (ROOT / "volleybots").glob("[!_]*.py"):
+        assert f'id="volleybots.{module.stem}"' in top, module.stem
 
 
 def test_getting_started_walks_to_a_crossplay_heatmap(site):
