@@ -83,6 +83,23 @@ def test_every_package_has_an_api_page(site):
         assert f'id="volleybots.{module.stem}"' in top, module.stem
 
 
+def test_task_reference_has_the_sizes_of_every_action_space(site):
+    """The sizes on the page are those of the envs (computed at build time), for every task and space."""
+    import volleybots
+    from volleybots.physics import ACTION_SPACES
+    from volleybots.tasks import TASKS
+
+    text = _text(site, "reference/tasks")
+    assert "Observation and action sizes" in text
+    for name in TASKS:
+        for space in ACTION_SPACES:
+            env = volleybots.make_env(name, num_envs=1, action_space=space)
+            obs = env.observation_spec["agents", "observation"].shape[-1]
+            action = "1 of 16" if space == "discrete" else "4 in [-1, 1]"
+            assert f"{space}: observation {obs}, action {action}" in text, (name, space)
+    assert "3v3 6 57 4 in [-1, 1] 53 4 in [-1, 1] 57 1 of 16" in " ".join(text.split())  # the summary table's row
+
+
 def test_getting_started_walks_to_a_crossplay_heatmap(site):
     text = _text(site, "getting-started")
     for step in ('pip install -e ".[test]"', "volleybots train task=hover", "volleybots eval runs/hover_s0",

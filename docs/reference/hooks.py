@@ -117,18 +117,62 @@ def config_reference() -> str:
     return "\n\n".join(parts)
 
 
+def _action(spec) -> str:
+    """One drone's action as the env's spec says it: a vector with its bounds, or a choice among n."""
+    n = getattr(spec, "n", None)
+    if n is not None:
+        return f"1 of {n}"
+    return f"{spec.shape[-1]} in [{spec.low.min().item():g}, {spec.high.max().item():g}]"
+
+
+def task_sizes() -> dict[str, dict[str, tuple[int, int, str]]]:
+    """task -> action space -> (drones, observation size per drone, action per drone), read from the
+    specs of a one-world env of each (about 20 ms each on a CPU)."""
+    import volleybots
+    from volleybots.physics import ACTION_SPACES
+    from volleybots.tasks import TASKS
+
+    out: dict[str, dict[str, tuple[int, int, str]]] = {}
+    for name in TASKS:
+        out[name] = {}
+        for space in ACTION_SPACES:
+            env = volleybots.make_env(name, num_envs=1, action_space=space)
+            obs = env.observation_spec["agents", "observation"].shape
+            out[name][space] = (obs[-2], obs[-1], _action(env.full_action_spec["agents", "action"]))
+    return out
+
+
+def sizes_table(sizes: dict[str, dict[str, tuple[int, int, str]]]) -> str:
+    """The observation and action sizes per drone of every task, one column pair per action space."""
+    spaces = list(next(iter(sizes.values())))
+    head = "| task | drones | " + " | ".join(f"obs `{s}` | action `{s}`" for s in spaces) + " |"
+    rows = [head, "|" + "---|" * (2 + 2 * len(spaces))]
+    for name, per in sizes.items():
+        cells = " | ".join(f"{per[s][1]} | {per[s][2]}" for s in spaces)
+        rows.append(f"| [`{name}`](#{name}) | {per[spaces[0]][0]} | {cells} |")
+    return "\n".join(rows)
+
+
 def tasks_reference() -> str:
     from volleybots.algos.base import class_attr
     from volleybots.paths import conf_dir
     from volleybots.tasks import TASKS
 
-    parts = []
+    sizes = task_sizes()
+    parts = [
+        "## Observation and action sizes\n\nPer drone, as the env's specs give them: "
+        "`(\"agents\", \"observation\")` has shape `[num_envs, drones, obs]`, `(\"agents\", \"action\")` "
+        "`[num_envs, drones, 4]` in the continuous spaces and `[num_envs, drones]` (an index) in `discrete`. "
+        "CTBR observations leave out the 4 rotor throttles.\n\n" + sizes_table(sizes)
+    ]
     for name, cls in TASKS.items():
         path = conf_dir() / "task" / f"{name}.yaml"
         n = class_attr(cls, "n_drones")
         parts.append(
             f"## `{name}`\n\n{_doc(cls)}"
-            f"- drones: {n}\n- metric: `{cls.metric}`\n- class: `{cls.__module__}.{cls.__qualname__}`\n\n"
+            f"- drones: {n}\n- metric: `{cls.metric}`\n"
+            + "".join(f"- `{s}`: observation {o}, action {a}\n" for s, (_, o, a) in sizes[name].items())
+            + f"- class: `{cls.__module__}.{cls.__qualname__}`\n\n"
             f"`task={name}` (`conf/task/{name}.yaml`): {_header(path)}\n\n{settings_table(settings(path), 'task.')}"
         )
     return "\n\n".join(parts)
