@@ -67,6 +67,21 @@ def test_api_reference_is_generated_from_the_docstrings(site):
     assert "wilson_interval" in _text(site, "reference/api/ratings") and "Referee" in _text(site, "reference/api/rules")
 
 
+def test_entry_points_render_their_parameters(site):
+    """The public entry points carry Google-style Args/Returns, which mkdocstrings renders as tables."""
+    pages = {"volleybots": ["make_env"], "scripted": ["scripted.policies.make_scripted_policy"], "tasks": ["tasks.multi.TeamPolicies"],
+             "ratings": ["ratings.elo.elo", "ratings.bradley_terry.bradley_terry_bootstrap", "ratings.intervals.wilson_interval"],
+             "eval": ["eval.compare.compare", "eval.crossplay.crossplay", "eval.ranking.ratings", "eval.exploitability.run_exploitability"]}
+    for page, names in pages.items():
+        html = (site / "reference" / "api" / page / "index.html").read_text()
+        for name in names:
+            block = re.search(rf'id="volleybots\.{re.escape(name)}"(.*?)(?=<h[23] id=|$)', html, re.S)
+            assert block, (page, name)
+            assert "Parameters:" in block.group(1) and ("Returns:" in block.group(1) or name.endswith("TeamPolicies")), (page, name)
+    make_env = _text(site, "reference/api/volleybots")
+    assert "num_envs" in make_env and "worlds stepped together in one batch" in make_env
+
+
 def test_every_package_has_an_api_page(site):
     """One page per package of volleybots/ (found from the tree, as a new package would be), listed on the
     index page and in the sidebar, documenting each of its modules."""

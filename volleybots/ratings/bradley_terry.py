@@ -42,13 +42,35 @@ def _fit(wins: np.ndarray, prior_sd: float) -> np.ndarray:
 
 
 def bradley_terry(wdl, prior_sd: float = PRIOR_SD) -> np.ndarray:
-    """Ratings [n] on the Elo scale (mean 1000) from the game counts ``wdl`` [n, n, 3]."""
+    """Bradley-Terry maximum-likelihood ratings on the Elo scale, a draw counting half a win.
+
+    Args:
+        wdl: counts [n, n, 3]: wins, draws and losses of the row against the column.
+        prior_sd: the standard deviation of a weak Gaussian prior on the log-strengths, which keeps the
+            fit finite when a player wins (or loses) every game.
+
+    Returns:
+        Ratings [n] with mean 1000, on Elo's scale (400 points: 10 to 1 odds).
+    """
     return 1000.0 + ELO_SCALE * _fit(half_win_matrix(wdl), prior_sd)
 
 
 def bradley_terry_bootstrap(wdl, samples: int = 1000, rng: np.random.Generator | None = None, confidence: float = 0.95, prior_sd: float = PRIOR_SD):
-    """(ratings [n], low [n], high [n]): the fit and its percentile bootstrap interval, resampling
-    every pair's games (multinomially from its win/draw/loss frequencies, as many as were played)."""
+    """Bradley-Terry ratings with percentile bootstrap intervals.
+
+    Each resample redraws every pair's games multinomially from its win / draw / loss frequencies, as
+    many as were played, and refits.
+
+    Args:
+        wdl: counts [n, n, 3]: wins, draws and losses of the row against the column.
+        samples: bootstrap resamples.
+        rng: the generator of the resamples (``default_rng(0)`` when ``None``).
+        confidence: the interval's coverage.
+        prior_sd: as for ``bradley_terry``.
+
+    Returns:
+        ``(ratings, low, high)``, each [n]: the fit on the counts and its interval.
+    """
     rng = rng if rng is not None else np.random.default_rng(0)
     wdl = np.asarray(wdl, float)
     n = wdl.shape[0]

@@ -13,7 +13,16 @@ def wilson_interval(wins, games, confidence: float = 0.95):
 
     Wilson rather than the normal approximation because cross-play rates sit near 0 and 1 (scripted
     against random wins every decisive game), where the normal interval collapses to a point or
-    leaves [0, 1]. No games: (nan, nan)."""
+    leaves [0, 1].
+
+    Args:
+        wins: wins (decisive games won), a count or an array of counts.
+        games: games counted (decisive games), broadcast against ``wins``.
+        confidence: the interval's coverage.
+
+    Returns:
+        ``(low, high)``: floats for scalar input, arrays otherwise; nan where there are no games.
+    """
     wins_a, games_a = np.broadcast_arrays(np.asarray(wins), np.asarray(games))
     lo = np.full(wins_a.shape, math.nan)
     hi = np.full(wins_a.shape, math.nan)
