@@ -7,10 +7,10 @@ import os
 import re
 import subprocess
 import sys
-import tomllib
 from pathlib import Path
 
 import pytest
+import tomllib
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -75,7 +75,7 @@ def test_entry_points_render_their_parameters(site):
     for page, names in pages.items():
         html = (site / "reference" / "api" / page / "index.html").read_text()
         for name in names:
-            block = re.search(rf'id="volleybots\.{re.escape(name)}"(.*?)(?=<h[23] id=|$)', html, re.S)
+            block = re.search(rf'id="volleybots\.{re.escape(name)}"(.*?)(?=<h[23] id=|$)', html, re.DOTALL)
             assert block, (page, name)
             assert "Parameters:" in block.group(1) and ("Returns:" in block.group(1) or name.endswith("TeamPolicies")), (page, name)
     make_env = _text(site, "reference/api/volleybots")
@@ -141,7 +141,7 @@ def test_no_list_renders_as_a_paragraph(site):
     misses either renders as "- a - b" inside a paragraph."""
     runs = []
     for page in site.rglob("*.html"):
-        for para in re.findall(r"<p>(.*?)</p>", page.read_text(), re.S):
+        for para in re.findall(r"<p>(.*?)</p>", page.read_text(), re.DOTALL):
             if re.search(r"\n\s*[-*+] \S", para):
                 runs.append(f"{page.relative_to(site)}: {para[:80]!r}")
     assert not runs, "\n".join(runs)
