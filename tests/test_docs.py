@@ -70,7 +70,7 @@ def test_api_reference_is_generated_from_the_docstrings(site):
 def test_entry_points_render_their_parameters(site):
     """The public entry points carry Google-style Args/Returns, which mkdocstrings renders as tables."""
     pages = {"volleybots": ["make_env"], "scripted": ["scripted.policies.make_scripted_policy"], "tasks": ["tasks.multi.TeamPolicies"],
-             "ratings": ["ratings.elo.elo", "ratings.bradley_terry.bradley_terry_bootstrap", "ratings.intervals.wilson_interval"],
+             "ratings": ["ratings.elo.elo", "ratings.elo.elo_history", "ratings.intervals.wilson_interval"],
              "eval": ["eval.compare.compare", "eval.crossplay.crossplay", "eval.ranking.ratings", "eval.exploitability.run_exploitability"]}
     for page, names in pages.items():
         html = (site / "reference" / "api" / page / "index.html").read_text()
