@@ -75,6 +75,8 @@ def best_response(spec: str, a) -> dict:
 def table(rep: dict, res, a, wall: float) -> str:
     bt, elo = rep["bradley_terry"], rep["elo"]
     lines = [
+        f"# Competitive policies on {a.task} (paper table 3)",
+        "",
         f"Task {a.task}: {a.games} games per pair (both sides equally), cross-play seed {a.seed}; Elo K={a.k:g} over "
         f"{a.rounds} rounds sampled from the counts; BT with 95 % profile-likelihood intervals; {wall:.0f} s of games; "
         + (f"best responses: {a.br_budget:,} frames, {a.br_games} games each." if a.br_budget else "no best responses."),

@@ -122,7 +122,21 @@ def _play(target, episodes: int | None):
 
 
 def compare(args, episodes: int | None = None) -> dict:
-    """Play every target of ``args`` on the same episodes; compare each with the first."""
+    """``volleybots eval compare``: play every target on the same episodes; compare each with the first.
+
+    Args:
+        args: the command's words: targets (run dirs, checkpoints, ``scripted``, ``random``) and
+            ``key=value`` overrides (``seed=``, ``task=``, ...) applied to every target.
+        episodes: episodes per target; ``None`` uses the config's ``episodes``.
+
+    Returns:
+        A JSON-ready dict: ``task``, ``metric``, ``higher_is_better``, ``episodes``, ``seed``,
+        ``baseline`` and ``targets``, one row per target (mean, std, per-episode metric, and for all
+        but the first ``vs_baseline``: the paired difference, its 95 % interval and Wilcoxon's test).
+
+    Raises:
+        ConfigError: targets of different tasks, or targets that did not play the same episodes.
+    """
     names, overrides = split(args)
     targets = _resolve(names, overrides)
     tasks = {t.cfg.task.name for t in targets}

@@ -1,4 +1,4 @@
-"""Cross-play: every pair of competitors plays N games, both sides equally often (spec: evaluation.md).
+"""Cross-play: every pair of competitors plays N games, both sides equally often (docs/evaluation.md).
 
 ``crossplay`` fills a ``CrossPlay``: the wins, draws and losses of each row competitor against each
 column one, the game-by-game outcomes (for Elo rounds), and the provenance of every competitor (path,
@@ -62,7 +62,7 @@ class CrossPlay:
             return np.array([np.nanmean(r) if np.isfinite(r).any() else np.nan for r in wr])
 
     def payoffs(self) -> np.ndarray:
-        """[n, n] the zero-sum payoff (wins - losses) / games of the row (spec: populations.md); the
+        """[n, n] the zero-sum payoff (wins - losses) / games of the row (docs/competitive.md); the
         diagonal is 0, a competitor's value against itself in a symmetric game."""
         games = self.wdl.sum(-1)
         return np.divide(self.wdl[..., 0] - self.wdl[..., 2], games, out=np.zeros(games.shape), where=games > 0)
@@ -175,8 +175,23 @@ def provenance(competitor, spec: str) -> dict:
 
 
 def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_BATCH, scenario: str = "any", deterministic: bool = False, specs=None, progress=None) -> CrossPlay:
-    """Play ``games`` games for every pair of ``competitors`` on the match task of ``cfg``;
-    ``progress(i, j, games)`` after each pair."""
+    """Play ``games`` games for every pair of ``competitors`` on the match task of ``cfg``.
+
+    Args:
+        cfg: the match config (``match_config``): task, action space, physics.
+        competitors: two or more resolved competitors (``resolve_all``).
+        games: games per pair, each competitor on each side half of them.
+        seed: seeds the games; the same seed replays the same games.
+        batch: worlds played together.
+        scenario: "any", "serve" (the row competitor serves) or "receive".
+        deterministic: competitors act with their mode instead of sampling.
+        specs: the competitors as named on the command line, for the provenance.
+        progress: called as ``progress(i, j, games)`` after each pair.
+
+    Returns:
+        The ``CrossPlay``: win / draw / loss counts per ordered pair, game-by-game outcomes and the
+        provenance of every competitor.
+    """
     n = len(competitors)
     if n < 2:
         raise ConfigError(f"cross-play needs at least two competitors; got {n}")
@@ -300,7 +315,18 @@ def setup(args, options: dict, min_competitors: int = 2):
 
 
 def run_crossplay(args, out: Path | None = None, progress=None, verb: str = "crossplay") -> tuple[CrossPlay, Path]:
-    """``volleybots eval crossplay``: validate, play every pair, write results JSON and heatmap."""
+    """``volleybots eval crossplay``: validate, play every pair, write the results JSON and the heatmap.
+
+    Args:
+        args: the command's words: competitors and ``key=value`` options (``games=``, ``seed=``,
+            ``task=``, ``scenario=``, ...).
+        out: the output directory; ``None`` picks one under ``outputs/``.
+        progress: called as ``progress(i, j, games)`` after each pair.
+        verb: the verb, naming the default output directory.
+
+    Returns:
+        ``(result, directory)``: the ``CrossPlay`` and where its files were written.
+    """
     comps, specs, opts, cfg = setup(args, OPTIONS)
     path = out_dir(out, cfg.task.name, verb)
     res = crossplay(

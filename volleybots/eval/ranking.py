@@ -1,6 +1,6 @@
 """Ratings of a cross-play result: the paper's Elo, Bradley-Terry with profile-likelihood intervals, and the
 Nash mixture of the meta-game with each competitor's exploitability within the population
-(spec: evaluation.md, "Ratings"). The arithmetic lives in ``volleybots.ratings`` and
+(docs/evaluation.md). The arithmetic lives in ``volleybots.ratings`` and
 ``volleybots.population.solvers``; this module applies it to a ``CrossPlay`` and draws the plot.
 
 Elo's games: when the cross-play played at least ``rounds`` games per pair, round r is every pair's
@@ -43,8 +43,21 @@ def elo_games(result: CrossPlay, rounds: int, rng: np.random.Generator, sample: 
 
 
 def ratings(result: CrossPlay, rounds: int = 2000, k: float = ELO_K, seed: int = 0, sample: bool = False) -> dict:
-    """Elo (and its trajectory, one point per round), BT with 95 % intervals, the Nash mixture and
-    the exploitabilities, as a JSON-ready dict."""
+    """Ratings of a cross-play: Elo, Bradley-Terry, the Nash mixture and the exploitabilities.
+
+    Args:
+        result: the cross-play whose counts (and, unless ``sample``, game-by-game outcomes) are rated.
+        rounds: Elo rounds, every pair meeting once a round.
+        k: Elo's update step.
+        seed: seeds the round order and the sampled results.
+        sample: draw Elo's games from each pair's frequencies (as the paper did) instead of replaying
+            the games that were played.
+
+    Returns:
+        A JSON-ready dict: ``labels``, ``elo`` (final ratings and the trajectory), ``bradley_terry``
+        (ratings with 95 % profile-likelihood intervals), ``average_win_rate``, ``payoffs``, ``nash`` (the mixture),
+        ``nash_exploitability``, ``exploitability_in_population`` and the cross-play's settings.
+    """
     rng = np.random.default_rng(seed)
     games, how = elo_games(result, rounds, rng, sample)
     pairs = result.n * (result.n - 1) // 2
@@ -131,8 +144,18 @@ PLOT = "ratings.png"
 
 
 def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
-    """``volleybots eval elo``: ratings of games played now (``rounds`` games per pair) or of a
-    cross-play results file (``from=FILE``, whose competitors must be the ones named, if any)."""
+    """``volleybots eval elo``: ratings of games played now or of a cross-play results file.
+
+    Args:
+        args: the command's words: competitors and ``key=value`` options (``rounds=``, ``k=``,
+            ``from=FILE`` to rate a cross-play already played, whose competitors must be the ones
+            named, if any).
+        out: the output directory; ``None`` picks one under ``outputs/``.
+        progress: called as ``progress(i, j, games)`` after each pair played.
+
+    Returns:
+        ``(report, directory)``: the dict of ``ratings`` and where it was written (JSON and plot).
+    """
     from volleybots.eval.crossplay import HEATMAP, OPTIONS, RESULTS, heatmap, out_dir, resolve_all, run_crossplay, split_args
 
     if any(a.partition("=")[0] == "bootstrap" for a in args):

@@ -1,4 +1,4 @@
-"""MuJoCo backend: the same world as ``torch_backend`` stepped by MuJoCo (spec: physics.md "Backends").
+"""MuJoCo backend: the same world as ``torch_backend`` stepped by MuJoCo (docs/backends.md).
 
 The scene is generated as MJCF from the same ``WorldParams``: every drone is a free body carrying the
 Iris mass and inertia, four rotor sites whose actuators push along the site z axis with a yaw reaction

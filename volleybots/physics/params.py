@@ -1,4 +1,4 @@
-"""Physical parameters of the drone, the ball and the world (spec: physics.md).
+"""Physical parameters of the drone, the ball and the world (docs/physics.md).
 
 They are plain dataclasses so that a test, a backend or a config file can build them; the drone's
 numbers are read from ``conf/env/drone/<name>.yaml`` so that another airframe is a config, not code.

@@ -1,4 +1,4 @@
-"""Batched rigid-body, rotor, downwash and ball physics in PyTorch (spec: physics.md).
+"""Batched rigid-body, rotor, downwash and ball physics in PyTorch (docs/physics.md).
 
 Pure dynamics: no volleyball rules live here. State tensors have shape [num_envs, n_drones, ...]
 for drones and [num_envs, ...] for the ball; every function works on any torch device.

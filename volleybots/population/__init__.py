@@ -1,4 +1,4 @@
-"""Populations of policies and the loop that grows them (spec: populations.md, algorithms.md).
+"""Populations of policies and the loop that grows them (docs/competitive.md).
 
 Self-play, fictitious self-play and PSRO are one loop (OpenSpiel's psro_v2 shape): an oracle trains a
 best response against the population's meta-strategy, the learner joins the population, the payoff

@@ -108,7 +108,7 @@ def exploitability(payoffs, mixture) -> float:
 def member_exploitability(payoffs) -> np.ndarray:
     """[n]: for each member i, max_j A[j, i] - A[i, i] over every member j, i itself included: what
     the best response to i *within the population* gains against it beyond what i gets against
-    itself (spec evaluation.md's exploitability within the population).
+    itself (the exploitability within the population of docs/evaluation.md).
 
     i is a candidate because exploitability, max over pi' of U(pi', pi) - U(pi, pi), maximises over
     every policy, pi among them: it is never below 0, and 0 means no member does better against i

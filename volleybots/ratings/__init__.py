@@ -1,4 +1,4 @@
-"""Ratings of competitors from games between them (spec: evaluation.md, "Ratings").
+"""Ratings of competitors from games between them (docs/evaluation.md).
 
 Small pure functions over numpy arrays, usable without the CLI or the env:
 

@@ -18,17 +18,45 @@ ELO_K = 168.0  # the paper's K for its 4 policies; a parameter everywhere
 
 
 def expected_score(ra, rb):
-    """The expected score of a player rated ``ra`` against one rated ``rb``."""
+    """The expected score of a player rated ``ra`` against one rated ``rb``.
+
+    Args:
+        ra: the player's rating (a scalar or an array).
+        rb: the opponent's rating, broadcast against ``ra``.
+
+    Returns:
+        ``1 / (1 + 10^((rb - ra) / 400))``: 0.5 between equals, toward 1 as ``ra`` leads.
+    """
     return 1.0 / (1.0 + 10.0 ** ((np.asarray(rb, float) - np.asarray(ra, float)) / 400.0))
 
 
 def elo(games: Iterable, n: int, k: float = ELO_K, start: float = ELO_START) -> np.ndarray:
-    """Final ratings [n] after the games ``(a, b, score_a)`` in order (score 1 win, 0.5 draw, 0 loss)."""
+    """Final Elo ratings after a sequence of games.
+
+    Args:
+        games: ``(a, b, score_a)`` rows in the order played; score 1 a win of a, 0.5 a draw, 0 a loss.
+        n: the number of players (indices ``0 .. n-1``).
+        k: the update step (the paper's 168 for 4 policies).
+        start: everyone's rating before the first game.
+
+    Returns:
+        Ratings [n] after the last game.
+    """
     return elo_history(games, n, k, start)[-1]
 
 
 def elo_history(games: Iterable, n: int, k: float = ELO_K, start: float = ELO_START) -> np.ndarray:
-    """Ratings [1 + games, n]: at the start and after every game."""
+    """Elo ratings at the start and after every game.
+
+    Args:
+        games: ``(a, b, score_a)`` rows in the order played, as for ``elo``.
+        n: the number of players.
+        k: the update step.
+        start: everyone's rating before the first game.
+
+    Returns:
+        Ratings [1 + games, n]; row 0 is the start, row i after game i.
+    """
     if not (math.isfinite(k) and k > 0):
         raise ValueError(f"k={k} must be a finite number > 0 (Elo's step)")
     r = np.full(n, float(start))
@@ -43,8 +71,17 @@ def elo_history(games: Iterable, n: int, k: float = ELO_K, start: float = ELO_ST
 
 
 def round_robin(n: int, rounds: int, play: Callable[[int, int, int], float], rng: np.random.Generator) -> np.ndarray:
-    """The games [rounds x n(n-1)/2, 3] of ``rounds`` rounds in which every pair (a < b) meets once,
-    in a shuffled order per round; ``play(a, b, r)`` gives a's score in round r."""
+    """Games of ``rounds`` rounds in which every pair (a < b) meets once, in a shuffled order per round.
+
+    Args:
+        n: the number of players.
+        rounds: how many rounds.
+        play: ``play(a, b, r)`` gives a's score (1, 0.5, 0) against b in round r.
+        rng: the generator that shuffles each round.
+
+    Returns:
+        Games [rounds x n(n-1)/2, 3] of ``(a, b, score_a)``, ready for ``elo``.
+    """
     pairs = list(combinations(range(n), 2))
     games = []
     for r in range(rounds):
@@ -55,8 +92,20 @@ def round_robin(n: int, rounds: int, play: Callable[[int, int, int], float], rng
 
 
 def sample_round_robin(wdl, rounds: int, rng: np.random.Generator) -> np.ndarray:
-    """Round-robin games whose results are drawn from each pair's cross-play frequencies ``wdl``
-    [n, n, 3] (wins, draws, losses of the row against the column), as the paper's Elo was."""
+    """Round-robin games whose results are drawn from each pair's cross-play frequencies, as the
+    paper's Elo was.
+
+    Args:
+        wdl: counts [n, n, 3]: wins, draws and losses of the row against the column.
+        rounds: how many rounds (every pair meets once a round).
+        rng: the generator of the order and the drawn results.
+
+    Returns:
+        Games [rounds x n(n-1)/2, 3] of ``(a, b, score_a)``.
+
+    Raises:
+        ValueError: a pair that played no game.
+    """
     wdl = np.asarray(wdl, float)
     n = wdl.shape[0]
     for a, b in combinations(range(n), 2):

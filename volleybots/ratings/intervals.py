@@ -30,7 +30,15 @@ def wilson_interval(wins, games, confidence: float = 0.95):
     leaves [0, 1]. No games: (nan, nan). Counts must be whole numbers >= 0 with ``wins <= games``
     (integral floats such as 12.0 are counts too): a fraction or a negative is a damaged count, and
     rounding it would give an interval for games that were never played, so ``ConfigError`` (a
-    ``ValueError``) is raised instead."""
+    ``ValueError``) is raised instead.
+    Args:
+        wins: wins (decisive games won), a count or an array of counts.
+        games: games counted (decisive games), broadcast against ``wins``.
+        confidence: the interval's coverage.
+
+    Returns:
+        ``(low, high)``: floats for scalar input, arrays otherwise; nan where there are no games.
+    """
     if not 0.0 < confidence < 1.0:
         raise ConfigError(f"confidence={confidence!r} must be in (0, 1)")
     wins_a, games_a = np.broadcast_arrays(_counts("wins", wins), _counts("games", games))

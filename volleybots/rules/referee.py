@@ -1,4 +1,4 @@
-"""The referee: hit attribution, turns, violations and rally outcome (spec: physics.md "Hits", tasks.md).
+"""The referee: hit attribution, turns, violations and rally outcome (docs/physics.md).
 
 It reads the physics state and the contact events of one control step and knows nothing of rewards:
 tasks turn its events into rewards and terminations. One class serves the solo drills, the

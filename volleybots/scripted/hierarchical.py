@@ -1,5 +1,5 @@
 """The hierarchical 3 vs 3 policy: a rule-based, event-driven high level over drills (paper section
-5.4 and appendix E; spec: tasks.md "Drills of the hierarchical policy").
+5.4 and appendix E; docs/hierarchical.md).
 
 It acts for one team like any team policy (``("agents", "observation")`` [N, 3] in, ``("agents",
 "action")`` out, the match's mirrored view, so either side). At every hit the high level assigns
@@ -32,7 +32,7 @@ ball crossing the net, any other hit by the drone nearest the ball being an oppo
 Low-level policies: the scripted drills (scripted/drills.py, Hover's scripted policy), or trained
 checkpoints where given (``checkpoints``: drill name -> checkpoint file or run dir, trained on that
 drill with the same action space). The decision log: the policy writes ``("agents", "drill")`` [N, 3]
-(codes of ``DRILL_LABELS``), which replays show per drone (volleybots/replay.py).
+(codes of ``DRILL_LABELS``), which replays show per drone (volleybots/replay/).
 """
 
 from __future__ import annotations

@@ -283,12 +283,22 @@ SCRIPTED_POLICIES: dict[str, type[ScriptedPolicy]] = {cls.task: cls for cls in (
 
 
 def make_scripted_policy(env_or_task, action_space: str | None = None, **kwargs) -> ScriptedPolicy:
-    """The scripted policy of a task, for an env (``VolleyEnv``: its task, action space and physical
-    parameters are used) or a task name (default physics; ``action_space`` defaults to "prt").
+    """The scripted policy of a task, for an env or a task name.
 
-    Supported action spaces are "prt" and "ctbr"; the discrete space has no scripted policy (a
-    model-based controller needs a continuous actuator). Keywords go to the policy class (gains,
-    configs). Unknown tasks or action spaces raise ``ValueError`` naming the allowed values.
+    The discrete space has no scripted policy: a model-based controller needs a continuous actuator.
+
+    Args:
+        env_or_task: an env of ``make_env`` (its task, action space and physical parameters are used)
+            or a task name (default physics).
+        action_space: "prt" or "ctbr"; ``None`` takes the env's, or "prt" for a task name.
+        **kwargs: keywords of the policy class (gains, configs).
+
+    Returns:
+        A TensorDict module reading ``("agents", "observation")`` and writing ``("agents", "action")``;
+        on a match it drives every drone (wrap it in ``TeamPolicies`` to play one team).
+
+    Raises:
+        ValueError: an unknown task or action space, named with the allowed values.
     """
     if isinstance(env_or_task, str):
         task, params = env_or_task, None

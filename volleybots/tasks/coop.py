@@ -1,5 +1,5 @@
-"""Two-drone cooperative tasks: Bump and Pass, Set and Spike (Easy, Hard) (spec: tasks.md "Multi-agent
-cooperative"; paper appendix C).
+"""Two-drone cooperative tasks: Bump and Pass, Set and Spike (Easy, Hard) (paper appendix C;
+docs/tasks.md).
 
 Observation (39 for Bump and Pass, 40 for Set and Spike; 4 fewer with CTBR): root state, drone minus
 its anchor, drone minus ball, ball velocity, other drone minus self, turn one-hot, id one-hot.

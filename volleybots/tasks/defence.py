@@ -1,4 +1,4 @@
-"""The defence racket of Set and Spike (Hard) (paper appendix A.3; spec: tasks.md).
+"""The defence racket of Set and Spike (Hard) (paper appendix A.3; docs/tasks.md).
 
 A thin disk (radius 0.5 m) held by an imaginary defender on the -x half. It is kinematic: it does not
 take part in the physics step; after each control step the task calls ``DefenceRacket.step`` with the

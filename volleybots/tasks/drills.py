@@ -1,5 +1,5 @@
-"""Drills of the hierarchical 3 vs 3 policy: Serve, Pass, Set, Attack (spec: tasks.md "Drills of the
-hierarchical policy"; paper section 5.4 and appendix E). Hover (tasks/single.py) is the fifth.
+"""Drills of the hierarchical 3 vs 3 policy: Serve, Pass, Set, Attack (paper section 5.4 and appendix E;
+docs/hierarchical.md). Hover (tasks/single.py) is the fifth.
 
 Each is one drone of team 0 on the 3 vs 3 court (12 x 6), in its own half (x > 0, the net at x = 0),
 at the anchor of its role in the team, with the ball placed as it arrives there in a rally:

@@ -1,4 +1,4 @@
-"""Matches: 1 vs 1, 3 vs 3, 6 vs 6 (spec: tasks.md "Multi-agent competitive"; paper appendix C).
+"""Matches: 1 vs 1, 3 vs 3, 6 vs 6 (paper appendix C; docs/tasks.md).
 
 Team 0 plays on +x, team 1 on -x; team 1's anchors are team 0's rotated by 180 degrees about z, and its
 drones start with yaw pi, so the two sides are exact images of each other. A random team serves (the
@@ -278,7 +278,7 @@ class ThreeVsThree(_TeamMatch):
 
 class SixVsSix(_TeamMatch):
     name = "6v6"
-    court = "full"  # the paper's appendix says 12 x 6; the spec uses the full court
+    court = "full"  # the paper's appendix says 12 x 6; volleybots uses the full court
     team_size = 6
     anchors_xyz = both_sides(((3.0, -3.0, 2.0), (3.0, 0.0, 2.0), (3.0, 3.0, 2.0), (6.0, -3.0, 2.0), (9.0, 0.0, 2.0), (6.0, 3.0, 2.0)))
     server_rank = 4  # the (9, 0, 2) drone

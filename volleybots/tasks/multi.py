@@ -143,7 +143,13 @@ class TeamPolicies:
     Usable as the policy of ``env.rollout`` and of TorchRL collectors.
 
     A policy with a ``begin_episodes(starts [N])`` method is told which envs start an episode this
-    step (a population opponent draws its member then)."""
+    step (a population opponent draws its member then).
+
+    Args:
+        env: the match env (``make_env("1v1" | "3v3" | "6v6", ...)``), which splits and merges the teams.
+        policies: the policy of team 0 (the +x side) and of team 1; each sees its team's observations
+            mirrored to the +x side, so one policy plays either side.
+    """
 
     def __init__(self, env: MultiDroneTask, policies: tuple[Callable, Callable]):
         self.env = env

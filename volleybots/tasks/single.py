@@ -1,4 +1,4 @@
-"""Single-drone tasks: Hover, Back and Forth, Hit the Ball, Solo Bump (spec: tasks.md "Single-agent").
+"""Single-drone tasks: Hover, Back and Forth, Hit the Ball, Solo Bump (paper appendix C; docs/physics.md).
 
 Relative vectors are "drone minus target" here. Coefficients are the reference implementation's.
 """
@@ -82,9 +82,9 @@ class BackAndForth(VolleyEnv):
     metric = "targets"  # targets reached (5 consecutive steps within 0.6 m)
 
     def __init__(self, *args, stay_reward: float = 2.5, target_reward: float = 0.0, **kw):
-        """``stay_reward`` per step inside the sphere is the spec's; it pays a drone that dithers at a
+        """``stay_reward`` per step inside the sphere is the reference's; it pays a drone that dithers at a
         target's edge more than one that completes stays and flies on (docs/imitation.md), so
-        ``target_reward``, paid per target reached (0 in the spec), can align the return with the metric."""
+        ``target_reward``, paid per target reached (0 in the reference), can align the return with the metric."""
         self.stay_reward, self.target_reward = stay_reward, target_reward
         super().__init__(*args, **kw)
         self.anchors = torch.tensor((ANCHOR, (9.0, 4.5, 2.0)), device=self.device)
@@ -220,11 +220,11 @@ class SoloBump(_BallDrill):
 
     def __init__(self, *args, hit_reward: float = 2.0, height_reward: float = 8.0, strict_bumps: bool = False, far_starts: float = 0.0, **kw):
         """``strict_bumps`` pays ``height_reward`` only for the bumps the metric counts (struck within
-        1 m of the anchor, apex in [3.5, 4.5] m); the spec's reward (False) pays every apex of 3.5 m or
+        1 m of the anchor, apex in [3.5, 4.5] m); the paper's reward (False) pays every apex of 3.5 m or
         more, so a policy can earn it while drifting off the anchor, where the metric's streak restarts.
         ``far_starts`` is the probability that an episode's start is drawn (uniformly) from the part
         of the start box at least ``far_start`` from the ball's column rather than from all of it: a
-        training curriculum for the hardest openings, which the spec's box (``far_starts=0``) gives
+        training curriculum for the hardest openings, which the paper's box (``far_starts=0``) gives
         one episode in five."""
         self.hit_reward = hit_reward
         self.height_reward = height_reward
@@ -244,7 +244,7 @@ class SoloBump(_BallDrill):
     def drone_start(self) -> torch.Tensor:
         """The box's starts; with probability ``far_starts`` one from its part far from the ball instead."""
         start = super().drone_start()
-        if self.far_starts <= 0:  # the spec's box, from the same random numbers as ever
+        if self.far_starts <= 0:  # the paper's box, from the same random numbers as ever
             return start
         n = self.num_envs
         far = self.uniform(0.0, 1.0, (n,)) < self.far_starts
