@@ -6,5 +6,6 @@ from setuptools import find_packages, setup
 setup(
     packages=find_packages(include=["volleybots", "volleybots.*"]) + ["volleybots.conf"],
     package_dir={"volleybots.conf": "conf"},
-    package_data={"volleybots.conf": ["**/*.yaml"]},
+    # the zoo's weights-only checkpoints and their cards ship inside the package
+    package_data={"volleybots.conf": ["**/*.yaml"], "volleybots.zoo": ["*/*.pt", "*/*.yaml"]},
 )

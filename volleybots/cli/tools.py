@@ -36,6 +36,18 @@ def list_cmd() -> None:
     typer.echo("action spaces (env.action_space=NAME):")
     for name, text in ACTION_SPACE_INFO.items():
         typer.echo(f"  {name:<20} {text}")
+    from volleybots.policies import PLAYERS
+    from volleybots.zoo import PREFIX, entries
+
+    typer.echo("built-in players (eval NAME, competitors, opponent=):")
+    for name, player in PLAYERS.items():
+        typer.echo(f"  {name:<20} {player.description}")
+    typer.echo("zoo (trained policies shipped with the package: zoo:TASK/METHOD wherever a competitor goes):")
+    for name, e in entries().items() or ():
+        figures = ", ".join(f"{k} {v}" for k, v in (e.card.get("figures") or {}).items())
+        typer.echo(f"  {PREFIX + name:<20} {e.card.get('frames', '?')} frames, seed {e.card.get('seed', '?')}; {figures}")
+    if not entries():
+        typer.echo("  (none in this install)")
 
 
 def _fits(algo: str, task: str) -> bool:

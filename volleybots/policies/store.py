@@ -15,6 +15,7 @@ The grammar (``parse_spec``), used by ``eval``, ``replay``, ``eval crossplay``, 
     RUN_DIR                              a run: its population (members and final mixture) if it is a
                                          population run, else its final (else latest) checkpoint
     PATH.yaml                            a hierarchical team with trained drills: ``hierarchical: {drill: checkpoint}``
+    zoo:TASK/METHOD                      a policy shipped in the package (``volleybots.zoo``)
     NAME=any of the above                the same, labelled NAME
 """
 
@@ -26,6 +27,7 @@ from pathlib import Path
 
 import torch
 
+from volleybots import zoo
 from volleybots.errors import ConfigError
 from volleybots.runs import RunDir, load_algo_state, read_checkpoint
 
@@ -59,6 +61,12 @@ def parse_spec(spec: str, builtins=("scripted", "random", "hierarchical"), what:
         raise ConfigError(f"{what} {spec!r} names no policy; expected {allowed}")
     if target in builtins:
         return Spec(label, "builtin", target)
+    if target.startswith(zoo.PREFIX):
+        entry = zoo.lookup(target)
+        if entry is None:
+            shipped = ", ".join(zoo.PREFIX + n for n in zoo.entries()) or "none in this install"
+            raise ConfigError(f"{what} {target!r} is not in the zoo; shipped: {shipped}")
+        return Spec(label or target, "checkpoint", str(entry.checkpoint))
     path = Path(target)
     if path.is_file():
         return Spec(label, "drills" if path.suffix in (".yaml", ".yml") else "checkpoint", target)
