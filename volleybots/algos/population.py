@@ -26,8 +26,10 @@ class PopulationConfig(MAPPOConfig):
     learner_init: str = "scratch"
     self_play: bool = False
     iterations: int = ranged(10, ge=1)
-    min_updates: int = ranged(20, ge=1)
-    max_updates: int = ranged(300, ge=1)
+    # 20 batches of the CPU default (256 envs x 64 steps) are 328k frames: three oracles fit the default
+    # total_frames of 1M, so a default run completes >= 3 iterations (docs/competitive.md)
+    min_updates: int = ranged(10, ge=1)
+    max_updates: int = ranged(20, ge=1)
     win_window: int = ranged(10, ge=1)
     win_mean: float = ranged(0.9, ge=0, le=1)
     win_std: float = ranged(0.05, ge=0)

@@ -82,11 +82,19 @@ class Convergence:
         return len(r) == self.window and r.mean() >= self.mean and r.std() <= self.std
 
     def summary(self) -> dict:
+        """What the oracle reached: ``win_rate`` is its final win rate (the mean over the last ``window``
+        batches, the figure the criterion judges; ``win_mean`` the same, kept for older readers), and
+        ``stopped`` says why it stopped: ``converged``, ``max_updates``, or ``budget`` (the run's
+        total_frames or time_limit ran out first)."""
         r = self.recent
+        win = float(r.mean()) if len(r) else None
+        stopped = "converged" if self.converged else "max_updates" if self.updates >= self.max_updates else "budget"
         return {
             "updates": self.updates,
             "converged": bool(self.converged),
-            "win_mean": float(r.mean()) if len(r) else None,
+            "stopped": stopped,
+            "win_rate": win,
+            "win_mean": win,
             "win_std": float(r.std()) if len(r) else None,
         }
 

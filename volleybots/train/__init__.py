@@ -17,8 +17,9 @@ from volleybots.train.init import apply_init, check_init, init_checkpoint, learn
 from volleybots.train.trainer import EVAL_SEED_OFFSET, RESUME_KEYS, Trainer
 
 
-def train(cfg, run_dir) -> dict:
-    """Start a new run of the validated config ``cfg`` in ``run_dir``, holding its lock while it trains."""
+def train(cfg, run_dir, stop=None) -> dict:
+    """Start a new run of the validated config ``cfg`` in ``run_dir``, holding its lock while it trains;
+    ``stop(row)`` may end it early after a batch (``Trainer.train_loop``)."""
     check_memory(cfg)
     check_references(cfg)
     check_init(cfg)
@@ -26,7 +27,7 @@ def train(cfg, run_dir) -> dict:
     run.create(cfg)
     try:
         with memory_errors_as(_counts(cfg)):
-            return Trainer(cfg, run).fit()
+            return Trainer(cfg, run).fit(stop)
     finally:
         unlock(run.path)
 
