@@ -4,6 +4,8 @@ loop over the trainer; any other algorithm the trainer alone."""
 from __future__ import annotations
 
 from volleybots.algos import ALGOS
+from volleybots.algos.population import CLONE
+from volleybots.errors import ConfigError
 from volleybots.policies.targets import check_references
 from volleybots.runs import RunDir, unlock
 
@@ -22,6 +24,9 @@ def start(cfg, run_dir) -> dict:
 
     check_references(cfg)
     check_init(cfg)
+    if cfg.algo.learner_init == CLONE and cfg.get("init") is not None:
+        raise ConfigError(f"init={cfg.init!r} and algo.learner_init=bc both say where learners start; give one "
+                          f"(algo.learner_init=scratch with init=, or no init=)")
     try:
         return start_population(cfg, run_dir)
     finally:
