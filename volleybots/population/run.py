@@ -22,11 +22,11 @@ def start(cfg, run_dir) -> dict:
         return train(cfg, run_dir)
     from volleybots.population.loop import start as start_population
 
-    check_references(cfg)
-    check_init(cfg)
     if cfg.algo.learner_init == CLONE and cfg.get("init") is not None:
         raise ConfigError(f"init={cfg.init!r} and algo.learner_init=bc both say where learners start; give one "
                           f"(algo.learner_init=scratch with init=, or no init=)")
+    check_references(cfg)
+    check_init(cfg)
     try:
         return start_population(cfg, run_dir)
     finally:
