@@ -67,3 +67,20 @@ def test_bad_payoffs():
         nash(np.zeros((2, 3)))
     with pytest.raises(ValueError, match="finite"):
         nash(np.array([[0.0, np.nan], [0.0, 0.0]]))
+
+
+def test_nash_breaks_ties_by_maximum_entropy_whatever_the_order():
+    """Games with many equilibria: the solver's choice is the max-entropy one, the same in any order."""
+    assert nash(np.zeros((3, 3))) == pytest.approx(np.full(3, 1 / 3), abs=1e-5)  # all draws: every mixture is Nash
+    # rock-paper-scissors with scissors twice: any split of 1/3 between the copies is an equilibrium
+    a = np.zeros((4, 4))
+    a[:3, :3] = RPS
+    a[3, :3], a[:3, 3] = RPS[2], RPS[:, 2]
+    x = nash(a)
+    assert x == pytest.approx([1 / 3, 1 / 3, 1 / 6, 1 / 6], abs=1e-5)
+    assert (x @ a).min() >= -1e-6  # still maximin: value 0
+    perm = [3, 1, 0, 2]
+    assert nash(a[np.ix_(perm, perm)]) == pytest.approx(x[perm], abs=1e-5)
+    # a strict equilibrium is unchanged by the tie rule: one member beats all others
+    b = np.array([[0.0, 0.4, 0.2], [-0.4, 0.0, 0.1], [-0.2, -0.1, 0.0]])
+    assert nash(b) == pytest.approx([1.0, 0.0, 0.0], abs=1e-6)

@@ -15,7 +15,8 @@ from volleybots.algos.ppo import MAPPO, MAPPOConfig, PPO
 from volleybots.errors import ConfigError, ranged
 from volleybots.population.solvers import SOLVERS  # a leaf module (numpy and scipy only)
 
-INITS = ("scratch", "last")
+CLONE = "bc"  # the run's behaviour clone of the scripted team: a learner_init and a seed_members name
+INITS = ("scratch", "last", CLONE)
 POOLS = ("serial", "ray")  # where payoff games are played: here, or as tasks of a Ray pool (volleybots.play.pool)
 
 
@@ -24,10 +25,17 @@ class PopulationConfig(MAPPOConfig):
     name: str = "psro_nash"
     solver: str = "nash"
     learner_init: str = "scratch"
+    bc_frames: int = ranged(200_000, ge=1)
+    # the fine-tuning recipe of docs/imitation.md (critic warm-up, KL anchor at 0.3); they act on learners
+    # that start from a policy (the clone, or init=); the loop sets both to 0 for a learner from scratch
+    actor_freeze_updates: int = ranged(10, ge=0)
+    anchor_coeff: float = ranged(0.3, ge=0)
     self_play: bool = False
     iterations: int = ranged(10, ge=1)
-    min_updates: int = ranged(20, ge=1)
-    max_updates: int = ranged(300, ge=1)
+    # 20 batches of the CPU default (256 envs x 64 steps) are 328k frames: three oracles fit the default
+    # total_frames of 1M, so a default run completes >= 3 iterations (docs/competitive.md)
+    min_updates: int = ranged(10, ge=1)
+    max_updates: int = ranged(20, ge=1)
     win_window: int = ranged(10, ge=1)
     win_mean: float = ranged(0.9, ge=0, le=1)
     win_std: float = ranged(0.05, ge=0)
@@ -86,6 +94,13 @@ class PopulationMethod(PPO):
                 raise ConfigError(f"unknown {key} {value!r}; allowed: {', '.join(allowed)}")
         if cfg.max_updates < cfg.min_updates:
             raise ConfigError(f"algo.max_updates={cfg.max_updates} is below algo.min_updates={cfg.min_updates}")
+        if cfg.learner_init == CLONE or CLONE in [str(s) for s in cfg.seed_members]:
+            from volleybots.algos.bc import BC
+
+            try:  # the clone is a bc run against the scripted team: it must be one this task can train
+                BC.check(cfg, task_cls, env_cfg)
+            except ConfigError as e:
+                raise ConfigError(f"algo.learner_init=bc / algo.seed_members=[bc] clone the scripted team: {e}") from None
         if not cfg.self_play and not cfg.seed_members:
             raise ConfigError(f"algo {cls.name!r} needs a first opponent: algo.seed_members=[random] (or scripted, or checkpoint paths)")
 

@@ -91,6 +91,14 @@ def _run_hydra(overrides: list[str], multirun: bool, extra: list[str]) -> None:
         sys.argv = argv
 
 
+def _oracle_text(i: int, o: dict) -> str:
+    """One best response's end: its final win rate against its opponent mixture and whether it converged."""
+    rate = o.get("win_rate", o.get("win_mean"))  # runs written before win_rate named it win_mean
+    win = "n/a" if rate is None else f"{rate:.2f}"
+    state = "converged" if o["converged"] else f"not converged ({o.get('stopped', 'max_updates')})"
+    return f"br{i} win {win} after {o['updates']} updates, {state}"
+
+
 def _echo_summary(summary: dict, run_dir) -> None:
     if "population" in summary:
         pop = summary["population"]
@@ -99,6 +107,9 @@ def _echo_summary(summary: dict, run_dir) -> None:
             f"run {run_dir}: {summary['frames']} frames in {summary['wall_time_s']:.0f} s ({summary['frames_per_s']:,.0f} frames/s); "
             f"{summary['iterations']} iteration(s), population {len(pop['members'])}, meta-strategy ({pop['solver']}): {mix}"
         )
+        oracles = [o for o in summary.get("oracles", []) if o and o.get("converged") is not None]
+        if oracles:
+            typer.echo("oracles: " + "; ".join(_oracle_text(i, o) for i, o in enumerate(oracles, 1)))
         return
     ev = summary["final_eval"]["stats"][summary["metric"]]
     typer.echo(

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from volleybots.algos.population import CLONE
 from volleybots.errors import ConfigError
 from volleybots.policies.builtin import BUILTIN, PLAYERS
 from volleybots.policies.store import load_learner, parse_spec
@@ -70,7 +71,7 @@ def resolve_target(target: str, overrides=()) -> Target:
 def check_references(cfg) -> None:
     """Open and check the files a config names, before a run starts (``validate`` opens none):
     ``opponent=`` and ``algo.seed_members`` must be competitors made for the run's task, action space
-    and observation, ``algo.eval_opponent`` a built-in player of the task, and ``algo.payoff_pool=ray``
+    and observation (``bc`` in ``seed_members`` names the clone the run makes itself), ``algo.eval_opponent`` a built-in player of the task, and ``algo.payoff_pool=ray``
     needs ray installed. ``init=`` is checked by ``volleybots.train.check_init``, which builds the networks."""
     from volleybots.algos.base import class_attr
     from volleybots.policies.competitors import resolve_competitor
@@ -95,6 +96,8 @@ def check_references(cfg) -> None:
         if importlib.util.find_spec("ray") is None:
             raise ConfigError("algo.payoff_pool=ray needs the ray package: pip install 'volleybots[cluster]' (or use algo.payoff_pool=serial)")
     for spec in cfg.algo.get("seed_members") or ():
+        if str(spec) == CLONE:  # the run's own clone of the scripted team: made by the run, checked by the preset
+            continue
         comp = resolve_competitor(str(spec))
         if len(comp.members) != 1:
             raise ConfigError(f"algo.seed_members entry {spec!r} is a population; name single policies (its member files)")

@@ -41,6 +41,7 @@ from volleybots.play.pool import head_to_heads
 from volleybots.play.seats import SelfPlay, Versus
 from volleybots.policies import BUILTIN, Competitor, checkpoint_member, member_path, population_members, resolve_competitor
 from volleybots.policies.competitors import POPULATION_DIR
+from volleybots.population.clone import CLONE, clone_member, make_clone, needs_clone
 from volleybots.population.payoffs import PayoffTable, plot, write_atomic
 from volleybots.population.solvers import SOLVERS
 from volleybots.runs import CKPT_FORMAT, RunDir, check_writable, locked, read_checkpoint
@@ -82,11 +83,19 @@ class Convergence:
         return len(r) == self.window and r.mean() >= self.mean and r.std() <= self.std
 
     def summary(self) -> dict:
+        """What the oracle reached: ``win_rate`` is its final win rate (the mean over the last ``window``
+        batches, the figure the criterion judges; ``win_mean`` the same, kept for older readers), and
+        ``stopped`` says why it stopped: ``converged``, ``max_updates``, or ``budget`` (the run's
+        total_frames or time_limit ran out first)."""
         r = self.recent
+        win = float(r.mean()) if len(r) else None
+        stopped = "converged" if self.converged else "max_updates" if self.updates >= self.max_updates else "budget"
         return {
             "updates": self.updates,
             "converged": bool(self.converged),
-            "win_mean": float(r.mean()) if len(r) else None,
+            "stopped": stopped,
+            "win_rate": win,
+            "win_mean": win,
             "win_std": float(r.std()) if len(r) else None,
         }
 
@@ -131,6 +140,7 @@ class PopulationLoop:
         wall0 = self.metas()[-1]["wall_time"] if self.metas() else 0.0
         wall = lambda: wall0 + time.perf_counter() - t0  # noqa: E731
         seeds = list(self.m.seed_members)
+        self.clone = make_clone(self.cfg, self.run.path) if needs_clone(self.m) else None  # once per run, then reused
         if seeds and not self.metas():
             self._seed_population(seeds)
             self._solve_and_record(0, frames=0, updates=0, wall=wall(), oracle=None)
@@ -155,6 +165,9 @@ class PopulationLoop:
         for k, spec in enumerate(seeds):
             path = member_path(self.run.path, k)
             if path.is_file():
+                continue
+            if str(spec) == CLONE:
+                clone_member(self.clone, path)
                 continue
             comp = resolve_competitor(spec)
             if len(comp.members) != 1:
@@ -200,10 +213,15 @@ class PopulationLoop:
 
     # ---------------------------------------------------------------------------- the oracle
     def _iteration_cfg(self, i: int, frames: int):
-        """The config iteration ``i`` trains with: its own seed, and a budget of ``max_updates`` batches
-        (SP: the run's whole budget)."""
+        """The config iteration ``i`` trains with: its own seed, a budget of ``max_updates`` batches (SP:
+        the run's whole budget), ``init=`` the clone for ``learner_init=bc``, and the fine-tuning recipe
+        (``actor_freeze_updates``, ``anchor_coeff``) only for a learner that starts from a policy."""
         data = to_dict(self.cfg)
         data["seed"] = self.cfg.seed + i * ITERATION_SEED
+        if self.m.learner_init == CLONE:
+            data["init"] = str(self.clone)
+        elif data.get("init") is None:  # a learner from scratch has no policy to warm up for or hold to
+            data["algo"].update(actor_freeze_updates=0, anchor_coeff=0.0)
         if not self.m.self_play:
             per_batch = self.cfg.env.num_envs * self.m.steps_per_batch
             data["total_frames"] = min(self.cfg.total_frames, frames + self.m.max_updates * per_batch)

@@ -6,7 +6,14 @@ zero-sum payoff of member i (row) against member j, e.g. (wins - losses) / games
 
 * ``uniform``: every member equally (fictitious self-play, PSRO-uniform);
 * ``nash``: the row player's maximin mixture of the zero-sum game, by linear programming with
-  scipy's HiGHS (PSRO-Nash); for the symmetric meta-games of self-play it is a Nash equilibrium;
+  scipy's HiGHS (PSRO-Nash); for the symmetric meta-games of self-play it is a Nash equilibrium.
+  **Ties:** a game may have many maximin mixtures (a convex set: two copies of one policy, or a
+  table of draws, make every split between them optimal), and an LP solver returns whichever vertex
+  of that set its pivoting reaches, which can change with the order of the members. ``nash`` returns
+  the **maximum-entropy** one instead: a second step maximises the Shannon entropy over the set of
+  mixtures that guarantee the game value (within ``NASH_TOL``). Entropy is strictly concave, so the
+  choice is unique and does not depend on the members' order; copies of a policy share its weight
+  equally, and an all-draw table gives the uniform mixture (Ortiz et al. 2007's max-entropy Nash);
 * ``last``: all weight on the newest member (self-play);
 * ``alpharank``: the stationary distribution of single-population alpha-rank (Omidshafiei et al.
   2019), a ranking that exists where Nash equilibria are many.
@@ -20,10 +27,12 @@ from __future__ import annotations
 from typing import Callable
 
 import numpy as np
-from scipy.optimize import linprog
+from scipy.optimize import linprog, minimize
 
 ALPHARANK_ALPHA = 10.0  # selection intensity: large alpha ranks by who beats whom, not by how much
 ALPHARANK_POP = 50  # the population size m of alpha-rank's Moran process
+NASH_TOL = 1e-10  # a mixture guaranteeing the game value up to this counts as maximin (LP round-off)
+NASH_ZERO = 1e-7  # weights below this after the entropy step are the slack's, not a tie's: set to 0
 
 
 def _square(payoffs) -> np.ndarray:
@@ -65,7 +74,38 @@ def nash_with_value(payoffs) -> tuple[np.ndarray, float]:
 
 
 def nash(payoffs) -> np.ndarray:
-    return nash_with_value(payoffs)[0]
+    """The maximum-entropy maximin mixture (the module's docstring: ties)."""
+    x, v = nash_with_value(payoffs)
+    return max_entropy(_square(payoffs), v, x)
+
+
+def max_entropy(a: np.ndarray, value: float, start: np.ndarray) -> np.ndarray:
+    """The mixture of largest entropy among those with (x^T A)_j >= value - NASH_TOL for every column
+    j, solved by SLSQP from the LP's solution ``start`` (which is feasible); ``start`` itself if the
+    solver fails, so a tie is then broken as the LP broke it, never by an infeasible mixture."""
+    n = a.shape[0]
+    if n == 1:
+        return np.ones(1)
+
+    def neg_entropy(x):
+        x = np.clip(x, 1e-300, None)
+        return float(np.sum(x * np.log(x)))
+
+    def grad(x):
+        return np.log(np.clip(x, 1e-12, None)) + 1.0
+
+    cons = [{"type": "ineq", "fun": lambda x: a.T @ x - value + NASH_TOL, "jac": lambda x: a.T},
+            {"type": "eq", "fun": lambda x: np.sum(x) - 1.0, "jac": lambda x: np.ones((1, n))}]
+    # start inside the set where possible (a mix with the uniform mixture when that is feasible too), so
+    # the entropy's gradient is finite at the start
+    uniform_ok = (a.T @ np.full(n, 1.0 / n)).min() >= value - NASH_TOL
+    x0 = 0.5 * start + 0.5 / n if uniform_ok else start
+    res = minimize(neg_entropy, x0, jac=grad, bounds=[(0.0, 1.0)] * n, constraints=cons, method="SLSQP",
+                   options={"maxiter": 500, "ftol": 1e-12})
+    x = np.where(res.x < NASH_ZERO, 0.0, res.x) if res.success else start
+    if x.sum() <= 0 or (a.T @ (x / x.sum())).min() < value - 1e-6:
+        return start
+    return x / x.sum()
 
 
 def alpharank(payoffs, alpha: float = ALPHARANK_ALPHA, m: int = ALPHARANK_POP) -> np.ndarray:
@@ -118,4 +158,4 @@ def member_exploitability(payoffs) -> np.ndarray:
     return a.max(0) - np.diag(a)
 
 
-__all__ = ["SOLVERS", "alpharank", "exploitability", "last", "member_exploitability", "nash", "nash_with_value", "uniform"]
+__all__ = ["SOLVERS", "alpharank", "exploitability", "last", "max_entropy", "member_exploitability", "nash", "nash_with_value", "uniform"]

@@ -24,14 +24,15 @@ def preflight(cfg) -> None:
     check_init(cfg)
 
 
-def train(cfg, run_dir, checked: bool = False) -> dict:
+def train(cfg, run_dir, checked: bool = False, stop=None) -> dict:
     """Start a new run of the validated config ``cfg`` in ``run_dir``, holding its lock while it trains
-    (``checked``: the caller ran ``preflight`` already)."""
+    (``checked``: the caller ran ``preflight`` already); ``stop(row)`` may end it early after a batch
+    (``Trainer.train_loop``)."""
     if not checked:
         preflight(cfg)
     run = RunDir(run_dir)
     with run.new_run(cfg), memory_errors_as(_counts(cfg)):
-        return Trainer(cfg, run).fit()
+        return Trainer(cfg, run).fit(stop)
 
 
 def resume_config(run_dir, overrides=(), keys=RESUME_KEYS):

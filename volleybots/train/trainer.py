@@ -150,10 +150,12 @@ class Trainer:
         return summary
 
     # -------------------------------------------------------------------------------- the loop
-    def fit(self) -> dict:
-        """Train to ``total_frames``, then evaluate, write final.pt and summary.json."""
-        self.train_loop()
-        return self.finish()
+    def fit(self, stop=None) -> dict:
+        """Train to ``total_frames`` (or until ``stop(row)`` says so, as in ``train_loop``), then evaluate,
+        write final.pt and summary.json (with ``stop.summary()`` as ``stop`` where the stop has one)."""
+        self.train_loop(stop=stop)
+        summary = getattr(stop, "summary", None)
+        return self.finish({"stop": summary()} if summary else None)
 
     def train_loop(self, stop=None, row_extra=None) -> None:
         """Collect and update until ``total_frames`` (or ``time_limit``), or until ``stop(row)`` says so
