@@ -192,7 +192,9 @@ def _single_run(overrides: list[str]) -> None:
     path = str(full.hydra.run.dir)
     if not path.strip():
         raise ConfigError(f"{key} is empty; give it a directory")
-    cfg = validate(full)
+    from omegaconf import OmegaConf
+
+    cfg = validate(OmegaConf.masked_copy(full, [k for k in full if k != "hydra"]))
     preflight(cfg)
     explicit = any(o.partition("=")[0].lstrip("+") == key for o in overrides)
     run_dir = claim_run_dir(path, unique=not explicit)
