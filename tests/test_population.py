@@ -220,10 +220,14 @@ def test_a_learner_trains_against_a_named_opponent_and_learns_from_its_team_only
     assert summary["final_eval"]["stats"]["win"]["mean"] >= 0
     tr = Trainer(cfg, RunDir(tmp_path / "other"))
     assert isinstance(tr.seat, Versus) and tr.seat.opponent.label == "random"
-    for bad, words in ((["task=bump_and_pass", "opponent=random"], "is for matches"), (["task=1v1", "algo=sp", "opponent=random"], "seed_members"),
-                       (["task=3v3", "algo=mappo", f"opponent={tmp_path / 'missing'}"], "does not exist")):
+    for bad, words in ((["task=bump_and_pass", "opponent=random"], "is for matches"), (["task=1v1", "algo=sp", "opponent=random"], "seed_members")):
         with pytest.raises(ConfigError, match=words):
             load(bad)
+    # a missing opponent file: validation opens no file, the pre-flight check of every start does
+    from volleybots.policies import check_references
+
+    with pytest.raises(ConfigError, match="does not exist"):
+        check_references(load(["task=3v3", "algo=mappo", f"opponent={tmp_path / 'missing'}"]))
 
 
 def test_a_learners_batch_holds_each_steps_own_actions_and_their_log_probabilities(tmp_path):
