@@ -189,7 +189,9 @@ def algorithms_reference() -> str:
         parts.append(
             f"## `{name}`\n\n{_doc(cls)}"
             f"- trains: {kind}\n- action spaces: {', '.join(f'`{a}`' for a in cls.action_spaces)}\n"
-            f"- class: `{cls.__module__}.{cls.__qualname__}`\n\n"
+            + (f"- class: `{cls.__module__}.{cls.__qualname__}`\n\n" if isinstance(cls, type) else
+               f"- a population preset (`volleybots.algos.population.PRESETS`): the population loop trains "
+               f"`{cls.learner_cls.__name__}` learners\n\n") +
             f"`algo={name}` (`conf/algo/{name}.yaml`): {_header(path)}\n\n{settings_table(settings(path), 'algo.')}"
         )
     return "\n\n".join(parts)

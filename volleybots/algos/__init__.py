@@ -1,5 +1,6 @@
 """Algorithms by name. Each is one module with one class and its dataclass config beside it;
-``conf/algo/<name>.yaml`` holds its defaults. Add one by registering its class here."""
+``conf/algo/<name>.yaml`` holds its defaults. Add one by registering its class here. The population
+presets (``sp``, ``fsp``, ``psro_*``) are selected the same way but are configs of the population loop."""
 
 from __future__ import annotations
 
@@ -10,16 +11,19 @@ from volleybots.algos.dqn import DQN
 from volleybots.algos.happo import HAPPO
 from volleybots.algos.maddpg import MADDPG
 from volleybots.algos.mat import MAT
-from volleybots.algos.population import FSP, SP, PSRONash, PSROUniform
+from volleybots.algos.population import FSP, PRESETS, SP, Preset, PSRONash, PSROUniform
 from volleybots.algos.ppo import MAPPO, PPO
 from volleybots.algos.qmix import QMIX
 from volleybots.algos.sac import SAC
 from volleybots.algos.td3 import TD3
 
-ALGOS: dict[str, type[Algorithm]] = {
-    cls.name: cls for cls in (PPO, MAPPO, DQN, DDPG, TD3, SAC, QMIX, MADDPG, HAPPO, MAT, SP, FSP, PSROUniform, PSRONash, BC)
+# the learners, then the population presets (configs the population loop trains MAPPO learners with)
+ALGOS: dict[str, type[Algorithm] | Preset] = {
+    **{cls.name: cls for cls in (PPO, MAPPO, DQN, DDPG, TD3, SAC, QMIX, MADDPG, HAPPO, MAT)},
+    **PRESETS,
+    BC.name: BC,
 }
 
 __all__ = [
-    "ALGOS", "Algorithm", "BC", "DDPG", "DQN", "FSP", "HAPPO", "MADDPG", "MAPPO", "MAT", "PPO", "PSRONash", "PSROUniform", "QMIX", "SAC", "SP", "TD3",
+    "ALGOS", "Algorithm", "BC", "PRESETS", "Preset", "DDPG", "DQN", "FSP", "HAPPO", "MADDPG", "MAPPO", "MAT", "PPO", "PSRONash", "PSROUniform", "QMIX", "SAC", "SP", "TD3",
 ]

@@ -1,4 +1,4 @@
-"""The population methods as algorithms of the registry: ``sp``, ``fsp``, ``psro_uniform``, ``psro_nash``.
+"""The population presets of the registry: ``sp``, ``fsp``, ``psro_uniform``, ``psro_nash``.
 
 They are one loop (``volleybots.population.loop``) with a swappable meta-solver and learner
 initialisation; here live only their configs and what they accept. The learner is MAPPO with a critic
@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from volleybots.algos.base import class_attr
-from volleybots.algos.ppo import MAPPO, MAPPOConfig, PPO
+from volleybots.algos.ppo import MAPPO, MAPPOConfig
 from volleybots.errors import ConfigError, ranged
 from volleybots.population.solvers import SOLVERS  # a leaf module (numpy and scipy only)
 
@@ -68,26 +68,37 @@ class PSROUniformConfig(PopulationConfig):
     solver: str = "uniform"
 
 
-class PopulationMethod(PPO):
-    """Not trained by the plain run loop: ``population = True`` sends it to the population loop."""
+@dataclass(frozen=True)
+class Preset:
+    """A population method: its config and what it accepts. Not an algorithm of its own: ``algo=NAME``
+    selects it like one, and ``volleybots.population.run.start`` hands its config to the population loop,
+    which trains ``learner_cls`` learners as its oracle and the preset's meta-solver over them."""
 
-    name = "psro_nash"
-    config_cls = PopulationConfig
-    multi_agent = True
-    task_kinds = ("competitive",)
-    population = True
-    learner_cls = MAPPO
+    name: str
+    config_cls: type
+    learner_cls: type = MAPPO
+    population: bool = True  # what sends a run to the population loop
+    multi_agent: bool = True
+    task_kinds: tuple[str, ...] = ("competitive",)
 
-    @classmethod
-    def check(cls, cfg, task_cls, env_cfg):
-        """The preset's own values; the files and players it names (``seed_members``, ``eval_opponent``)
-        are checked before a run by ``volleybots.policies.check_references``, which opens them."""
+    @property
+    def action_spaces(self) -> tuple[str, ...]:
+        return self.learner_cls.action_spaces
+
+    def supported_kinds(self) -> tuple[str, ...]:
+        return self.task_kinds
+
+    def check(self, cfg, task_cls, env_cfg) -> None:
+        """The preset's own values and its learner's; the files and players it names (``seed_members``,
+        ``eval_opponent``) are checked before a run by ``volleybots.policies.check_references``."""
         if not class_attr(task_cls, "competitive"):
             from volleybots.tasks import TASKS
 
             matches = [n for n, t in TASKS.items() if class_attr(t, "competitive")]
-            raise ConfigError(f"algo {cls.name!r} trains for matches, not task {task_cls.name!r}; allowed tasks: {', '.join(matches)}")
-        super().check(cfg, task_cls, env_cfg)
+            raise ConfigError(f"algo {self.name!r} trains for matches, not task {task_cls.name!r}; allowed tasks: {', '.join(matches)}")
+        if env_cfg.action_space not in self.action_spaces:
+            raise ConfigError(f"algo {self.name!r} does not support env.action_space={env_cfg.action_space!r}; allowed: {', '.join(self.action_spaces)}")
+        self.learner_cls.check(cfg, task_cls, env_cfg)
         for value, allowed, key in ((cfg.solver, SOLVERS, "algo.solver"), (cfg.learner_init, INITS, "algo.learner_init"),
                                     (cfg.payoff_pool, POOLS, "algo.payoff_pool")):
             if value not in allowed:
@@ -102,24 +113,11 @@ class PopulationMethod(PPO):
             except ConfigError as e:
                 raise ConfigError(f"algo.learner_init=bc / algo.seed_members=[bc] clone the scripted team: {e}") from None
         if not cfg.self_play and not cfg.seed_members:
-            raise ConfigError(f"algo {cls.name!r} needs a first opponent: algo.seed_members=[random] (or scripted, or checkpoint paths)")
+            raise ConfigError(f"algo {self.name!r} needs a first opponent: algo.seed_members=[random] (or scripted, or checkpoint paths)")
 
 
-class SP(PopulationMethod):
-    name = "sp"
-    config_cls = SPConfig
-
-
-class FSP(PopulationMethod):
-    name = "fsp"
-    config_cls = FSPConfig
-
-
-class PSROUniform(PopulationMethod):
-    name = "psro_uniform"
-    config_cls = PSROUniformConfig
-
-
-class PSRONash(PopulationMethod):
-    name = "psro_nash"
-    config_cls = PopulationConfig
+SP = Preset("sp", SPConfig)
+FSP = Preset("fsp", FSPConfig)
+PSROUniform = Preset("psro_uniform", PSROUniformConfig)
+PSRONash = Preset("psro_nash", PopulationConfig)
+PRESETS = {p.name: p for p in (SP, FSP, PSROUniform, PSRONash)}
