@@ -174,6 +174,20 @@ def train(
         _run_hydra([*pinned, f"{key}={_hydra_quote(run_dir)}"], multirun, [])
     finally:
         unlock(run_dir)
+    _sweep_report(run_dir)
+
+
+def _sweep_report(sweep_dir) -> None:
+    """When a sweep ends, its report (``volleybots report``) is written to ``<sweep dir>/report``."""
+    from pathlib import Path
+
+    from volleybots.report import build_report, write_report
+
+    out = Path(sweep_dir) / "report"
+    if out.exists():  # never overwritten: a second sweep into the same folder keeps the first report
+        return
+    files = write_report(build_report([Path(sweep_dir)]), out)
+    typer.echo(f"sweep report: {files[0]}")
 
 
 def _single_run(overrides: list[str]) -> None:
