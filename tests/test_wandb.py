@@ -88,6 +88,15 @@ def _logs(run_dir: Path) -> list[list]:
     return [read_wandb_log(p) for p in sorted(run_dir.glob("wandb/offline-run-*/run-*.wandb"))]
 
 
+def _key(item) -> str:
+    return item.key or ".".join(item.nested_key)  # wandb writes a key in either field
+
+
+def _value(item) -> float | str:
+    v = json.loads(item.value_json.replace("NaN", "null"))
+    return math.nan if v is None else v
+
+
 def _of(records: list, kind: str) -> list:
     return [getattr(r, kind) for r in records if r.WhichOneof("record_type") == kind]
 
