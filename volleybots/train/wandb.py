@@ -28,17 +28,18 @@ IDENTITY_FILE = "wandb_run.json"
 _DATE = re.compile(r"\d{4}-\d{2}-\d{2}")  # the date folder of Hydra's default sweep dir
 
 
-def sweep_group() -> str | None:
-    """The group of a job of a ``-m`` sweep: its sweep directory's name (with the date folder in front
-    for the time-stamped default, so sweeps started at the same time on two days stay apart); None
-    outside a sweep."""
+def sweep_group(run_dir: Path) -> str | None:
+    """The group of ``run_dir`` when it is the job of a ``-m`` sweep running now: the sweep directory's
+    name (with the date folder in front for the time-stamped default, so sweeps started at the same
+    time on two days stay apart); None otherwise. Hydra keeps its state after a sweep ends, so a later
+    run in the same process (the Python API) counts only if it is the sweep's job directory."""
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
 
     if not HydraConfig.initialized():
         return None
     hc = HydraConfig.get()
-    if hc.mode != RunMode.MULTIRUN:
+    if hc.mode != RunMode.MULTIRUN or Path(str(hc.runtime.output_dir)).resolve() != Path(run_dir).resolve():
         return None
     sweep = Path(str(hc.sweep.dir))
     return f"{sweep.parent.name}_{sweep.name}" if _DATE.fullmatch(sweep.parent.name) else sweep.name
@@ -59,7 +60,7 @@ def run_identity(run_dir: Path, resume: bool) -> dict:
     created = time.time_ns()
     identity = {
         "id": hashlib.sha256(f"{Path(run_dir).resolve()}\n{created}".encode()).hexdigest()[:16],
-        "group": sweep_group(),
+        "group": sweep_group(run_dir),
         "created_ns": created,
     }
     tmp = path.with_suffix(".json.tmp")
