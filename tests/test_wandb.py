@@ -7,10 +7,7 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import struct
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
