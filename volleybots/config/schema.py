@@ -44,6 +44,9 @@ class EnvConfig:
 class WandbConfig:
     project: str = "volleybots"
     mode: str = "offline"
+    group: Optional[str] = None
+    tags: list[str] = field(default_factory=list)
+    artifacts: bool = False
 
 
 @dataclass

@@ -62,6 +62,9 @@ def validate(cfg) -> DictConfig:
         if value not in allowed:
             raise ConfigError(f"unknown {what} {value!r}; allowed: {', '.join(allowed)}")
     check_device("env.device", env.device)
+    for tag in rest.wandb.tags:  # W&B refuses a run whose tag is empty or longer than 64 characters
+        if not 1 <= len(tag.strip()) <= 64:
+            raise ConfigError(f"bad value for 'wandb.tags': {tag!r} (each tag must be 1 to 64 characters)")
     if rest.logger == "wandb":
         if importlib.util.find_spec("wandb") is None:
             raise ConfigError("logger=wandb needs the wandb package: pip install 'volleybots[wandb]' (or use logger=csv)")

@@ -47,6 +47,7 @@ from volleybots.population.solvers import SOLVERS
 from volleybots.runs import CKPT_FORMAT, RunDir, check_writable, locked, read_checkpoint
 from volleybots.train import RESUME_KEYS as TRAIN_RESUME_KEYS
 from volleybots.train import Trainer, resume_config
+from volleybots.train.wandb import WandbLogger
 from volleybots.version import __version__
 
 ITERATION_SEED = 1_000  # iteration i runs with seed + i * ITERATION_SEED
@@ -112,6 +113,7 @@ class PopulationLoop:
         self.dir = run.path / POPULATION_DIR
         self.meta_path = self.dir / "meta.jsonl"
         self.payoffs_path = self.dir / "payoffs.json"
+        self.wandb = None
 
     # ---------------------------------------------------------------------------- disk state
     def metas(self) -> list[dict]:
@@ -139,6 +141,8 @@ class PopulationLoop:
         t0 = time.perf_counter()
         wall0 = self.metas()[-1]["wall_time"] if self.metas() else 0.0
         wall = lambda: wall0 + time.perf_counter() - t0  # noqa: E731
+        if self.cfg.logger == "wandb":  # one W&B run over all iterations, continued by a resume
+            self.wandb = WandbLogger(self.cfg, self.run.path, resume=bool(self.metas() or self.run.periodic_checkpoints()))
         seeds = list(self.m.seed_members)
         self.clone = make_clone(self.cfg, self.run.path) if needs_clone(self.m) else None  # once per run, then reused
         if seeds and not self.metas():
@@ -239,7 +243,7 @@ class PopulationLoop:
             stop = Convergence(m.min_updates, m.max_updates, m.win_window, m.win_mean, m.win_std)
         extra = lambda: {"population": {"iteration": i, "oracle": stop.state_dict() if stop else None}}  # noqa: E731
         ckpt = self._checkpoint_of(i)
-        tr = Trainer(cfg, self.run, checkpoint=ckpt, seat=seat, learner_cls=MAPPO, extra_state=extra)
+        tr = Trainer(cfg, self.run, checkpoint=ckpt, seat=seat, learner_cls=MAPPO, extra_state=extra, logger=self.wandb)
         if ckpt is not None:
             if stop is not None:
                 stop.load_state_dict(tr.checkpoint_state["population"]["oracle"])
@@ -289,6 +293,8 @@ class PopulationLoop:
             "version": __version__,
         }
         self.run.write_summary(summary)
+        if self.wandb:
+            self.wandb.finish(summary, self.run)
         return summary
 
 

@@ -44,12 +44,14 @@ EVAL_SEED_OFFSET = 10_000  # periodic evaluations play the same episodes every t
 class Trainer:
     """The run loop over one learner. ``seat`` says whom it plays for (default: every drone);
     ``learner_cls`` overrides the registry's class (a population method's learner); ``extra_state``
-    adds the caller's own counters to every checkpoint (the population loop's oracle)."""
+    adds the caller's own counters to every checkpoint (the population loop's oracle); ``logger`` is
+    the caller's W&B run (which the caller ends), else the trainer opens its own with ``logger=wandb``."""
 
-    def __init__(self, cfg, run: RunDir, checkpoint: Path | None = None, seat=None, learner_cls=None, extra_state=None):
+    def __init__(self, cfg, run: RunDir, checkpoint: Path | None = None, seat=None, learner_cls=None, extra_state=None, logger=None):
         from volleybots.algos import ALGOS
 
         self.cfg, self.run = cfg, run
+        self.wandb, self._owns_wandb = logger, logger is None
         torch.manual_seed(cfg.seed)
         self.seat = seat or default_seat(cfg)
         self.extra_state = extra_state or (lambda: {})
@@ -163,7 +165,9 @@ class Trainer:
         cfg, run = self.cfg, self.run
         resumed = self.frames > 0
         self.metrics = MetricsLog(run.metrics_path, keep_until_frames=self.frames if resumed else None)
-        self.wandb = wandb = WandbLogger(cfg, run.path, resumed) if cfg.logger == "wandb" else None
+        if self.wandb is None and cfg.logger == "wandb":
+            self.wandb = WandbLogger(cfg, run.path, resumed)
+        wandb = self.wandb
         self._t0 = time.perf_counter()
         policy = self.seat.policy(self.env, self.algo.policy())
         td = self.env.reset()
@@ -232,8 +236,8 @@ class Trainer:
             **(summary_extra or {}),
         }
         run.write_summary(summary)
-        if wandb:
-            wandb.close()
+        if wandb and self._owns_wandb:
+            wandb.finish(summary, run)
         return summary
 
     def _evaluate_and_log(self, wandb) -> dict:
