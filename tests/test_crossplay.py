@@ -101,7 +101,9 @@ def test_crossplay_cli_writes_results_with_every_file_hash(tiny_ckpt, tmp_path):
     back = CrossPlay.load(out / "crossplay.json")
     assert back.labels == ["net", "scripted", "random"] and np.array_equal(back.wdl, wdl)
     # the trained competitor against itself, under two labels
-    res = runner.invoke(app, ["eval", "crossplay", f"a={ckpt}", f"b={tiny_ckpt}", "games=40", "batch=20", "--out", str(tmp_path / "self"), "--json"])
+    res = runner.invoke(
+        app, ["eval", "crossplay", f"a={ckpt}", f"b={tiny_ckpt}", "games=40", "batch=20", "--out", str(tmp_path / "self"), "--json"]
+    )
     assert res.exit_code == 0, res.output
     d = json.loads(res.stdout)
     dec = d["wdl"][0][1][0] + d["wdl"][0][1][2]
@@ -110,7 +112,10 @@ def test_crossplay_cli_writes_results_with_every_file_hash(tiny_ckpt, tmp_path):
 
 def test_elo_cli_played_and_from_a_results_file(tmp_path):
     out = tmp_path / "elo"
-    res = runner.invoke(app, ["eval", "elo", "scripted", "random", "task=1v1", "rounds=40", "batch=20", "k=32", "bootstrap=100", "--out", str(out), "--json"])
+    res = runner.invoke(
+        app,
+        ["eval", "elo", "scripted", "random", "task=1v1", "rounds=40", "batch=20", "k=32", "bootstrap=100", "--out", str(out), "--json"],
+    )
     assert res.exit_code == 0, res.output
     rep = json.loads(res.stdout)
     assert rep["elo"]["games"] == "played" and rep["elo"]["k"] == 32
@@ -122,7 +127,20 @@ def test_elo_cli_played_and_from_a_results_file(tmp_path):
     for f in ("crossplay.json", "crossplay.png", "ratings.json", "ratings.png"):
         assert (out / f).is_file(), f
     # Elo sampled from the file's frequencies: same order, BT identical (same counts)
-    res = runner.invoke(app, ["eval", "elo", f"from={out / 'crossplay.json'}", "rounds=200", "k=16", "bootstrap=100", "--out", str(tmp_path / "again"), "--json"])
+    res = runner.invoke(
+        app,
+        [
+            "eval",
+            "elo",
+            f"from={out / 'crossplay.json'}",
+            "rounds=200",
+            "k=16",
+            "bootstrap=100",
+            "--out",
+            str(tmp_path / "again"),
+            "--json",
+        ],
+    )
     assert res.exit_code == 0, res.output
     rep2 = json.loads(res.stdout)
     assert rep2["elo"]["games"] == "sampled" and rep2["elo"]["rounds"] == 200
@@ -141,7 +159,9 @@ def test_match_replay_records_teams_touches_and_the_ending(tmp_path):
                 messages.append((path, str([b.as_arrow_array() for b in obj.as_component_batches()])))
 
     out = tmp_path / "m.rrd"
-    res = runner.invoke(app, ["replay", "scripted", "rnd=random", "task=1v1", "scenario=receive", "threads=1", "--out", str(out), "--no-viewer"])
+    res = runner.invoke(
+        app, ["replay", "scripted", "rnd=random", "task=1v1", "scenario=receive", "threads=1", "--out", str(out), "--no-viewer"]
+    )
     assert res.exit_code == 0, res.output
     assert "scripted (blue) against rnd (red)" in res.stdout and "scripted (blue) won" in res.stdout
     listing = subprocess.run(["rerun", "rrd", "print", str(out)], capture_output=True, text=True, timeout=300).stdout
@@ -169,8 +189,18 @@ class _Lookup(dict):
 
 def _bad_cases(tmp, ckpt):
     other = tmp / "other.json"
-    other.write_text(json.dumps({"format": "volleybots.crossplay/1", "labels": ["x", "y"], "wdl": [[[0, 0, 0], [1, 0, 1]], [[1, 0, 1], [0, 0, 0]]],
-                                 "outcomes": {}, "side_wdl": {}, "competitors": [{"label": "x", "members": [{}]}, {"label": "y", "members": [{}]}]}))
+    other.write_text(
+        json.dumps(
+            {
+                "format": "volleybots.crossplay/1",
+                "labels": ["x", "y"],
+                "wdl": [[[0, 0, 0], [1, 0, 1]], [[1, 0, 1], [0, 0, 0]]],
+                "outcomes": {},
+                "side_wdl": {},
+                "competitors": [{"label": "x", "members": [{}]}, {"label": "y", "members": [{}]}],
+            }
+        )
+    )
     return [
         (["eval", "crossplay", "scripted", str(tmp / "nowhere"), "task=1v1"], ["nowhere", "does not exist"]),
         (["eval", "crossplay", "scripted", "task=1v1"], ["at least 2 competitors", "got 1"]),

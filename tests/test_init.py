@@ -60,7 +60,9 @@ def test_init_of_mappo_from_ppo_and_off_policy_targets(hover_run, tmp_path):
     # an off-policy run started from another: its targets start from the loaded critics
     sac = tmp_path / "sac"
     train(load(["task=hover", "algo=sac", *TINY, "total_frames=64", "algo.steps_per_batch=8", "algo.batch_size=16"]), sac)
-    tr = _trainer(tmp_path / "s", ["task=hover", "algo=sac", *TINY, "total_frames=64", "algo.steps_per_batch=8", "algo.batch_size=16", f"init={sac}"])
+    tr = _trainer(
+        tmp_path / "s", ["task=hover", "algo=sac", *TINY, "total_frames=64", "algo.steps_per_batch=8", "algo.batch_size=16", f"init={sac}"]
+    )
     src = torch.load(sac / "checkpoints" / "final.pt", weights_only=True)["algo"]["loss"]
     here = tr.algo.loss.state_dict()
     assert here.keys() == src.keys() and any(k.startswith("target_") for k in here)
@@ -100,7 +102,10 @@ def test_cli_refuses_a_mismatched_init_with_exit_2_and_writes_nothing(hover_run,
     out = tmp_path / "refused"
     res = subprocess.run(
         [sys.executable, "-m", "volleybots.cli", "train", "task=solo_bump", *PPO_TINY, f"init={hover_run}", f"hydra.run.dir={out}"],
-        capture_output=True, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"}, timeout=300,
+        capture_output=True,
+        text=True,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+        timeout=300,
     )
     assert res.returncode == 2, res.stderr[-2000:]
     lines = res.stderr.strip().splitlines()
@@ -144,8 +149,18 @@ def test_best_pt_holds_the_policy_of_the_best_evaluation(tmp_path):
     """checkpoint.best: best.pt is the state at the evaluation with the best metric (Hover: the lowest
     distance, ties to the earliest), equal to the periodic checkpoint of that moment; resume ignores it."""
     torch.set_num_threads(1)
-    cfg = load(["task=hover", *TINY, "algo.steps_per_batch=16", "algo.minibatches=2", "total_frames=1024",
-                "evaluation.every=128", "checkpoint.every=128", "checkpoint.keep=100"])
+    cfg = load(
+        [
+            "task=hover",
+            *TINY,
+            "algo.steps_per_batch=16",
+            "algo.minibatches=2",
+            "total_frames=1024",
+            "evaluation.every=128",
+            "checkpoint.every=128",
+            "checkpoint.keep=100",
+        ]
+    )
     summary = train(cfg, tmp_path / "run")
     run = RunDir(tmp_path / "run")
     evals = [(e["stats"]["distance"]["mean"], e["frames"]) for e in torch.load(run.final_path, weights_only=True)["evals"]]

@@ -14,6 +14,8 @@ from types import SimpleNamespace
 import pytest
 import torch
 from tensordict import TensorDict
+from test_offpolicy import one_thread  # noqa: F401  (autouse: one torch thread on the shared machine)
+from test_offpolicy_runs import _flat
 
 from volleybots.algos import ALGOS
 from volleybots.algos.base import TASK_KINDS
@@ -21,9 +23,6 @@ from volleybots.config import ConfigError, load
 from volleybots.eval import evaluate
 from volleybots.runs import read_metrics
 from volleybots.train import resume, train
-
-from test_offpolicy import one_thread  # noqa: F401  (autouse: one torch thread on the shared machine)
-from test_offpolicy_runs import _flat
 
 MARL = ("qmix", "maddpg", "happo", "mat")
 ENVS, STEPS = 4, 8
@@ -183,7 +182,7 @@ def test_happo_weights_each_drone_by_the_ratios_of_the_drones_before_it_in_the_d
     algo.update(batch)
     assert [a for a, _, _ in seen] == expected_order
     product = torch.ones(64)
-    for k, (a, factor, ratio) in enumerate(seen):
+    for _, factor, ratio in seen:
         torch.testing.assert_close(factor, product, rtol=1e-5, atol=1e-6)
         assert (ratio - 1).abs().max() > 1e-3, "every drone's policy moved"
         product = product * ratio

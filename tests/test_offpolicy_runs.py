@@ -105,7 +105,9 @@ def test_resume_without_the_buffer_warms_up_again_and_goes_on(tmp_path):
 
 def _cli(*args, cwd):
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    return subprocess.run([sys.executable, "-m", "volleybots.cli", *args], check=False, capture_output=True, text=True, timeout=300, env=env, cwd=cwd)
+    return subprocess.run(
+        [sys.executable, "-m", "volleybots.cli", *args], check=False, capture_output=True, text=True, timeout=300, env=env, cwd=cwd
+    )
 
 
 def test_cli_trains_evaluates_and_replays_sac_and_picks_discrete_for_dqn(tmp_path):
@@ -129,7 +131,7 @@ def test_cli_trains_evaluates_and_replays_sac_and_picks_discrete_for_dqn(tmp_pat
     bad = tmp_path / "bad"
     res = _cli("train", "algo=dqn", "env.action_space=prt", *TINY, "total_frames=32", f"hydra.run.dir={bad}", cwd=tmp_path)
     assert res.returncode == 2
-    lines = [l for l in res.stderr.splitlines() if l.strip()]
+    lines = [line for line in res.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and "dqn" in lines[0] and "discrete" in lines[0] and "'prt'" in lines[0], res.stderr
     assert not bad.exists()
 

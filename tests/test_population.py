@@ -166,7 +166,7 @@ def test_killed_mid_iteration_resumes_to_the_same_population(tmp_path, monkeypat
     assert p1 == p2
     assert [m["mixture"] for m in m1] == [m["mixture"] for m in m2]
     assert [m["oracle"] for m in m1] == [m["oracle"] for m in m2]
-    for a, b in zip(f1, f2):
+    for a, b in zip(f1, f2, strict=True):
         sa, sb = torch.load(a, weights_only=True), torch.load(b, weights_only=True)
         if "algo" in sa:
             for k, v in sa["algo"]["actor"].items():
@@ -210,8 +210,11 @@ def test_a_learner_trains_against_a_named_opponent_and_learns_from_its_team_only
     assert summary["final_eval"]["stats"]["win"]["mean"] >= 0
     tr = Trainer(cfg, RunDir(tmp_path / "other"))
     assert isinstance(tr.seat, Versus) and tr.seat.opponent.label == "random"
-    for bad, words in ((["task=bump_and_pass", "opponent=random"], "is for matches"), (["task=1v1", "algo=sp", "opponent=random"], "seed_members"),
-                       (["task=3v3", "algo=mappo", f"opponent={tmp_path / 'missing'}"], "does not exist")):
+    for bad, words in (
+        (["task=bump_and_pass", "opponent=random"], "is for matches"),
+        (["task=1v1", "algo=sp", "opponent=random"], "seed_members"),
+        (["task=3v3", "algo=mappo", f"opponent={tmp_path / 'missing'}"], "does not exist"),
+    ):
         with pytest.raises(ConfigError, match=words):
             load(bad)
 

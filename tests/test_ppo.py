@@ -61,7 +61,7 @@ def _learns_one_batch(*overrides):
     before = [p.detach().clone() for p in algo.actor.parameters()]
     batch, _ = collect(env, algo.policy(), env.reset(), cfg.algo.steps_per_batch)
     logs = algo.update(batch)
-    moved = max(float((p.detach() - b).abs().max()) for p, b in zip(algo.actor.parameters(), before))
+    moved = max(float((p.detach() - b).abs().max()) for p, b in zip(algo.actor.parameters(), before, strict=True))
     assert moved > 0.0
     for k in ("loss_objective", "loss_critic", "entropy", "kl_approx"):
         assert k in logs and logs[k] == logs[k]  # present and not NaN

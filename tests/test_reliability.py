@@ -94,7 +94,12 @@ def _numeric_fields(schema, prefix=""):
 
 
 def test_every_numeric_key_declares_its_range():
-    missing = [f"{p}{k}" for p, schema, _, _ in _schemas() for k, owner, _ in _numeric_fields(schema) if field_range(owner, k.rsplit(".", 1)[-1]) is None]
+    missing = [
+        f"{p}{k}"
+        for p, schema, _, _ in _schemas()
+        for k, owner, _ in _numeric_fields(schema)
+        if field_range(owner, k.rsplit(".", 1)[-1]) is None
+    ]
     assert not missing, f"numeric keys without a range (volleybots.errors.ranged / config.TASK_RANGES): {missing}"
     # the bench options are the keywords of run_bench, typed and ranged the same way
     from volleybots.bench import run_bench
@@ -149,12 +154,26 @@ def test_every_numeric_key_rejects_values_outside_its_range_by_name():
     assert seen > 120  # every algorithm's and task's keys, not a handful
 
 
-@pytest.mark.parametrize("args", [
-    ["train", "algo.gamma=2"], ["train", "algo.actor_lr=-1"], ["train", "task.episode_len=0"], ["train", "env.substeps=0"],
-    ["train", "seed=-1"], ["train", "time_limit=inf"], ["train", "algo=sac", "algo.tau=nan"], ["train", "algo.hidden=[0]"],
-    ["train", "task=1v1", "task.serve=2"], ["train", "-m", "seed=0,-1"], ["eval", "random", "episodes=0"],
-    ["replay", "random", "seed=-5"], ["bench", "repeats=0"], ["bench", "num_envs=[0]"], ["bench", "threads=-1"],
-])
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["train", "algo.gamma=2"],
+        ["train", "algo.actor_lr=-1"],
+        ["train", "task.episode_len=0"],
+        ["train", "env.substeps=0"],
+        ["train", "seed=-1"],
+        ["train", "time_limit=inf"],
+        ["train", "algo=sac", "algo.tau=nan"],
+        ["train", "algo.hidden=[0]"],
+        ["train", "task=1v1", "task.serve=2"],
+        ["train", "-m", "seed=0,-1"],
+        ["eval", "random", "episodes=0"],
+        ["replay", "random", "seed=-5"],
+        ["bench", "repeats=0"],
+        ["bench", "num_envs=[0]"],
+        ["bench", "threads=-1"],
+    ],
+)
 def test_out_of_range_on_the_command_line_is_one_line_and_writes_nothing(args, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     key = next(a.split("=")[0].split(".")[-1] for a in args[1:] if "=" in a and not a.startswith(("task=", "algo=")))
@@ -165,36 +184,43 @@ def test_out_of_range_on_the_command_line_is_one_line_and_writes_nothing(args, t
 def test_make_env_names_a_bad_keyword():
     import volleybots
 
-    for kw, key in ((dict(substeps=0), "substeps"), (dict(num_envs=0), "num_envs"), (dict(episode_len=0), "episode_len"),
-                    (dict(ball_drag=math.nan), "ball_drag")):
+    for kw, key in (
+        (dict(substeps=0), "substeps"),
+        (dict(num_envs=0), "num_envs"),
+        (dict(episode_len=0), "episode_len"),
+        (dict(ball_drag=math.nan), "ball_drag"),
+    ):
         with pytest.raises(ValueError, match=f"'{key}'"):
             volleybots.make_env("hover", **kw)
 
 
 # ------------------------------------------------------------------- empty values, usage, paths, memory
-@pytest.mark.parametrize("args,words", [
-    (["train", "resume="], ["resume="]),
-    (["train", "hydra.run.dir="], ["hydra.run.dir"]),
-    (["train", "-m", "seed=0,1", "hydra.sweep.dir="], ["hydra.sweep.dir"]),
-    (["train", "wandb.project="], ["wandb.project", "empty"]),
-    (["fly"], ["fly", "train", "eval"]),
-    (["replay"], ["missing argument"]),
-    (["eval", "random", "--foo"], ["--foo", "--json"]),
-    (["eval", "--jsn", "random"], ["--jsn"]),
-    (["replay", "random", "--outt", "x.rrd"], ["--outt", "--out"]),
-    (["replay", "random", "--out"], ["--out", "requires an argument"]),
-    (["train", "--frames", "3"], ["--frames", "--multirun"]),
-    (["list", "extra"], ["extra"]),
-    (["list", "--all"], ["--all"]),
-    (["bench", "--fast"], ["--fast", "num_envs"]),
-    (["bench", "num_envs=abc"], ["num_envs"]),
-    (["bench", "tasks=[nope]"], ["nope", "hover"]),
-    (["train", "env.num_envs=1e12"], ["env.num_envs=1000000000000", "memory"]),
-    (["train", "algo=sac", "algo.buffer_size=1e14"], ["algo.buffer_size=100000000000000", "memory"]),
-    (["train", "evaluation.episodes=1e12"], ["evaluation.episodes=1000000000000", "memory"]),
-    (["eval", "random", "episodes=1e12"], ["episodes=1000000000000", "memory"]),
-    (["bench", "num_envs=[1e13]"], ["num_envs=10000000000000", "memory"]),
-])
+@pytest.mark.parametrize(
+    "args,words",
+    [
+        (["train", "resume="], ["resume="]),
+        (["train", "hydra.run.dir="], ["hydra.run.dir"]),
+        (["train", "-m", "seed=0,1", "hydra.sweep.dir="], ["hydra.sweep.dir"]),
+        (["train", "wandb.project="], ["wandb.project", "empty"]),
+        (["fly"], ["fly", "train", "eval"]),
+        (["replay"], ["missing argument"]),
+        (["eval", "random", "--foo"], ["--foo", "--json"]),
+        (["eval", "--jsn", "random"], ["--jsn"]),
+        (["replay", "random", "--outt", "x.rrd"], ["--outt", "--out"]),
+        (["replay", "random", "--out"], ["--out", "requires an argument"]),
+        (["train", "--frames", "3"], ["--frames", "--multirun"]),
+        (["list", "extra"], ["extra"]),
+        (["list", "--all"], ["--all"]),
+        (["bench", "--fast"], ["--fast", "num_envs"]),
+        (["bench", "num_envs=abc"], ["num_envs"]),
+        (["bench", "tasks=[nope]"], ["nope", "hover"]),
+        (["train", "env.num_envs=1e12"], ["env.num_envs=1000000000000", "memory"]),
+        (["train", "algo=sac", "algo.buffer_size=1e14"], ["algo.buffer_size=100000000000000", "memory"]),
+        (["train", "evaluation.episodes=1e12"], ["evaluation.episodes=1000000000000", "memory"]),
+        (["eval", "random", "episodes=1e12"], ["episodes=1000000000000", "memory"]),
+        (["bench", "num_envs=[1e13]"], ["num_envs=10000000000000", "memory"]),
+    ],
+)
 def test_bad_input_of_every_verb_is_one_line(args, words, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     _one_line_exit_2(runner.invoke(app, args), *words)
@@ -205,9 +231,11 @@ def test_unwritable_output_paths_are_one_line(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "afile").write_text("x")
     before = _snapshot(tmp_path)
-    for args in (["train", *TINY, f"hydra.run.dir={tmp_path / 'afile' / 'run'}"],
-                 ["train", "-m", "seed=0,1", *TINY, f"hydra.sweep.dir={tmp_path / 'afile' / 'sweep'}"],
-                 ["replay", "random", "--no-viewer", "--out", str(tmp_path / "afile" / "x.rrd")]):
+    for args in (
+        ["train", *TINY, f"hydra.run.dir={tmp_path / 'afile' / 'run'}"],
+        ["train", "-m", "seed=0,1", *TINY, f"hydra.sweep.dir={tmp_path / 'afile' / 'sweep'}"],
+        ["replay", "random", "--no-viewer", "--out", str(tmp_path / "afile" / "x.rrd")],
+    ):
         _one_line_exit_2(runner.invoke(app, args), "afile", "not a directory")
     assert _snapshot(tmp_path) == before
 
@@ -226,10 +254,19 @@ def _tiny_run(path: Path, *extra, task="hover") -> Path:
 
 def _hold_lock(path: Path) -> subprocess.Popen:
     """Another process that makes ``path`` and holds its run-dir lock for up to a minute (kill it when done)."""
-    holder = subprocess.Popen([sys.executable, "-c", (
-        "import time; from volleybots.runs import lock; from pathlib import Path; "
-        f"Path({str(path)!r}).mkdir(parents=True, exist_ok=True); lock({str(path)!r}); print('locked', flush=True); time.sleep(60)")],
-        env=ENV, stdout=subprocess.PIPE, text=True)
+    holder = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            (
+                "import time; from volleybots.runs import lock; from pathlib import Path; "
+                f"Path({str(path)!r}).mkdir(parents=True, exist_ok=True); lock({str(path)!r}); print('locked', flush=True); time.sleep(60)"
+            ),
+        ],
+        env=ENV,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     assert holder.stdout.readline().strip() == "locked"
     return holder
 
@@ -285,8 +322,17 @@ def test_a_benchmark_rerun_never_removes_a_run_another_process_is_training(tmp_p
 
 
 def test_two_starts_at_once_make_two_intact_runs(tmp_path):
-    procs = [subprocess.Popen(_cli("train", *TINY, f"total_frames={2 * FPB}", f"seed={s}"), cwd=tmp_path, env=ENV,
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for s in (1, 2)]
+    procs = [
+        subprocess.Popen(
+            _cli("train", *TINY, f"total_frames={2 * FPB}", f"seed={s}"),
+            cwd=tmp_path,
+            env=ENV,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for s in (1, 2)
+    ]
     outs = [p.communicate(timeout=300) for p in procs]
     assert [p.returncode for p in procs] == [0, 0], [o[1][-2000:] for o in outs]
     runs = sorted(p.parent for p in (tmp_path / "outputs").rglob("summary.json"))
@@ -303,12 +349,20 @@ def test_two_starts_at_once_make_two_intact_runs(tmp_path):
 
 def test_two_starts_into_one_dir_end_with_one_run_and_one_refusal(tmp_path):
     run = tmp_path / "run"
-    procs = [subprocess.Popen(_cli("train", *TINY, f"total_frames={2 * FPB}", f"seed={s}", f"hydra.run.dir={run}"), env=ENV,
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for s in (1, 2)]
+    procs = [
+        subprocess.Popen(
+            _cli("train", *TINY, f"total_frames={2 * FPB}", f"seed={s}", f"hydra.run.dir={run}"),
+            env=ENV,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for s in (1, 2)
+    ]
     outs = [p.communicate(timeout=300) for p in procs]
     codes = sorted(p.returncode for p in procs)
     assert codes == [0, 2], [o[1][-2000:] for o in outs]
-    loser = next(o for p, o in zip(procs, outs) if p.returncode == 2)
+    loser = next(o for p, o in zip(procs, outs, strict=True) if p.returncode == 2)
     assert len(loser[1].strip().splitlines()) == 1 and ("in use" in loser[1] or "already holds a run" in loser[1]), loser[1]
     winner = 1 + [p.returncode for p in procs].index(0)
     from volleybots.runs import RunDir
@@ -320,11 +374,15 @@ def test_two_starts_into_one_dir_end_with_one_run_and_one_refusal(tmp_path):
 
 def test_two_resumes_at_once_train_once_and_lose_nothing(tmp_path):
     run = _tiny_run(tmp_path / "run", f"total_frames={FPB}")
-    procs = [subprocess.Popen(_cli("train", f"resume={run}", f"total_frames={4 * FPB}"), env=ENV,
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    procs = [
+        subprocess.Popen(
+            _cli("train", f"resume={run}", f"total_frames={4 * FPB}"), env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
+        for _ in range(2)
+    ]
     outs = [p.communicate(timeout=300) for p in procs]
     assert sorted(p.returncode for p in procs) == [0, 2], [o[1][-2000:] for o in outs]
-    loser = next(o for p, o in zip(procs, outs) if p.returncode == 2)
+    loser = next(o for p, o in zip(procs, outs, strict=True) if p.returncode == 2)
     assert len(loser[1].strip().splitlines()) == 1, loser[1]
     assert [int(x["frames"]) for x in _rows(run)] == [FPB * i for i in range(1, 5)]  # no duplicate rows
     assert torch.load(run / "checkpoints" / "final.pt", weights_only=True)["frames"] == 4 * FPB
@@ -332,8 +390,12 @@ def test_two_resumes_at_once_train_once_and_lose_nothing(tmp_path):
 
 def test_a_run_killed_before_its_first_checkpoint_can_be_retried(tmp_path):
     run = tmp_path / "run"
-    victim = subprocess.Popen(_cli("train", *TINY, "total_frames=1e9", "checkpoint.every=0", f"hydra.run.dir={run}"), env=ENV,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    victim = subprocess.Popen(
+        _cli("train", *TINY, "total_frames=1e9", "checkpoint.every=0", f"hydra.run.dir={run}"),
+        env=ENV,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     deadline = time.time() + 300
     while not ((run / "metrics.csv").is_file() and len(_rows(run)) >= 2) and victim.poll() is None and time.time() < deadline:
         time.sleep(0.05)

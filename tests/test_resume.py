@@ -50,7 +50,9 @@ def test_resume_after_a_kill_repeats_the_uninterrupted_run(tmp_path):
     full, killed = tmp_path / "full", tmp_path / "killed"
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     ref = subprocess.Popen(_cli("train", *COMMON, f"hydra.run.dir={full}"), env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    victim = subprocess.Popen(_cli("train", *COMMON, f"hydra.run.dir={killed}"), env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    victim = subprocess.Popen(
+        _cli("train", *COMMON, f"hydra.run.dir={killed}"), env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
     deadline = time.time() + 300
     while len(_train_rows(killed)) < 3 and victim.poll() is None and time.time() < deadline:
         time.sleep(0.02)

@@ -143,13 +143,20 @@ def test_a_source_that_does_not_fit_is_refused(bc_run, tmp_path):
     )
     assert res.returncode == 2, res.stderr[-2000:]
     lines = res.stderr.strip().splitlines()
-    assert len(lines) == 1 and "algo bc, task solo_bump" in lines[0] and "algo sac, task hover" in lines[0] and "the task differs" in lines[0]
+    assert len(lines) == 1, lines
+    assert "algo bc, task solo_bump" in lines[0] and "algo sac, task hover" in lines[0] and "the task differs" in lines[0]
     assert not out.exists()
 
 
 def test_resume_keeps_the_guide_and_repeats_the_uninterrupted_run(bc_run, tmp_path):
-    common = [*SAC, f"init={bc_run}", "algo.actor_freeze_updates=24", "algo.guide_coeff=1.0",
-              "algo.checkpoint_buffer=true", f"checkpoint.every={2 * FPB}"]
+    common = [
+        *SAC,
+        f"init={bc_run}",
+        "algo.actor_freeze_updates=24",
+        "algo.guide_coeff=1.0",
+        "algo.checkpoint_buffer=true",
+        f"checkpoint.every={2 * FPB}",
+    ]
     train(load([*common, f"total_frames={4 * FPB}"]), tmp_path / "full")
     train(load([*common, f"total_frames={2 * FPB}"]), tmp_path / "half")
     resume(tmp_path / "half", [f"total_frames={4 * FPB}"])
