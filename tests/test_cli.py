@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 import torch
+from conftest import snapshot
 from typer.testing import CliRunner
 
 from volleybots.cli import app
@@ -179,10 +180,6 @@ def test_multirun_sweeps_seeds(tmp_path):
     assert seeds == [0, 1]
 
 
-def _snapshot(root: Path):
-    return {str(p): p.stat().st_mtime_ns for p in root.rglob("*")} if root.exists() else {}
-
-
 def _bad_cases(run_dir: Path, tmp: Path):
     mismatched = tmp / "mismatched.pt"
     state = torch.load(run_dir / "checkpoints" / "final.pt", weights_only=True)
@@ -232,7 +229,7 @@ def _bad_cases(run_dir: Path, tmp: Path):
 
 def test_bad_input_exits_2_with_one_line_and_writes_nothing(run_dir, tmp_path):
     cases = _bad_cases(run_dir, tmp_path)
-    before = _snapshot(run_dir), _snapshot(tmp_path)
+    before = snapshot(run_dir), snapshot(tmp_path)
     for args, words in cases:
         res = runner.invoke(app, args)
         assert res.exit_code == 2, (args, res.exit_code, res.output)
@@ -241,7 +238,7 @@ def test_bad_input_exits_2_with_one_line_and_writes_nothing(run_dir, tmp_path):
         assert err.startswith("error: ")
         for w in words:
             assert w in err, (args, w, err)
-    assert (_snapshot(run_dir), _snapshot(tmp_path)) == before
+    assert (snapshot(run_dir), snapshot(tmp_path)) == before
 
 
 def test_bad_input_from_a_real_process_has_no_traceback(tmp_path):

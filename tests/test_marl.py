@@ -13,9 +13,8 @@ from types import SimpleNamespace
 
 import pytest
 import torch
+from conftest import flat
 from tensordict import TensorDict
-from test_offpolicy import one_thread  # noqa: F401  (autouse: one torch thread on the shared machine)
-from test_offpolicy_runs import _flat
 
 from volleybots.algos import ALGOS
 from volleybots.algos.base import TASK_KINDS
@@ -68,7 +67,7 @@ def test_a_tiny_run_on_bump_and_pass_checkpoints_and_resumes_bit_for_bit(name, t
     resumed = resume(tmp_path / "half", [f"total_frames={4 * FPB}"])
     assert resumed["frames"] == 4 * FPB
     b = torch.load(tmp_path / "half" / "checkpoints" / "final.pt", weights_only=True)
-    fa, fb = _flat(a["algo"]), _flat(b["algo"])
+    fa, fb = flat(a["algo"]), flat(b["algo"])
     assert fa.keys() == fb.keys()
     for k in fa:
         assert torch.equal(fa[k], fb[k]) if isinstance(fa[k], torch.Tensor) else fa[k] == fb[k], k

@@ -18,15 +18,6 @@ OFF_POLICY = ("dqn", "ddpg", "td3", "sac")
 SMALL = {"batch_size": 64, "buffer_size": 4096, "warmup_batches": 2, "hidden": [64, 64]}
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    # the machine is shared: one intra-op thread is several times faster than two under contention
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
-
-
 def make(name: str, num_envs: int = 4, seed: int = 0, episode_len: int | None = None, **overrides):
     cls = ALGOS[name]
     space = "discrete" if name == "dqn" else "prt"

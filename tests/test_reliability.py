@@ -6,11 +6,9 @@ everything before it writes; usage errors of every verb are one line."""
 from __future__ import annotations
 
 import copy
-import csv
 import dataclasses
 import inspect
 import math
-import os
 import signal
 import subprocess
 import sys
@@ -20,6 +18,7 @@ from pathlib import Path
 
 import pytest
 import torch
+from conftest import CLI_ENV, cli_cmd, snapshot, train_rows
 from typer.testing import CliRunner
 
 from volleybots.algos import ALGOS
@@ -30,7 +29,6 @@ from volleybots.errors import Range, field_range
 from volleybots.tasks import TASKS
 
 runner = CliRunner()
-ENV = {**os.environ, "OMP_NUM_THREADS": "1"}
 STEPS, ENVS = 8, 4
 FPB = STEPS * ENVS  # frames per batch
 TINY = [
@@ -38,14 +36,6 @@ TINY = [
     "algo.hidden=[16]", "task.episode_len=40", "threads=1", "progress=false", "evaluation.episodes=1",
     "evaluation.record=false", "evaluation.every=0",
 ]
-
-
-def _cli(*args):
-    return [sys.executable, "-m", "volleybots.cli", *args]
-
-
-def _snapshot(root: Path):
-    return {str(p): (p.stat().st_mtime_ns, p.stat().st_size) for p in root.rglob("*")} if root.exists() else {}
 
 
 def _one_line_exit_2(res, *words):
@@ -230,22 +220,17 @@ def test_bad_input_of_every_verb_is_one_line(args, words, tmp_path, monkeypatch)
 def test_unwritable_output_paths_are_one_line(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "afile").write_text("x")
-    before = _snapshot(tmp_path)
+    before = snapshot(tmp_path)
     for args in (
         ["train", *TINY, f"hydra.run.dir={tmp_path / 'afile' / 'run'}"],
         ["train", "-m", "seed=0,1", *TINY, f"hydra.sweep.dir={tmp_path / 'afile' / 'sweep'}"],
         ["replay", "random", "--no-viewer", "--out", str(tmp_path / "afile" / "x.rrd")],
     ):
         _one_line_exit_2(runner.invoke(app, args), "afile", "not a directory")
-    assert _snapshot(tmp_path) == before
+    assert snapshot(tmp_path) == before
 
 
 # ------------------------------------------------------------------------ run directories and locks
-def _rows(run: Path, phase="train"):
-    with (run / "metrics.csv").open(newline="") as f:
-        return [r for r in csv.DictReader(f) if r["phase"] == phase]
-
-
 def _tiny_run(path: Path, *extra, task="hover") -> Path:
     res = runner.invoke(app, ["train", f"task={task}", *TINY, f"hydra.run.dir={path}", *extra])
     assert res.exit_code == 0, res.output
@@ -263,7 +248,7 @@ def _hold_lock(path: Path) -> subprocess.Popen:
                 f"Path({str(path)!r}).mkdir(parents=True, exist_ok=True); lock({str(path)!r}); print('locked', flush=True); time.sleep(60)"
             ),
         ],
-        env=ENV,
+        env=CLI_ENV,
         stdout=subprocess.PIPE,
         text=True,
     )
@@ -324,9 +309,9 @@ def test_a_benchmark_rerun_never_removes_a_run_another_process_is_training(tmp_p
 def test_two_starts_at_once_make_two_intact_runs(tmp_path):
     procs = [
         subprocess.Popen(
-            _cli("train", *TINY, f"total_frames={2 * FPB}", f"seed={s}"),
+            cli_cmd("train", *TINY, f"total_frames={2 * FPB}", f"seed={s}"),
             cwd=tmp_path,
-            env=ENV,
+            env=CLI_ENV,
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
@@ -344,15 +329,15 @@ def test_two_starts_at_once_make_two_intact_runs(tmp_path):
     for r in runs:  # each run's own records: Hydra's too
         seed = RunDir(r).load_config().seed
         assert f"seed={seed}" in (r / ".hydra" / "overrides.yaml").read_text()
-        assert [int(x["frames"]) for x in _rows(r)] == [FPB, 2 * FPB]
+        assert [int(x["frames"]) for x in train_rows(r)] == [FPB, 2 * FPB]
 
 
 def test_two_starts_into_one_dir_end_with_one_run_and_one_refusal(tmp_path):
     run = tmp_path / "run"
     procs = [
         subprocess.Popen(
-            _cli("train", *TINY, f"total_frames={2 * FPB}", f"seed={s}", f"hydra.run.dir={run}"),
-            env=ENV,
+            cli_cmd("train", *TINY, f"total_frames={2 * FPB}", f"seed={s}", f"hydra.run.dir={run}"),
+            env=CLI_ENV,
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
@@ -369,14 +354,18 @@ def test_two_starts_into_one_dir_end_with_one_run_and_one_refusal(tmp_path):
 
     assert RunDir(run).load_config().seed == winner
     assert f"seed={winner}" in (run / ".hydra" / "overrides.yaml").read_text()  # not overwritten by the loser
-    assert [int(x["frames"]) for x in _rows(run)] == [FPB, 2 * FPB] and (run / "summary.json").is_file()
+    assert [int(x["frames"]) for x in train_rows(run)] == [FPB, 2 * FPB] and (run / "summary.json").is_file()
 
 
 def test_two_resumes_at_once_train_once_and_lose_nothing(tmp_path):
     run = _tiny_run(tmp_path / "run", f"total_frames={FPB}")
     procs = [
         subprocess.Popen(
-            _cli("train", f"resume={run}", f"total_frames={4 * FPB}"), env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+            cli_cmd("train", f"resume={run}", f"total_frames={4 * FPB}"),
+            env=CLI_ENV,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
         )
         for _ in range(2)
     ]
@@ -384,29 +373,31 @@ def test_two_resumes_at_once_train_once_and_lose_nothing(tmp_path):
     assert sorted(p.returncode for p in procs) == [0, 2], [o[1][-2000:] for o in outs]
     loser = next(o for p, o in zip(procs, outs, strict=True) if p.returncode == 2)
     assert len(loser[1].strip().splitlines()) == 1, loser[1]
-    assert [int(x["frames"]) for x in _rows(run)] == [FPB * i for i in range(1, 5)]  # no duplicate rows
+    assert [int(x["frames"]) for x in train_rows(run)] == [FPB * i for i in range(1, 5)]  # no duplicate rows
     assert torch.load(run / "checkpoints" / "final.pt", weights_only=True)["frames"] == 4 * FPB
 
 
 def test_a_run_killed_before_its_first_checkpoint_can_be_retried(tmp_path):
     run = tmp_path / "run"
     victim = subprocess.Popen(
-        _cli("train", *TINY, "total_frames=1e9", "checkpoint.every=0", f"hydra.run.dir={run}"),
-        env=ENV,
+        cli_cmd("train", *TINY, "total_frames=1e9", "checkpoint.every=0", f"hydra.run.dir={run}"),
+        env=CLI_ENV,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
     deadline = time.time() + 300
-    while not ((run / "metrics.csv").is_file() and len(_rows(run)) >= 2) and victim.poll() is None and time.time() < deadline:
+    while not ((run / "metrics.csv").is_file() and len(train_rows(run)) >= 2) and victim.poll() is None and time.time() < deadline:
         time.sleep(0.05)
     victim.send_signal(signal.SIGKILL)
     victim.wait()
     assert victim.returncode == -signal.SIGKILL and not (run / "checkpoints").exists()
     # resume= starts it afresh from frame 0 (saying so); the dead process left no lock behind
-    res = subprocess.run(_cli("train", f"resume={run}", f"total_frames={2 * FPB}"), env=ENV, capture_output=True, text=True, timeout=300)
+    res = subprocess.run(
+        cli_cmd("train", f"resume={run}", f"total_frames={2 * FPB}"), env=CLI_ENV, capture_output=True, text=True, timeout=300
+    )
     assert res.returncode == 0, res.stderr[-2000:]
     assert "note:" in res.stderr and "afresh" in res.stderr
-    assert [int(x["frames"]) for x in _rows(run)] == [FPB, 2 * FPB]
+    assert [int(x["frames"]) for x in train_rows(run)] == [FPB, 2 * FPB]
     # and the same for the plain command run again, after another early death
     (run / "checkpoints" / "final.pt").unlink()
     (run / "checkpoints" / "ckpt_000000000000.tmp").write_bytes(b"half")  # a kill while saving
@@ -415,7 +406,7 @@ def test_a_run_killed_before_its_first_checkpoint_can_be_retried(tmp_path):
     assert "afresh" in res.stderr
     from volleybots.runs import RunDir
 
-    assert RunDir(run).load_config().seed == 9 and [int(x["frames"]) for x in _rows(run)] == [FPB]
+    assert RunDir(run).load_config().seed == 9 and [int(x["frames"]) for x in train_rows(run)] == [FPB]
     assert not list((run / "checkpoints").glob("*.tmp"))
 
 
@@ -435,10 +426,10 @@ def test_resume_onto_a_mismatched_checkpoint_names_both_and_writes_nothing(two_r
 
     shutil.copytree(hover, run)
     shutil.copy(bump / "checkpoints" / "final.pt", run / "checkpoints" / "final.pt")
-    before = _snapshot(run)
+    before = snapshot(run)
     err = _one_line_exit_2(runner.invoke(app, ["train", f"resume={run}", f"total_frames={4 * FPB}"]))
     assert "checkpoint is solo_bump (obs 32, prt, ppo), run is hover (obs 26, prt, ppo)" in err, err
-    assert _snapshot(run) == before
+    assert snapshot(run) == before
 
 
 def test_resume_of_a_damaged_run_is_one_line(two_runs, tmp_path):
@@ -455,9 +446,9 @@ def test_resume_of_a_damaged_run_is_one_line(two_runs, tmp_path):
         run = tmp_path / f"r_{name.replace('/', '_')}_{len(damage)}"
         shutil.copytree(hover, run)
         (run / name).write_text(damage)
-        before = _snapshot(run)
+        before = snapshot(run)
         _one_line_exit_2(runner.invoke(app, ["train", f"resume={run}", f"total_frames={2 * FPB}"]), *words)
-        assert _snapshot(run) == before, name
+        assert snapshot(run) == before, name
 
 
 def test_resume_drops_a_row_cut_short_by_a_kill(two_runs, tmp_path):
@@ -470,4 +461,4 @@ def test_resume_drops_a_row_cut_short_by_a_kill(two_runs, tmp_path):
         f.write("tra")  # the start of a row when the process died
     res = runner.invoke(app, ["train", f"resume={run}", f"total_frames={2 * FPB}"])
     assert res.exit_code == 0, res.output
-    assert [int(x["frames"]) for x in _rows(run)] == [FPB, 2 * FPB]
+    assert [int(x["frames"]) for x in train_rows(run)] == [FPB, 2 * FPB]
