@@ -60,6 +60,13 @@ def snapshot(root: Path) -> dict:
     return {str(p): (p.stat().st_mtime_ns, p.stat().st_size) for p in root.rglob("*")} if root.exists() else {}
 
 
+def pytest_collection_modifyitems(items):
+    """A learning test trains to a floor: it is slow by nature, so ``-m "not slow"`` leaves it out too."""
+    for item in items:
+        if item.get_closest_marker("learning") and not item.get_closest_marker("slow"):
+            item.add_marker(pytest.mark.slow)
+
+
 @pytest.fixture(autouse=True)
 def _one_torch_thread():
     """One intra-op thread for every test (on a shared machine it is several times faster than two under
@@ -85,7 +92,8 @@ def tiny_run(tmp_path_factory):
         if key not in runs:
             torch.set_num_threads(1)
             path = tmp_path_factory.mktemp("tiny_run") / "run"
-            train(load([*overrides, *QUIET]), path)
+            given = {o.split("=", 1)[0] for o in overrides}
+            train(load([*overrides, *(q for q in QUIET if q.split("=", 1)[0] not in given)]), path)
             runs[key] = path
         return runs[key]
 

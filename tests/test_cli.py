@@ -21,6 +21,7 @@ from volleybots.runs import read_metrics
 TINY = [
     "task=hover", "env.num_envs=16", "algo.steps_per_batch=32", "total_frames=2048", "threads=1", "progress=false",
     "checkpoint.every=1024", "evaluation.every=1024", "evaluation.episodes=2",
+    "task.episode_len=100",  # three evaluations and every `eval` of the run play 100-step episodes, not 500
 ]
 ENV = {**os.environ, "OMP_NUM_THREADS": "1"}
 runner = CliRunner()

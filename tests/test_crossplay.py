@@ -6,8 +6,6 @@ from __future__ import annotations
 import json
 import os
 import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,7 +18,6 @@ from volleybots.eval.crossplay import CrossPlay, crossplay
 from volleybots.eval.games import play_games
 
 runner = CliRunner()
-ENV = {**os.environ, "OMP_NUM_THREADS": "1"}
 
 
 def _cfg(task="1v1"):
@@ -67,15 +64,12 @@ def test_a_competitor_against_itself_is_near_even():
 
 
 @pytest.fixture(scope="module")
-def tiny_ckpt(tmp_path_factory):
-    """A tiny 1v1 training run (seconds): its final checkpoint is a competitor with a file."""
-    d = tmp_path_factory.mktemp("tiny") / "run"
-    cmd = [sys.executable, "-m", "volleybots.cli", "train", "task=1v1", "algo=mappo", "total_frames=256", "env.num_envs=8",
-           "algo.steps_per_batch=16", "algo.minibatches=2", "algo.epochs=1", "algo.hidden=[32,32]", "evaluation.episodes=2",
-           "evaluation.every=0", "evaluation.record=false", "progress=false", "threads=1", f"hydra.run.dir={d}"]
-    res = subprocess.run(cmd, capture_output=True, text=True, env=ENV, cwd=Path(__file__).parents[1], timeout=600)
-    assert res.returncode == 0, res.stderr[-3000:]
-    return d
+def tiny_ckpt(tiny_run):
+    """A tiny 1v1 training run (seconds, in this process): its final checkpoint is a competitor with a file."""
+    return tiny_run(
+        "task=1v1", "algo=mappo", "total_frames=256", "env.num_envs=8", "algo.steps_per_batch=16", "algo.minibatches=2",
+        "algo.epochs=1", "algo.hidden=[32,32]", "evaluation.episodes=2", "evaluation.every=0",
+    )
 
 
 def test_crossplay_cli_writes_results_with_every_file_hash(tiny_ckpt, tmp_path):

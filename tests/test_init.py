@@ -21,11 +21,9 @@ PPO_TINY = [*TINY, "algo.steps_per_batch=8", "algo.minibatches=2", "total_frames
 
 
 @pytest.fixture(scope="module")
-def hover_run(tmp_path_factory):
-    torch.set_num_threads(1)
-    path = tmp_path_factory.mktemp("init") / "source"
-    train(load(["task=hover", *PPO_TINY]), path)
-    return path
+def hover_run(tiny_run):
+    # init= checks the task's name, not its episode length: 40-step episodes keep the final evaluation short
+    return tiny_run("task=hover", *PPO_TINY, "task.episode_len=40")
 
 
 def _equal(a: dict, b: dict) -> None:
@@ -59,7 +57,10 @@ def test_init_of_mappo_from_ppo_and_off_policy_targets(hover_run, tmp_path):
     _equal(tr.algo.actor.state_dict(), saved["actor"])
     # an off-policy run started from another: its targets start from the loaded critics
     sac = tmp_path / "sac"
-    train(load(["task=hover", "algo=sac", *TINY, "total_frames=64", "algo.steps_per_batch=8", "algo.batch_size=16"]), sac)
+    train(
+        load(["task=hover", "algo=sac", *TINY, "total_frames=64", "algo.steps_per_batch=8", "algo.batch_size=16", "task.episode_len=40"]),
+        sac,
+    )
     tr = _trainer(
         tmp_path / "s", ["task=hover", "algo=sac", *TINY, "total_frames=64", "algo.steps_per_batch=8", "algo.batch_size=16", f"init={sac}"]
     )
@@ -159,6 +160,7 @@ def test_best_pt_holds_the_policy_of_the_best_evaluation(tmp_path):
             "evaluation.every=128",
             "checkpoint.every=128",
             "checkpoint.keep=100",
+            "task.episode_len=60",  # 8 evaluations of 2 episodes: 60 steps each instead of 500
         ]
     )
     summary = train(cfg, tmp_path / "run")

@@ -17,6 +17,8 @@ from typer.testing import CliRunner
 
 from volleybots.cli import app
 
+pytestmark = [pytest.mark.slow, pytest.mark.subprocess]
+
 SWEEP = [
     "seed=0,1",
     "task=hover",

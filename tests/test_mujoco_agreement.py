@@ -13,6 +13,8 @@ from volleybots.physics import RateController, TorchPhysics, WorldParams
 from volleybots.physics.math import euler_to_quat
 from volleybots.physics.mujoco_backend import MujocoPhysics
 
+pytestmark = pytest.mark.mujoco
+
 P = WorldParams()
 HOVER = torch.tensor(P.drone.hover_command)
 STEPS = 50  # 1 s at 50 Hz

@@ -12,6 +12,8 @@ from volleybots.physics import WorldParams
 from volleybots.physics.mujoco_backend import build_model, solref_for, unilateral_restitution
 from volleybots.tasks import TASKS
 
+pytestmark = pytest.mark.mujoco
+
 
 def test_check_env_specs_on_mujoco():
     env = volleybots.make_env("solo_bump", num_envs=3, physics="mujoco", seed=1)

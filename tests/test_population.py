@@ -15,6 +15,8 @@ from volleybots.runner import resume, start
 from volleybots.runs import RunDir
 from volleybots.train import SelfPlay, collect
 
+pytestmark = pytest.mark.slow
+
 TINY = [
     "task=1v1", "env.num_envs=16", "algo.steps_per_batch=16", "algo.minibatches=2", "algo.epochs=1", "algo.hidden=[32,32]",
     "algo.min_updates=2", "algo.max_updates=4", "algo.payoff_games=6", "evaluation.episodes=2", "evaluation.every=0",

@@ -3,6 +3,7 @@ delta, discrete and multi-drone variants learn from a batch, and PPO clearly imp
 
 from __future__ import annotations
 
+import pytest
 import torch
 import torch.nn.functional as F
 
@@ -103,6 +104,7 @@ def test_observation_normalisation_tracks_the_batches():
     torch.testing.assert_close(stats.mean, obs.mean(0), rtol=1e-4, atol=1e-4)
 
 
+@pytest.mark.learning
 def test_ppo_improves_hover(tmp_path):
     """About a minute on two busy cores: 100k frames of 64 envs. Random flight crashes within ~30 steps
     (return ~2); PPO must at least quintuple the return and beat random play in evaluation."""

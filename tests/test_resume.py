@@ -8,8 +8,11 @@ import signal
 import subprocess
 import time
 
+import pytest
 import torch
 from conftest import cli_cmd, flat, train_rows
+
+pytestmark = [pytest.mark.slow, pytest.mark.subprocess]
 
 STEPS, ENVS = 16, 16
 FPB = STEPS * ENVS  # frames per batch
