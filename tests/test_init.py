@@ -4,13 +4,11 @@ before anything is written."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-
 import pytest
 import torch
+from typer.testing import CliRunner
 
+from volleybots.cli import app
 from volleybots.config import load
 from volleybots.errors import ConfigError
 from volleybots.runs import RunDir
@@ -100,15 +98,10 @@ def test_sac_from_a_ppo_run_keeps_its_actor_as_a_guide(hover_run, tmp_path):
 
 
 def test_cli_refuses_a_mismatched_init_with_exit_2_and_writes_nothing(hover_run, tmp_path):
+    # in this process (a child process costs a fresh import of torch); tests/test_cli.py checks a real one's exit
     out = tmp_path / "refused"
-    res = subprocess.run(
-        [sys.executable, "-m", "volleybots.cli", "train", "task=solo_bump", *PPO_TINY, f"init={hover_run}", f"hydra.run.dir={out}"],
-        capture_output=True,
-        text=True,
-        env={**os.environ, "OMP_NUM_THREADS": "1"},
-        timeout=300,
-    )
-    assert res.returncode == 2, res.stderr[-2000:]
+    res = CliRunner().invoke(app, ["train", "task=solo_bump", *PPO_TINY, f"init={hover_run}", f"hydra.run.dir={out}"])
+    assert res.exit_code == 2, res.output[-2000:]
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and "task hover" in lines[0] and "task solo_bump" in lines[0]
     assert not out.exists()

@@ -9,8 +9,10 @@ import math
 
 import pytest
 import torch
-from conftest import flat, run_cli
+from conftest import flat
+from typer.testing import CliRunner
 
+from volleybots.cli import app
 from volleybots.config import load
 from volleybots.runs import read_metrics
 from volleybots.train import resume, train
@@ -86,27 +88,34 @@ def test_resume_without_the_buffer_warms_up_again_and_goes_on(tmp_path):
 
 
 
-def test_cli_trains_evaluates_and_replays_sac_and_picks_discrete_for_dqn(tmp_path):
+def _invoke(*args):
+    return CliRunner().invoke(app, list(args))
+
+
+def test_cli_trains_evaluates_and_replays_sac_and_picks_discrete_for_dqn(tmp_path, monkeypatch):
+    # the verbs run in this process (each child process costs a fresh import of torch); tests/test_cli.py runs the
+    # command line as a real process
+    monkeypatch.chdir(tmp_path)
     run = tmp_path / "sac"
-    res = run_cli("train", "algo=sac", *TINY, "total_frames=64", f"hydra.run.dir={run}", cwd=tmp_path)
-    assert res.returncode == 0, res.stderr[-2000:]
+    res = _invoke("train", "algo=sac", *TINY, "total_frames=64", f"hydra.run.dir={run}")
+    assert res.exit_code == 0, res.output[-2000:]
     assert (run / "metrics.csv").is_file() and (run / "checkpoints" / "final.pt").is_file()
-    res = run_cli("eval", str(run), "episodes=3", "--json", cwd=tmp_path)
-    assert res.returncode == 0, res.stderr[-2000:]
+    res = _invoke("eval", str(run), "episodes=3", "--json")
+    assert res.exit_code == 0, res.output[-2000:]
     assert '"episodes": 3' in res.stdout
     out = tmp_path / "sac.rrd"
-    res = run_cli("replay", str(run), "--out", str(out), "--no-viewer", cwd=tmp_path)
-    assert res.returncode == 0 and out.is_file() and out.stat().st_size > 0, res.stderr[-2000:]
+    res = _invoke("replay", str(run), "--out", str(out), "--no-viewer")
+    assert res.exit_code == 0 and out.is_file() and out.stat().st_size > 0, res.output[-2000:]
 
     dqn = tmp_path / "dqn"
-    res = run_cli("train", "algo=dqn", *TINY, "total_frames=32", f"hydra.run.dir={dqn}", cwd=tmp_path)
-    assert res.returncode == 0, res.stderr[-2000:]
+    res = _invoke("train", "algo=dqn", *TINY, "total_frames=32", f"hydra.run.dir={dqn}")
+    assert res.exit_code == 0, res.output[-2000:]
     state = torch.load(dqn / "checkpoints" / "final.pt", weights_only=True)
     assert state["action_space"] == "discrete"
 
     bad = tmp_path / "bad"
-    res = run_cli("train", "algo=dqn", "env.action_space=prt", *TINY, "total_frames=32", f"hydra.run.dir={bad}", cwd=tmp_path)
-    assert res.returncode == 2
+    res = _invoke("train", "algo=dqn", "env.action_space=prt", *TINY, "total_frames=32", f"hydra.run.dir={bad}")
+    assert res.exit_code == 2
     lines = [line for line in res.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and "dqn" in lines[0] and "discrete" in lines[0] and "'prt'" in lines[0], res.stderr
     assert not bad.exists()
