@@ -256,6 +256,7 @@ def test_a_trained_drill_drives_its_drone_on_the_drill_observation(tmp_path):
             "evaluation.every=0",
             "evaluation.episodes=2",
             "evaluation.record=false",
+            "task.episode_len=50",  # the drill's policy is under test, not its final evaluation: keep that short
             "checkpoint.every=0",
             f"hydra.run.dir={tmp_path / 'serve'}",
         ],

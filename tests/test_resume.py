@@ -21,6 +21,7 @@ COMMON = [
     "task=hover", f"env.num_envs={ENVS}", f"algo.steps_per_batch={STEPS}", "algo.minibatches=4", "seed=5",
     "threads=1", "progress=false", f"checkpoint.every={2 * FPB}", "checkpoint.keep=5",
     f"evaluation.every={3 * FPB}", "evaluation.episodes=2", "evaluation.record=false", f"total_frames={TOTAL}",
+    "task.episode_len=60",  # the evaluations in the curve are compared, not their length: 60 steps each, not 500
 ]
 
 
