@@ -27,7 +27,9 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--tasks", type=_csv, default=list(DEFAULT_TASKS), help="comma-separated task names")
     ap.add_argument("--backends", type=_csv, default=["torch", "mujoco"], help="comma-separated physics backends")
-    ap.add_argument("--num-envs", type=lambda s: [int(x) for x in _csv(s)], default=list(DEFAULT_NUM_ENVS), help="comma-separated env counts")
+    ap.add_argument(
+        "--num-envs", type=lambda s: [int(x) for x in _csv(s)], default=list(DEFAULT_NUM_ENVS), help="comma-separated env counts"
+    )
     ap.add_argument("--devices", type=_csv, default=None, help="comma-separated torch devices (default: cpu, and cuda if available)")
     ap.add_argument("--compile", action="store_true", help="torch.compile the torch physics sub-step")
     ap.add_argument("--both", action="store_true", help="measure the torch backend eager and compiled")
@@ -44,9 +46,23 @@ def main(argv=None) -> int:
         torch.set_num_threads(args.threads)  # before anything runs, so the banner below shows it
     print(f"# torch {torch.__version__}, {torch.get_num_threads()} threads, {os.cpu_count()} CPUs", file=sys.stderr)
     rows = run_bench(
-        args.tasks, args.backends, args.num_envs, args.devices, compile=(False, True) if args.both else args.compile, repeats=args.repeats,
-        steps=args.steps, action_space=args.action_space, threads=args.threads, train=args.train, train_batches=args.train_batches,
-        progress=lambda r: print(f"  {r['task']} {r['kind']} {r['backend']} {r['device']} compile={r['compile']} x{r['num_envs']}: {r['env_steps_per_s']:,.0f}/s", file=sys.stderr, flush=True),
+        args.tasks,
+        args.backends,
+        args.num_envs,
+        args.devices,
+        compile=(False, True) if args.both else args.compile,
+        repeats=args.repeats,
+        steps=args.steps,
+        action_space=args.action_space,
+        threads=args.threads,
+        train=args.train,
+        train_batches=args.train_batches,
+        progress=lambda r: print(
+            f"  {r['task']} {r['kind']} {r['backend']} {r['device']} compile={r['compile']} x{r['num_envs']}: "
+            f"{r['env_steps_per_s']:,.0f}/s",
+            file=sys.stderr,
+            flush=True,
+        ),
     )
     print(format_table(rows))
     if args.json:

@@ -66,9 +66,12 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|")
     for r in rows:
         pop = r["population"]
-        mix = ", ".join(f"{m} {w:.2f}" for m, w in zip(pop["members"], pop["mixture"]))
+        mix = ", ".join(f"{m} {w:.2f}" for m, w in zip(pop["members"], pop["mixture"], strict=True))
         ups = ", ".join(f"{o['updates']}{'*' if o.get('converged') else ''}" for o in r["oracles"])
-        print(f"| {r['method']} | {r['frames']:,} | {r['wall_s']:.0f} | {r['frames_per_s_end_to_end']:,.0f} | {len(pop['members'])} | {mix} | {ups} |")
+        print(
+            f"| {r['method']} | {r['frames']:,} | {r['wall_s']:.0f} | {r['frames_per_s_end_to_end']:,.0f} | "
+            f"{len(pop['members'])} | {mix} | {ups} |"
+        )
 
 
 if __name__ == "__main__":

@@ -41,10 +41,10 @@ import torch
 from scipy.stats import binomtest
 
 import volleybots
-from volleybots.policies import hierarchical_member, resolve_competitor, Competitor
 from volleybots.config import load
 from volleybots.play import run_episodes
 from volleybots.play.games import play_games
+from volleybots.policies import Competitor, hierarchical_member, resolve_competitor
 from volleybots.policies.builtin import learned_drill
 from volleybots.scripted.policies import SCRIPTED_POLICIES
 from volleybots.tasks.match import Referee
@@ -81,7 +81,7 @@ def match_figures(hier: Competitor, opponent: str, games: int, seed: int) -> dic
     t0 = time.time()
     g = play_games(cfg, hier, resolve_competitor(opponent), games, seed)
     w, d, l_ = (int(x) for x in g.total)
-    faults = lambda k: {f: int(n) for f, n in zip(Referee.FAULTS, g.faults[k]) if n}  # noqa: E731
+    faults = lambda k: {f: int(n) for f, n in zip(Referee.FAULTS, g.faults[k], strict=True) if n}  # noqa: E731
     return {"team": hier.label, "opponent": opponent, "games": games, "seed": seed, "wins": w, "draws": d, "losses": l_,
             "win_rate": w / (w + l_) if w + l_ else None, "ci95": wilson(w, w + l_), "served": int(g.served),
             "lost_by": faults(0), "won_by_opponent_fault": faults(1), "seconds": round(time.time() - t0)}
@@ -104,7 +104,9 @@ def learn_drill(name: str, a, root: Path) -> dict:
     bc = trained(bc_dir) or train(load([*common(a, name, a.bc_minutes), "algo=bc", *a.bc_overrides]), bc_dir)
     row = {"drill": name, "bc": run_summary(bc_dir, bc), "fine_tune": None, "policy": str(bc_dir)}
     if a.ft_minutes > 0:
-        ft = trained(ft_dir) or train(load([*common(a, name, a.ft_minutes), "algo=ppo", f"init={bc_dir}", *FINE_TUNE["ppo"], *a.ft_overrides]), ft_dir)
+        ft = trained(ft_dir) or train(
+            load([*common(a, name, a.ft_minutes), "algo=ppo", f"init={bc_dir}", *FINE_TUNE["ppo"], *a.ft_overrides]), ft_dir
+        )
         row["fine_tune"] = run_summary(ft_dir, ft)
         # the team's drill: the fine-tuned policy unless its final evaluation (the training seed's
         # evaluation seed, not the held-out ones) is below the clone's
@@ -116,11 +118,23 @@ def learn_drill(name: str, a, root: Path) -> dict:
 
 def train_sp(a, root: Path) -> dict:
     run = root / "3v3_sp"
-    overrides = ["task=3v3", "algo=sp", f"total_frames={a.sp_frames}", f"env.num_envs={a.sp_envs}", f"seed={a.train_seed}",
-                 f"threads={a.threads}", "evaluation.record=false", "progress=false"]
+    overrides = [
+        "task=3v3",
+        "algo=sp",
+        f"total_frames={a.sp_frames}",
+        f"env.num_envs={a.sp_envs}",
+        f"seed={a.train_seed}",
+        f"threads={a.threads}",
+        "evaluation.record=false",
+        "progress=false",
+    ]
     summary = trained(run) or train(load(overrides), run)
-    return {"command": "volleybots train " + " ".join(overrides), "run_dir": str(run), "frames": summary["frames"],
-            "seconds": round(summary["wall_time_s"])}
+    return {
+        "command": "volleybots train " + " ".join(overrides),
+        "run_dir": str(run),
+        "frames": summary["frames"],
+        "seconds": round(summary["wall_time_s"]),
+    }
 
 
 def learned(a, seeds: list[int], save) -> dict:
@@ -128,8 +142,16 @@ def learned(a, seeds: list[int], save) -> dict:
     ``save(out)`` after every step, so that a partial result survives."""
     root = Path(a.reuse) if a.reuse else Path(a.root) / time.strftime("%Y%m%d-%H%M%S")
     t0 = time.time()
-    out = {"machine": f"{platform.machine()}, {os.cpu_count()} cores, torch {torch.__version__}", "command": " ".join(sys.argv),
-           "train_seed": a.train_seed, "eval_seeds": seeds, "root": str(root), "training": [], "drills": [], "matches": []}
+    out = {
+        "machine": f"{platform.machine()}, {os.cpu_count()} cores, torch {torch.__version__}",
+        "command": " ".join(sys.argv),
+        "train_seed": a.train_seed,
+        "eval_seeds": seeds,
+        "root": str(root),
+        "training": [],
+        "drills": [],
+        "matches": [],
+    }
     names = [n for n in a.learn.split(",") if n]
     for name in names:
         out["training"].append(learn_drill(name, a, root))
@@ -137,8 +159,12 @@ def learned(a, seeds: list[int], save) -> dict:
     policies = {r["drill"]: r["policy"] for r in out["training"]}
     for name in names:
         t = next(r for r in out["training"] if r["drill"] == name)
-        row = {"drill": name, "policy": policies[name], "scripted": drill_figures(name, a.episodes, seeds, None)["per_seed"],
-               "bc": drill_figures(name, a.episodes, seeds, t["bc"]["run_dir"])["per_seed"]}
+        row = {
+            "drill": name,
+            "policy": policies[name],
+            "scripted": drill_figures(name, a.episodes, seeds, None)["per_seed"],
+            "bc": drill_figures(name, a.episodes, seeds, t["bc"]["run_dir"])["per_seed"],
+        }
         if t["fine_tune"]:
             row["fine_tuned"] = drill_figures(name, a.episodes, seeds, t["fine_tune"]["run_dir"])["per_seed"]
         out["drills"].append(row)
@@ -197,8 +223,12 @@ def main() -> None:
     seeds = [int(s) for s in a.seeds.split(",")]
     bad = sorted(set(n for n in a.learn.split(",") if n) - set(DRILLS))
     if bad or (a.reuse and not Path(a.reuse).is_dir()):
-        print(f"error: --learn {','.join(bad)}: not a drill; allowed: {', '.join(DRILLS)}" if bad else
-              f"error: --reuse {a.reuse!r} is no folder of an earlier --learn invocation", file=sys.stderr)
+        print(
+            f"error: --learn {','.join(bad)}: not a drill; allowed: {', '.join(DRILLS)}"
+            if bad
+            else f"error: --reuse {a.reuse!r} is no folder of an earlier --learn invocation",
+            file=sys.stderr,
+        )
         sys.exit(2)
     doc = json.loads(Path(a.out).read_text()) if Path(a.out).is_file() else {}
 

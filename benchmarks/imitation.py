@@ -66,7 +66,11 @@ def common(args, task: str, minutes: float) -> list[str]:
 def curve(run: Path, metric: str) -> list[dict]:
     from volleybots.runs import read_metrics
 
-    return [{"minutes": r["wall_time"] / 60, "frames": r["frames"], metric: r[f"eval_{metric}"]} for r in read_metrics(run / "metrics.csv") if r["phase"] == "eval"]
+    return [
+        {"minutes": r["wall_time"] / 60, "frames": r["frames"], metric: r[f"eval_{metric}"]}
+        for r in read_metrics(run / "metrics.csv")
+        if r["phase"] == "eval"
+    ]
 
 
 def policy_of(run: Path) -> Path:
@@ -93,7 +97,10 @@ def held_out_overrides(args, task: str) -> list[str]:
 
     from volleybots.config import task_schema
 
-    own = ["task.episode_len=null", *(["task.far_starts=0"] if "far_starts" in {f.name for f in dataclasses.fields(task_schema(task))} else [])]
+    own = [
+        "task.episode_len=null",
+        *(["task.far_starts=0"] if "far_starts" in {f.name for f in dataclasses.fields(task_schema(task))} else []),
+    ]
     return [f"seed={args.eval_seed}", f"threads={args.threads}", *own]
 
 
@@ -103,9 +110,17 @@ def paired_held_out(targets: dict[str, str], args, task: str) -> dict:
     from volleybots.eval.compare import compare
 
     res = compare(["scripted", *targets.values(), f"episodes={args.episodes}", *held_out_overrides(args, task)])
-    rows = dict(zip(["scripted", *targets], res["targets"]))
-    return {k: {"mean": r["mean"], "std": r["std"], "return": None, "per_episode": r["per_episode"],
-                **({"vs_teacher": r["vs_baseline"]} if "vs_baseline" in r else {})} for k, r in rows.items()}
+    rows = dict(zip(["scripted", *targets], res["targets"], strict=True))
+    return {
+        k: {
+            "mean": r["mean"],
+            "std": r["std"],
+            "return": None,
+            "per_episode": r["per_episode"],
+            **({"vs_teacher": r["vs_baseline"]} if "vs_baseline" in r else {}),
+        }
+        for k, r in rows.items()
+    }
 
 
 def scripted_held_out(args, task: str, metric: str) -> dict:
@@ -113,8 +128,11 @@ def scripted_held_out(args, task: str, metric: str) -> dict:
     ``benchmarks/scripted.py --seed EVAL_SEED``: the same 100 episodes; the cooperative teachers'
     lookahead makes playing them again cost ~20 minutes of a core)."""
     if args.scripted_from and not competitive(task):
-        rows = [r for r in json.loads(Path(args.scripted_from).read_text())["episodes"]
-                if r["task"] == task and r["action_space"] == args.action_space and r["episodes"] == args.episodes]
+        rows = [
+            r
+            for r in json.loads(Path(args.scripted_from).read_text())["episodes"]
+            if r["task"] == task and r["action_space"] == args.action_space and r["episodes"] == args.episodes
+        ]
         if rows:
             return {"mean": rows[0]["mean"], "std": rows[0]["std"], "return": None, "from": args.scripted_from}
     return held_out("scripted", args, task, metric)
@@ -127,8 +145,8 @@ def held_out_games(target: str, args, task: str) -> dict:
     comps = resolve_all([f"learner={target}" if target not in ("scripted", "random") else target, f"opponent={args.opponent}"])
     cfg = match_config(comps, [f"task={task}", f"env.action_space={args.action_space}", f"threads={args.threads}"])
     res = crossplay(cfg, comps, games=args.games, seed=args.eval_seed, deterministic=True)
-    (w, d, l), (lo, hi) = res.wdl[0, 1], (x[0, 1] for x in res.interval())
-    return {"mean": float(res.win_rate()[0, 1]), "std": float("nan"), "wilson95": [float(lo), float(hi)], "wdl": [int(w), int(d), int(l)]}
+    (w, d, l_), (lo, hi) = res.wdl[0, 1], (x[0, 1] for x in res.interval())
+    return {"mean": float(res.win_rate()[0, 1]), "std": float("nan"), "wilson95": [float(lo), float(hi)], "wdl": [int(w), int(d), int(l_)]}
 
 
 def run_task(task: str, args, root: Path) -> dict:
@@ -149,7 +167,9 @@ def run_task(task: str, args, root: Path) -> dict:
         ft = json.loads((ft_dir / "summary.json").read_text())
     else:
         init = policy_of(bc_dir)
-        ft = train(load([*common(args, task, args.ft_minutes), f"algo={algo}", f"init={init}", *FINE_TUNE[algo], *args.ft_overrides]), ft_dir)
+        ft = train(
+            load([*common(args, task, args.ft_minutes), f"algo={algo}", f"init={init}", *FINE_TUNE[algo], *args.ft_overrides]), ft_dir
+        )
     runs = {"bc": str(policy_of(bc_dir)), "fine_tuned_final": str(ft_dir), "fine_tuned": str(policy_of(ft_dir))}
     if args.paired and not competitive(task):
         played = paired_held_out(runs, args, task)
@@ -160,9 +180,16 @@ def run_task(task: str, args, root: Path) -> dict:
         "metric": metric,
         "wall_s": bc["wall_time_s"] + ft["wall_time_s"],  # training only; the held-out evaluations come on top
         "bc": {"run_dir": str(bc_dir), "frames": bc["frames"], "wall_s": bc["wall_time_s"], "curve": curve(bc_dir, metric)},
-        "fine_tune": {"run_dir": str(ft_dir), "algo": algo, "frames": ft["frames"], "wall_s": ft["wall_time_s"], "curve": curve(ft_dir, metric)},
+        "fine_tune": {
+            "run_dir": str(ft_dir),
+            "algo": algo,
+            "frames": ft["frames"],
+            "wall_s": ft["wall_time_s"],
+            "curve": curve(ft_dir, metric),
+        },
         "held_out": {
-            "seed": args.eval_seed, "episodes": args.episodes,
+            "seed": args.eval_seed,
+            "episodes": args.episodes,
             "random": held_out("random", args, task, metric),
             **played,
             "chosen": {"bc": bc.get("best_eval"), "fine_tuned": ft.get("best_eval")},  # on seed + 10000
@@ -177,11 +204,15 @@ def plot(results: list[dict], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, len(results), figsize=(5.5 * len(results), 4), squeeze=False)
-    for ax, res in zip(axes[0], results):
+    for ax, res in zip(axes[0], results, strict=True):
         m, bc_end = res["metric"], res["bc"]["wall_s"] / 60
         ax.plot([p["minutes"] for p in res["bc"]["curve"]], [p[m] for p in res["bc"]["curve"]], marker="o", label="bc")
-        ax.plot([bc_end + p["minutes"] for p in res["fine_tune"]["curve"]], [p[m] for p in res["fine_tune"]["curve"]], marker="o",
-                label=f"{res['fine_tune']['algo']} from bc")
+        ax.plot(
+            [bc_end + p["minutes"] for p in res["fine_tune"]["curve"]],
+            [p[m] for p in res["fine_tune"]["curve"]],
+            marker="o",
+            label=f"{res['fine_tune']['algo']} from bc",
+        )
         ax.axhline(res["held_out"]["scripted"]["mean"], color="grey", ls="--", label="scripted (held-out seed)")
         ax.set(title=res["task"], xlabel="minutes (2 shared CPU cores)", ylabel=f"{m} (periodic evaluation)")
         ax.legend()
@@ -190,12 +221,15 @@ def plot(results: list[dict], path: Path) -> None:
 
 
 def table(results: list[dict]) -> str:
-    lines = ["| task | metric | random | scripted (teacher) | bc (best) | fine-tuned (final) | fine-tuned (best) | bc / fine-tune frames | minutes |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| task | metric | random | scripted (teacher) | bc (best) | fine-tuned (final) | fine-tuned (best) | bc / "
+        "fine-tune frames | minutes |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in results:
         h = r["held_out"]
 
-        def cell(k):
+        def cell(k, h=h):
             if k not in h:
                 return "-"
             if "wdl" in h[k]:  # a match: decisive win rate [Wilson 95 %] (W/D/L)
@@ -204,7 +238,8 @@ def table(results: list[dict]) -> str:
             return f"{h[k]['mean']:.3g} +- {h[k]['std']:.2g}" + (f" ({c['diff']:+.3g} [{c['low']:+.3g}, {c['high']:+.3g}])" if c else "")
 
         lines.append(
-            f"| {r['task']} | {r['metric']} | {cell('random')} | {cell('scripted')} | {cell('bc')} | {cell('fine_tuned_final')} | {cell('fine_tuned')} | "
+            f"| {r['task']} | {r['metric']} | {cell('random')} | {cell('scripted')} | {cell('bc')} | "
+            f"{cell('fine_tuned_final')} | {cell('fine_tuned')} | "
             f"{r['bc']['frames']:,} / {r['fine_tune']['frames']:,} | {r['wall_s'] / 60:.0f} |"
         )
     return "\n".join(lines)
@@ -223,14 +258,20 @@ def main() -> None:
     p.add_argument("--eval-episodes", type=int, default=32)
     p.add_argument("--eval-seed", type=int, default=1000, help="held-out seed of the final 100-episode comparison")
     p.add_argument("--episodes", type=int, default=100)
-    p.add_argument("--paired", action="store_true", help="play the teacher too and compare every policy with it episode by episode (eval compare)")
-    p.add_argument("--scripted-from", default=None, help="the teacher's held-out figures from this benchmarks/scripted.py JSON (run on --eval-seed)")
+    p.add_argument(
+        "--paired", action="store_true", help="play the teacher too and compare every policy with it episode by episode (eval compare)"
+    )
+    p.add_argument(
+        "--scripted-from", default=None, help="the teacher's held-out figures from this benchmarks/scripted.py JSON (run on --eval-seed)"
+    )
     p.add_argument("--opponent", default="scripted", help="matches: whom both runs and the held-out games play against")
     p.add_argument("--games", type=int, default=1000, help="matches: held-out games against --opponent")
     p.add_argument("--bc-overrides", nargs="*", default=[], help="extra overrides of the bc runs (algo.replay_ratio=8 ...)")
     p.add_argument("--bc-dir", default=None, help="a finished bc run of the (one) task to fine-tune instead of a new one")
     p.add_argument("--ft-dir", default=None, help="a finished fine-tuning run of the (one) task to evaluate instead of a new one")
-    p.add_argument("--learner", choices=["auto", *FINE_TUNE], default="auto", help="the fine-tuning algorithm (auto: PPO, MAPPO with several drones)")
+    p.add_argument(
+        "--learner", choices=["auto", *FINE_TUNE], default="auto", help="the fine-tuning algorithm (auto: PPO, MAPPO with several drones)"
+    )
     p.add_argument("--ft-overrides", nargs="*", default=[], help="extra overrides of the fine-tuning runs")
     p.add_argument("--root", default="outputs/imitation")
     p.add_argument("--out", default="docs/imitation.json")
@@ -248,7 +289,9 @@ def main() -> None:
     results = []
     for task in args.tasks:
         results.append(run_task(task, args, root))
-        Path(args.out).write_text(json.dumps({"args": vars(args), "results": results}, indent=2) + "\n")  # after each task: a partial result survives
+        Path(args.out).write_text(
+            json.dumps({"args": vars(args), "results": results}, indent=2) + "\n"
+        )  # after each task: a partial result survives
     plot(results, Path(args.png))
     print(table(results))
 

@@ -63,7 +63,9 @@ def run(space: str, args, root: Path) -> dict:
         "minutes_to_target": None if reached is None else reached / 60,
         "curve": {
             "eval": [{"minutes": t / 60, "frames": f, "bumps": b} for t, f, b in evals],
-            "train": [{"minutes": r["wall_time"] / 60, "frames": r["frames"], "return": r["return"], "bumps": r["bumps"]} for r in train_rows],
+            "train": [
+                {"minutes": r["wall_time"] / 60, "frames": r["frames"], "return": r["return"], "bumps": r["bumps"]} for r in train_rows
+            ],
         },
     }
 
@@ -74,9 +76,8 @@ def diagnose(target: str, episodes: int = 64, seed: int = 1000) -> dict:
 
     from volleybots.config import make_env
     from volleybots.play import run_episodes
-    from volleybots.policies import resolve_target
-
     from volleybots.policies import BUILTIN as POLICY_NAMES
+    from volleybots.policies import resolve_target
 
     t = resolve_target(target, [*(["task=solo_bump"] if target in POLICY_NAMES else []), f"seed={seed}", "threads=1"])
     env = make_env(t.cfg, num_envs=episodes, seed=seed)
@@ -89,8 +90,12 @@ def diagnose(target: str, episodes: int = 64, seed: int = 1000) -> dict:
     def on_step(env, td, nxt):
         s = env.physics.state
         rel = s.ball_pos - s.pos[:, 0]
-        on = (rel[:, :2].norm(dim=-1) < env.params.drone.racket_radius) & (rel[:, 2] > 0) & (rel[:, 2] < 0.3) & (
-            (s.ball_vel - s.vel[:, 0]).norm(dim=-1) < 0.3)
+        on = (
+            (rel[:, :2].norm(dim=-1) < env.params.drone.racket_radius)
+            & (rel[:, 2] > 0)
+            & (rel[:, 2] < 0.3)
+            & ((s.ball_vel - s.vel[:, 0]).norm(dim=-1) < 0.3)
+        )
         carry.add_(on.float() * live)
         steps.add_(live.float())
         hits_now = env.referee.hits[:, 0].float()
@@ -193,14 +198,21 @@ def main() -> None:
 
     title = f"PPO, {args.num_envs} envs on {args.device} ({torch.get_num_threads()} threads), {args.minutes:g} min per action space"
     plot(results, args.out, title)
-    meta = {"title": title, "targets": {"bumps_ctbr": TARGET_BUMPS, "env_steps_per_s": TARGET_FPS}, "args": {k: str(v) for k, v in vars(args).items()}}
+    meta = {
+        "title": title,
+        "targets": {"bumps_ctbr": TARGET_BUMPS, "env_steps_per_s": TARGET_FPS},
+        "args": {k: str(v) for k, v in vars(args).items()},
+    }
     args.out.with_suffix(".json").write_text(json.dumps({**meta, "results": results}, indent=1) + "\n")
     print(f"\n{title}\n")
     print("| action space | frames | wall (min) | env-steps/s end to end | best eval bumps | minutes to 8.58 |")
     print("|---|---|---|---|---|---|")
     for r in results:
         reach = "-" if r["minutes_to_target"] is None else f"{r['minutes_to_target']:.1f}"
-        print(f"| {r['action_space']} | {r['frames']:,} | {r['wall_s'] / 60:.1f} | {r['env_steps_per_s']:,.0f} | {r['best_eval_bumps']:.2f} | {reach} |")
+        print(
+            f"| {r['action_space']} | {r['frames']:,} | {r['wall_s'] / 60:.1f} | {r['env_steps_per_s']:,.0f} | "
+            f"{r['best_eval_bumps']:.2f} | {reach} |"
+        )
     print(f"\nwrote {args.out} and {args.out.with_suffix('.json')}")
 
 

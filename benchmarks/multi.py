@@ -82,12 +82,12 @@ def match(task: str, episodes: int, envs: int, device, seed: int, action_space: 
                     st["win"], st["loss"] = st["loss"], st["win"]
                 res.append(st)
         st = {k: torch.cat([r[k] for r in res]) for k in keys}
-        w, l, d = (int(st[k].sum()) for k in ("win", "loss", "draw"))
+        w, l_, d = (int(st[k].sum()) for k in ("win", "loss", "draw"))
         rally = ((st["hits_team0"] + st["hits_team1"]) >= 3).float().mean()
         reasons = torch.bincount((st["reason"] + 1).long(), minlength=len(Referee.FAULTS) + 1)
-        ended = ", ".join(f"{name} {int(c)}" for name, c in zip(("draw",) + Referee.FAULTS, reasons.tolist()) if c)
-        rate = w / max(w + l, 1)
-        rows.append(f"| {task} | {label} | {len(st['win'])} | {w} / {l} / {d} | {rate:.2f} | {rally:.2f} | {ended} |")
+        ended = ", ".join(f"{name} {int(c)}" for name, c in zip(("draw",) + Referee.FAULTS, reasons.tolist(), strict=True) if c)
+        rate = w / max(w + l_, 1)
+        rows.append(f"| {task} | {label} | {len(st['win'])} | {w} / {l_} / {d} | {rate:.2f} | {rally:.2f} | {ended} |")
     return rows
 
 

@@ -52,11 +52,15 @@ def play(task: str, space: str, episodes: int, seed: int, device: str) -> dict:
 
 
 def format_table(rows: list[dict]) -> str:
-    lines = ["| task | action space | metric | mean | std | min | max | mean episode length | target |", "|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| task | action space | metric | mean | std | min | max | mean episode length | target |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
         target = "" if r["target"] is None else f"{r['target']:.2f}"
         lines.append(
-            f"| {r['task']} | {r['action_space']} | {r['metric']} | {r['mean']:.2f} | {r['std']:.2f} | {r['min']:.2f} | {r['max']:.2f} | {r['episode_len']:.0f} | {target} |"
+            f"| {r['task']} | {r['action_space']} | {r['metric']} | {r['mean']:.2f} | {r['std']:.2f} | {r['min']:.2f} | "
+            f"{r['max']:.2f} | {r['episode_len']:.0f} | {target} |"
         )
     return "\n".join(lines)
 
@@ -88,7 +92,10 @@ def main(argv=None) -> int:
     if args.bench_envs > 0:
         bench = run_bench(["solo_bump"], ["torch"], [args.bench_envs], [args.device], repeats=args.repeats, threads=args.threads)
         for b in bench:
-            print(f"\nSolo Bump, random PRT actions, {b['num_envs']} envs on {b['device']}: {b['env_steps_per_s']:,.0f} env-steps/s (median of {args.repeats})")
+            print(
+                f"\nSolo Bump, random PRT actions, {b['num_envs']} envs on {b['device']}: {b['env_steps_per_s']:,.0f} "
+                f"env-steps/s (median of {args.repeats})"
+            )
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"episodes": rows, "throughput": bench}, f, indent=2)

@@ -228,7 +228,8 @@ def plot(args, path: Path, stat: str | None = None) -> None:
                 axes[i][j], data.get((task, space), {}), colors, f"{TITLES[task]} ({space.upper()})",
                 f"train episodes: {stat or ENVS[task].metric}", label=lambda a: f"{a.upper()}{' (discrete)' if a == 'dqn' else ''}",
             )
-    save_figure(fig, axes, path, f"{int(args.frames):,} env steps x {len(args.seeds)} seeds, {args.num_envs} envs (mean over seeds, last 5 batches)")
+    save_figure(fig, axes, path, f"{int(args.frames):,} env steps x {len(args.seeds)} seeds, {args.num_envs} envs (mean "
+                                 f"over seeds, last 5 batches)")
 
 
 def add_run_args(ap, seeds, frames: float, eval_episodes: int, out: str) -> None:

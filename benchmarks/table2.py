@@ -72,11 +72,18 @@ def run_one(job, args) -> dict:
     ]
     if algo == "maddpg":
         overrides += [
-            f"algo.batch_size={args.batch_size}", f"algo.buffer_size={int(args.frames)}", f"algo.tau={args.tau}", "algo.target_update_interval=1",
+            f"algo.batch_size={args.batch_size}",
+            f"algo.buffer_size={int(args.frames)}",
+            f"algo.tau={args.tau}",
+            "algo.target_update_interval=1",
         ]
     summary = train(load(overrides), run_dir)
     m = summary["final_eval"]["stats"][summary["metric"]]["mean"]
-    print(f"  {task} shaping {shaping} {algo} seed {seed}: {summary['metric']} {m:.3f} ({summary['frames_per_s']:.0f} frames/s)", file=sys.stderr, flush=True)
+    print(
+        f"  {task} shaping {shaping} {algo} seed {seed}: {summary['metric']} {m:.3f} ({summary['frames_per_s']:.0f} frames/s)",
+        file=sys.stderr,
+        flush=True,
+    )
     return summary
 
 
@@ -165,7 +172,8 @@ def main(argv=None) -> int:
     tables = {what: format_table(res, args, what) for what in ("metric", "return", "fps")}
     (out / "table2.json").write_text(json.dumps({"args": vars(args), "results": res}, indent=1) + "\n")
     (out / "table2.md").write_text(
-        f"Task metric:\n\n{tables['metric']}\n\nEpisode return:\n\n{tables['return']}\n\nFrames per second (end to end):\n\n{tables['fps']}\n\n"
+        f"Task metric:\n\n{tables['metric']}\n\nEpisode return:\n\n{tables['return']}\n\nFrames per second (end to "
+        f"end):\n\n{tables['fps']}\n\n"
         f"Paper (5 seeds, 1e9 frames):\n\n{format_table(res, args, paper=True)}\n"
     )
     print(f"task metric:\n{tables['metric']}\n\nframes/s:\n{tables['fps']}")

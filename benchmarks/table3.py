@@ -66,7 +66,15 @@ def best_response(spec: str, a) -> dict:
 
     label = spec.partition("=")[0] if "=" in spec else Path(spec).name
     out = a.br_root / f"{label}_{time.strftime('%Y%m%d-%H%M%S')}"
-    args = [spec, f"task={a.task}", f"budget={a.br_budget}", f"games={a.br_games}", f"num_envs={a.br_envs}", f"seed={a.seed}", "progress=false"]
+    args = [
+        spec,
+        f"task={a.task}",
+        f"budget={a.br_budget}",
+        f"games={a.br_games}",
+        f"num_envs={a.br_envs}",
+        f"seed={a.seed}",
+        "progress=false",
+    ]
     report, _ = run_exploitability(args, out)
     print(f"  exploitability of {label}: {report['exploitability']:.1f} {report['exploitability_interval']}", flush=True)
     return {k: report[k] for k in ("exploitability", "exploitability_interval", "br_run", "budget_frames", "games", "wdl")}
@@ -81,13 +89,15 @@ def table(rep: dict, res, a, wall: float) -> str:
         f"{a.rounds} rounds sampled from the counts; BT with 95 % profile-likelihood intervals; {wall:.0f} s of games; "
         + (f"best responses: {a.br_budget:,} frames, {a.br_games} games each." if a.br_budget else "no best responses."),
         "",
-        "| competitor | exploitability (BR) | exploitability in population (pp) | avg win rate | Elo | Bradley-Terry [95 %] | Nash weight |",
+        "| competitor | exploitability (BR) | exploitability in population (pp) | avg win rate | Elo | Bradley-Terry "
+        "[95 %] | Nash weight |",
         "|---|---|---|---|---|---|---|",
     ]
     for i, lab in enumerate(rep["labels"]):
         avg = rep["average_win_rate"][i]
         lines.append(
-            f"| {lab} | {_br(rep['exploitability_br'][i])} | {rep['exploitability_in_population'][i]:.1f} | {'n/a' if avg is None else f'{avg:.3f}'} | "
+            f"| {lab} | {_br(rep['exploitability_br'][i])} | {rep['exploitability_in_population'][i]:.1f} | "
+            f"{'n/a' if avg is None else f'{avg:.3f}'} | "
             f"{elo['ratings'][i]:.0f} | {bt['ratings'][i]:.0f} [{bt['low'][i]:.0f}, {bt['high'][i]:.0f}] | {rep['nash'][i]:.3f} |"
         )
     return "\n".join(lines) + "\n"

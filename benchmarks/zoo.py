@@ -79,7 +79,11 @@ def main(argv=None) -> int:
         "frames": int(slim["frames"]),
         "seed": int(slim["config"]["seed"]),
         "wall_time_s": round(float(summary.get("wall_time_s", slim.get("wall_time", 0.0))), 1),
-        "evaluation": {"games_per_pair": a.games, "seed": a.seed, "note": "both sides equally; the seed was never used to choose a setting"},
+        "evaluation": {
+            "games_per_pair": a.games,
+            "seed": a.seed,
+            "note": "both sides equally; the seed was never used to choose a setting",
+        },
         "figures": figures,
         "config": to_dict(slim["config"]),
     }

@@ -70,6 +70,7 @@ def test_bc_on_a_match_clones_its_own_teams_scripted_player(tmp_path):
     assert (mine["agents", "action"].reshape(-1, 4) - labels).abs().mean() > 0.1  # executed: noisy, half the learner's
 
 
+@pytest.mark.learning
 def test_bc_on_solo_bump_lowers_the_imitation_loss_and_bumps(solo_bump_bc):
     path, summary = solo_bump_bc
     rows = [r for r in read_metrics(path / "metrics.csv") if r["phase"] == "train"]
@@ -85,6 +86,7 @@ def test_bc_on_solo_bump_lowers_the_imitation_loss_and_bumps(solo_bump_bc):
     assert bumps >= 2.0, bumps
 
 
+@pytest.mark.slow
 def test_a_bc_run_dir_evaluates_and_starts_ppo(solo_bump_bc, tmp_path):
     path, summary = solo_bump_bc
     res = evaluate(str(path), ["seed=1", "threads=1"], episodes=4)
@@ -112,7 +114,8 @@ def test_bc_refuses_tasks_without_a_teacher_and_discrete_actions():
 def test_a_resumed_bc_run_repeats_the_uninterrupted_one(tmp_path):
     torch.set_num_threads(1)
     common = ["task=hover", "algo=bc", "env.num_envs=8", "algo.steps_per_batch=16", "algo.expert_frames=256", "algo.batch_size=64",
-              "total_frames=512", "checkpoint.every=256", "evaluation.episodes=2", "seed=2", *QUIET]
+              "total_frames=512", "checkpoint.every=256", "evaluation.episodes=2", "seed=2", *QUIET,
+              "task.episode_len=40"]  # episodes of 40 steps: the two final evaluations (not compared) stay short
     train(load(common), tmp_path / "full")
     cut = load(common)
     run = RunDir(tmp_path / "cut")
@@ -128,6 +131,7 @@ def test_a_resumed_bc_run_repeats_the_uninterrupted_one(tmp_path):
     assert torch.equal(a["data"]["obs"], b["data"]["obs"]) and torch.equal(a["counters"], b["counters"])
 
 
+@pytest.mark.learning
 def test_bc_on_a_drill_lowers_the_imitation_loss_and_touches_the_ball(tmp_path):
     """The drills (tasks/drills.py) are single-drone tasks with a scripted player: bc clones them.
     3 batches of 64 envs x 64 steps of the teacher's play (the Serve's ball is struck at once)."""

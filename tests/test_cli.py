@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 import torch
+from conftest import snapshot
 from typer.testing import CliRunner
 
 from volleybots.cli import app
@@ -20,6 +21,7 @@ from volleybots.runs import read_metrics
 TINY = [
     "task=hover", "env.num_envs=16", "algo.steps_per_batch=32", "total_frames=2048", "threads=1", "progress=false",
     "checkpoint.every=1024", "evaluation.every=1024", "evaluation.episodes=2",
+    "task.episode_len=100",  # three evaluations and every `eval` of the run play 100-step episodes, not 500
 ]
 ENV = {**os.environ, "OMP_NUM_THREADS": "1"}
 runner = CliRunner()
@@ -150,11 +152,13 @@ def test_eval_of_random_play(tmp_path):
 
 def test_eval_of_the_scripted_pair_on_a_multi_drone_task():
     # no algo named: the multi-drone task takes the multi-agent default, and a scripted policy needs none
-    res = runner.invoke(app, ["eval", "scripted", "task=bump_and_pass", "episodes=2", "--json"])
+    # half an episode (400 of 800 steps): the pair still has to keep passing, about 7 hits at its full pace
+    res = runner.invoke(app, ["eval", "scripted", "task=bump_and_pass", "task.episode_len=400", "episodes=2", "--json"])
     assert res.exit_code == 0, res.output
     out = json.loads(res.stdout)
     assert out["task"] == "bump_and_pass" and out["config"]["algo"]["name"] == "mappo"
     assert out["stats"]["hits"]["mean"] >= 5  # the pair keeps passing (about 14 hits in a full episode)
+    assert out["config"]["task"]["episode_len"] == 400
 
 
 def test_train_cfg_prints_the_config_without_training(tmp_path):
@@ -177,10 +181,6 @@ def test_multirun_sweeps_seeds(tmp_path):
     assert res.returncode == 0, res.stderr[-2000:]
     seeds = sorted(json.loads((p / "summary.json").read_text())["seed"] for p in (tmp_path / "sweep").iterdir() if p.is_dir())
     assert seeds == [0, 1]
-
-
-def _snapshot(root: Path):
-    return {str(p): p.stat().st_mtime_ns for p in root.rglob("*")} if root.exists() else {}
 
 
 def _bad_cases(run_dir: Path, tmp: Path):
@@ -232,7 +232,7 @@ def _bad_cases(run_dir: Path, tmp: Path):
 
 def test_bad_input_exits_2_with_one_line_and_writes_nothing(run_dir, tmp_path):
     cases = _bad_cases(run_dir, tmp_path)
-    before = _snapshot(run_dir), _snapshot(tmp_path)
+    before = snapshot(run_dir), snapshot(tmp_path)
     for args, words in cases:
         res = runner.invoke(app, args)
         assert res.exit_code == 2, (args, res.exit_code, res.output)
@@ -241,7 +241,7 @@ def test_bad_input_exits_2_with_one_line_and_writes_nothing(run_dir, tmp_path):
         assert err.startswith("error: ")
         for w in words:
             assert w in err, (args, w, err)
-    assert (_snapshot(run_dir), _snapshot(tmp_path)) == before
+    assert (snapshot(run_dir), snapshot(tmp_path)) == before
 
 
 def test_bad_input_from_a_real_process_has_no_traceback(tmp_path):

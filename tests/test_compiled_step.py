@@ -73,7 +73,7 @@ def test_own_step_and_reset_equals_torchrls_generic_one():
         act = torch.rand(5, 2, 4, generator=gen) * 2 - 1
         ours = envs[0].step_and_maybe_reset(tds[0].set(("agents", "action"), act.clone()))
         generic = EnvBase._step_and_maybe_reset(envs[1], tds[1].set(("agents", "action"), act.clone()))
-        for x, y in zip(ours, generic):
+        for x, y in zip(ours, generic, strict=True):
             assert set(x.keys(True, True)) == set(y.keys(True, True))
             for k in x.keys(True, True):
                 assert torch.equal(x[k], y[k]), k
@@ -121,7 +121,9 @@ def test_discrete_action_out_of_range_is_refused(physics, bad):
 
 
 def test_bench_json_rows():
-    res = CliRunner().invoke(app, ["bench", "--json", "tasks=[hover]", "backends=[torch]", "num_envs=[4]", "devices=[cpu]", "repeats=1", "steps=3"])
+    res = CliRunner().invoke(
+        app, ["bench", "--json", "tasks=[hover]", "backends=[torch]", "num_envs=[4]", "devices=[cpu]", "repeats=1", "steps=3"]
+    )
     assert res.exit_code == 0, res.output
     rows = json.loads(res.stdout)
     assert [(r["task"], r["kind"], r["backend"], r["num_envs"]) for r in rows] == [("hover", "env", "torch", 4)]

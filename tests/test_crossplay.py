@@ -6,21 +6,18 @@ from __future__ import annotations
 import json
 import os
 import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from volleybots.cli import app
-from volleybots.policies import resolve_competitor
 from volleybots.config import load
 from volleybots.eval.crossplay import CrossPlay, crossplay
 from volleybots.play.games import play_games
+from volleybots.policies import resolve_competitor
 
 runner = CliRunner()
-ENV = {**os.environ, "OMP_NUM_THREADS": "1"}
 
 
 def _cfg(task="1v1"):
@@ -67,15 +64,12 @@ def test_a_competitor_against_itself_is_near_even():
 
 
 @pytest.fixture(scope="module")
-def tiny_ckpt(tmp_path_factory):
-    """A tiny 1v1 training run (seconds): its final checkpoint is a competitor with a file."""
-    d = tmp_path_factory.mktemp("tiny") / "run"
-    cmd = [sys.executable, "-m", "volleybots.cli", "train", "task=1v1", "algo=mappo", "total_frames=256", "env.num_envs=8",
-           "algo.steps_per_batch=16", "algo.minibatches=2", "algo.epochs=1", "algo.hidden=[32,32]", "evaluation.episodes=2",
-           "evaluation.every=0", "evaluation.record=false", "progress=false", "threads=1", f"hydra.run.dir={d}"]
-    res = subprocess.run(cmd, capture_output=True, text=True, env=ENV, cwd=Path(__file__).parents[1], timeout=600)
-    assert res.returncode == 0, res.stderr[-3000:]
-    return d
+def tiny_ckpt(tiny_run):
+    """A tiny 1v1 training run (seconds, in this process): its final checkpoint is a competitor with a file."""
+    return tiny_run(
+        "task=1v1", "algo=mappo", "total_frames=256", "env.num_envs=8", "algo.steps_per_batch=16", "algo.minibatches=2",
+        "algo.epochs=1", "algo.hidden=[32,32]", "evaluation.episodes=2", "evaluation.every=0",
+    )
 
 
 def test_crossplay_cli_writes_results_with_every_file_hash(tiny_ckpt, tmp_path):
@@ -101,7 +95,9 @@ def test_crossplay_cli_writes_results_with_every_file_hash(tiny_ckpt, tmp_path):
     back = CrossPlay.load(out / "crossplay.json")
     assert back.labels == ["net", "scripted", "random"] and np.array_equal(back.wdl, wdl)
     # the trained competitor against itself, under two labels
-    res = runner.invoke(app, ["eval", "crossplay", f"a={ckpt}", f"b={tiny_ckpt}", "games=40", "batch=20", "--out", str(tmp_path / "self"), "--json"])
+    res = runner.invoke(
+        app, ["eval", "crossplay", f"a={ckpt}", f"b={tiny_ckpt}", "games=40", "batch=20", "--out", str(tmp_path / "self"), "--json"]
+    )
     assert res.exit_code == 0, res.output
     d = json.loads(res.stdout)
     dec = d["wdl"][0][1][0] + d["wdl"][0][1][2]
@@ -110,7 +106,9 @@ def test_crossplay_cli_writes_results_with_every_file_hash(tiny_ckpt, tmp_path):
 
 def test_elo_cli_played_and_from_a_results_file(tmp_path):
     out = tmp_path / "elo"
-    res = runner.invoke(app, ["eval", "elo", "scripted", "random", "task=1v1", "rounds=40", "batch=20", "k=32", "--out", str(out), "--json"])
+    res = runner.invoke(
+        app, ["eval", "elo", "scripted", "random", "task=1v1", "rounds=40", "batch=20", "k=32", "--out", str(out), "--json"]
+    )
     assert res.exit_code == 0, res.output
     rep = json.loads(res.stdout)
     assert rep["elo"]["games"] == "played" and rep["elo"]["k"] == 32
@@ -122,7 +120,9 @@ def test_elo_cli_played_and_from_a_results_file(tmp_path):
     for f in ("crossplay.json", "crossplay.png", "ratings.json", "ratings.png"):
         assert (out / f).is_file(), f
     # Elo sampled from the file's frequencies: same order, BT identical (same counts)
-    res = runner.invoke(app, ["eval", "elo", f"from={out / 'crossplay.json'}", "rounds=200", "k=16", "--out", str(tmp_path / "again"), "--json"])
+    res = runner.invoke(
+        app, ["eval", "elo", f"from={out / 'crossplay.json'}", "rounds=200", "k=16", "--out", str(tmp_path / "again"), "--json"]
+    )
     assert res.exit_code == 0, res.output
     rep2 = json.loads(res.stdout)
     assert rep2["elo"]["games"] == "sampled" and rep2["elo"]["rounds"] == 200
@@ -141,7 +141,9 @@ def test_match_replay_records_teams_touches_and_the_ending(tmp_path):
                 messages.append((path, str([b.as_arrow_array() for b in obj.as_component_batches()])))
 
     out = tmp_path / "m.rrd"
-    res = runner.invoke(app, ["replay", "scripted", "rnd=random", "task=1v1", "scenario=receive", "threads=1", "--out", str(out), "--no-viewer"])
+    res = runner.invoke(
+        app, ["replay", "scripted", "rnd=random", "task=1v1", "scenario=receive", "threads=1", "--out", str(out), "--no-viewer"]
+    )
     assert res.exit_code == 0, res.output
     assert "scripted (blue) against rnd (red)" in res.stdout and "scripted (blue) won" in res.stdout
     listing = subprocess.run(["rerun", "rrd", "print", str(out)], capture_output=True, text=True, timeout=300).stdout
@@ -169,8 +171,18 @@ class _Lookup(dict):
 
 def _bad_cases(tmp, ckpt):
     other = tmp / "other.json"
-    other.write_text(json.dumps({"format": "volleybots.crossplay/1", "labels": ["x", "y"], "wdl": [[[0, 0, 0], [1, 0, 1]], [[1, 0, 1], [0, 0, 0]]],
-                                 "outcomes": {}, "side_wdl": {}, "competitors": [{"label": "x", "members": [{}]}, {"label": "y", "members": [{}]}]}))
+    other.write_text(
+        json.dumps(
+            {
+                "format": "volleybots.crossplay/1",
+                "labels": ["x", "y"],
+                "wdl": [[[0, 0, 0], [1, 0, 1]], [[1, 0, 1], [0, 0, 0]]],
+                "outcomes": {},
+                "side_wdl": {},
+                "competitors": [{"label": "x", "members": [{}]}, {"label": "y", "members": [{}]}],
+            }
+        )
+    )
     return [
         (["eval", "crossplay", "scripted", str(tmp / "nowhere"), "task=1v1"], ["nowhere", "does not exist"]),
         (["eval", "crossplay", "scripted", "task=1v1"], ["at least 2 competitors", "got 1"]),

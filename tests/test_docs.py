@@ -12,6 +12,8 @@ from pathlib import Path
 import pytest
 import tomllib
 
+pytestmark = [pytest.mark.slow, pytest.mark.subprocess]
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

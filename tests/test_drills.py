@@ -10,7 +10,7 @@ from volleybots.play import run_episodes
 from volleybots.scripted import make_scripted_policy
 from volleybots.scripted.ballistics import crossing
 from volleybots.tasks import TASKS
-from volleybots.tasks.drills import CONTACT_Z, TEAM_ANCHORS, BACK, FRONT_LEFT, FRONT_RIGHT
+from volleybots.tasks.drills import BACK, CONTACT_Z, FRONT_LEFT, FRONT_RIGHT, TEAM_ANCHORS
 from volleybots.tasks.layout import ObsLayout
 
 G = 9.81

@@ -4,13 +4,11 @@ before anything is written."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-
 import pytest
 import torch
+from typer.testing import CliRunner
 
+from volleybots.cli import app
 from volleybots.config import load
 from volleybots.errors import ConfigError
 from volleybots.runs import RunDir
@@ -21,11 +19,9 @@ PPO_TINY = [*TINY, "algo.steps_per_batch=8", "algo.minibatches=2", "total_frames
 
 
 @pytest.fixture(scope="module")
-def hover_run(tmp_path_factory):
-    torch.set_num_threads(1)
-    path = tmp_path_factory.mktemp("init") / "source"
-    train(load(["task=hover", *PPO_TINY]), path)
-    return path
+def hover_run(tiny_run):
+    # init= checks the task's name, not its episode length: 40-step episodes keep the final evaluation short
+    return tiny_run("task=hover", *PPO_TINY, "task.episode_len=40")
 
 
 def _equal(a: dict, b: dict) -> None:
@@ -59,8 +55,13 @@ def test_init_of_mappo_from_ppo_and_off_policy_targets(hover_run, tmp_path):
     _equal(tr.algo.actor.state_dict(), saved["actor"])
     # an off-policy run started from another: its targets start from the loaded critics
     sac = tmp_path / "sac"
-    train(load(["task=hover", "algo=sac", *TINY, "total_frames=64", "algo.steps_per_batch=8", "algo.batch_size=16"]), sac)
-    tr = _trainer(tmp_path / "s", ["task=hover", "algo=sac", *TINY, "total_frames=64", "algo.steps_per_batch=8", "algo.batch_size=16", f"init={sac}"])
+    train(
+        load(["task=hover", "algo=sac", *TINY, "total_frames=64", "algo.steps_per_batch=8", "algo.batch_size=16", "task.episode_len=40"]),
+        sac,
+    )
+    tr = _trainer(
+        tmp_path / "s", ["task=hover", "algo=sac", *TINY, "total_frames=64", "algo.steps_per_batch=8", "algo.batch_size=16", f"init={sac}"]
+    )
     src = torch.load(sac / "checkpoints" / "final.pt", weights_only=True)["algo"]["loss"]
     here = tr.algo.loss.state_dict()
     assert here.keys() == src.keys() and any(k.startswith("target_") for k in here)
@@ -97,12 +98,10 @@ def test_sac_from_a_ppo_run_keeps_its_actor_as_a_guide(hover_run, tmp_path):
 
 
 def test_cli_refuses_a_mismatched_init_with_exit_2_and_writes_nothing(hover_run, tmp_path):
+    # in this process (a child process costs a fresh import of torch); tests/test_cli.py checks a real one's exit
     out = tmp_path / "refused"
-    res = subprocess.run(
-        [sys.executable, "-m", "volleybots.cli", "train", "task=solo_bump", *PPO_TINY, f"init={hover_run}", f"hydra.run.dir={out}"],
-        capture_output=True, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"}, timeout=300,
-    )
-    assert res.returncode == 2, res.stderr[-2000:]
+    res = CliRunner().invoke(app, ["train", "task=solo_bump", *PPO_TINY, f"init={hover_run}", f"hydra.run.dir={out}"])
+    assert res.exit_code == 2, res.output[-2000:]
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and "task hover" in lines[0] and "task solo_bump" in lines[0]
     assert not out.exists()
@@ -144,8 +143,19 @@ def test_best_pt_holds_the_policy_of_the_best_evaluation(tmp_path):
     """checkpoint.best: best.pt is the state at the evaluation with the best metric (Hover: the lowest
     distance, ties to the earliest), equal to the periodic checkpoint of that moment; resume ignores it."""
     torch.set_num_threads(1)
-    cfg = load(["task=hover", *TINY, "algo.steps_per_batch=16", "algo.minibatches=2", "total_frames=1024",
-                "evaluation.every=128", "checkpoint.every=128", "checkpoint.keep=100"])
+    cfg = load(
+        [
+            "task=hover",
+            *TINY,
+            "algo.steps_per_batch=16",
+            "algo.minibatches=2",
+            "total_frames=1024",
+            "evaluation.every=128",
+            "checkpoint.every=128",
+            "checkpoint.keep=100",
+            "task.episode_len=60",  # 8 evaluations of 2 episodes: 60 steps each instead of 500
+        ]
+    )
     summary = train(cfg, tmp_path / "run")
     run = RunDir(tmp_path / "run")
     evals = [(e["stats"]["distance"]["mean"], e["frames"]) for e in torch.load(run.final_path, weights_only=True)["evals"]]

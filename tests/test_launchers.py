@@ -17,9 +17,21 @@ from typer.testing import CliRunner
 
 from volleybots.cli import app
 
+pytestmark = [pytest.mark.slow, pytest.mark.subprocess]
+
 SWEEP = [
-    "seed=0,1", "task=hover", "task.episode_len=50", "env.num_envs=4", "algo.steps_per_batch=16", "total_frames=128", "threads=1", "progress=false",
-    "checkpoint.every=64", "evaluation.every=64", "evaluation.episodes=2", "evaluation.record=false",
+    "seed=0,1",
+    "task=hover",
+    "task.episode_len=50",
+    "env.num_envs=4",
+    "algo.steps_per_batch=16",
+    "total_frames=128",
+    "threads=1",
+    "progress=false",
+    "checkpoint.every=64",
+    "evaluation.every=64",
+    "evaluation.episodes=2",
+    "evaluation.record=false",
 ]
 LAUNCHERS = {
     "joblib": ["hydra/launcher=joblib", "hydra.launcher.n_jobs=2"],
@@ -32,8 +44,14 @@ ENV = {**os.environ, "OMP_NUM_THREADS": "1", "RAY_AUTH_MODE": "disabled"}
 
 def sweep(launcher: str, root: Path) -> Path:
     out = root / launcher
-    res = subprocess.run([sys.executable, "-m", "volleybots.cli", "train", "-m", *LAUNCHERS[launcher], *SWEEP, f"hydra.sweep.dir={out}"],
-                         cwd=root, env=ENV, capture_output=True, text=True, timeout=600)
+    res = subprocess.run(
+        [sys.executable, "-m", "volleybots.cli", "train", "-m", *LAUNCHERS[launcher], *SWEEP, f"hydra.sweep.dir={out}"],
+        cwd=root,
+        env=ENV,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-3000:]
     return out
 
@@ -89,15 +107,26 @@ def test_report_of_a_sweep_aggregates_its_seeds(sweeps):
 
 
 def test_the_slurm_launcher_composes_with_its_options(tmp_path):
-    res = CliRunner().invoke(app, ["train", "--cfg", "hydra", "hydra/launcher=submitit_slurm", "hydra.launcher.partition=gpu",
-                                   "hydra.launcher.gpus_per_node=1", "hydra.launcher.timeout_min=600"])
+    res = CliRunner().invoke(
+        app,
+        [
+            "train",
+            "--cfg",
+            "hydra",
+            "hydra/launcher=submitit_slurm",
+            "hydra.launcher.partition=gpu",
+            "hydra.launcher.gpus_per_node=1",
+            "hydra.launcher.timeout_min=600",
+        ],
+    )
     assert res.exit_code == 0, res.output
     assert "_target_: hydra_plugins.hydra_submitit_launcher.submitit_launcher.SlurmLauncher" in res.stdout
     assert "partition: gpu" in res.stdout and "gpus_per_node: 1" in res.stdout and "timeout_min: 600" in res.stdout
 
 
-@pytest.mark.parametrize("launcher,package", [("joblib", "hydra-joblib-launcher"), ("submitit_slurm", "hydra-submitit-launcher"),
-                                              ("ray", "hydra-ray-launcher")])
+@pytest.mark.parametrize(
+    "launcher,package", [("joblib", "hydra-joblib-launcher"), ("submitit_slurm", "hydra-submitit-launcher"), ("ray", "hydra-ray-launcher")]
+)
 def test_a_launcher_that_is_not_installed_names_the_extra(monkeypatch, tmp_path, launcher, package):
     import importlib.util
 

@@ -13,6 +13,7 @@ from types import SimpleNamespace
 
 import pytest
 import torch
+from conftest import flat
 from tensordict import TensorDict
 
 from volleybots.algos import ALGOS
@@ -21,9 +22,6 @@ from volleybots.config import ConfigError, load
 from volleybots.eval import evaluate
 from volleybots.runs import read_metrics
 from volleybots.train import resume, train
-
-from test_offpolicy import one_thread  # noqa: F401  (autouse: one torch thread on the shared machine)
-from test_offpolicy_runs import _flat
 
 MARL = ("qmix", "maddpg", "happo", "mat")
 ENVS, STEPS = 4, 8
@@ -69,7 +67,7 @@ def test_a_tiny_run_on_bump_and_pass_checkpoints_and_resumes_bit_for_bit(name, t
     resumed = resume(tmp_path / "half", [f"total_frames={4 * FPB}"])
     assert resumed["frames"] == 4 * FPB
     b = torch.load(tmp_path / "half" / "checkpoints" / "final.pt", weights_only=True)
-    fa, fb = _flat(a["algo"]), _flat(b["algo"])
+    fa, fb = flat(a["algo"]), flat(b["algo"])
     assert fa.keys() == fb.keys()
     for k in fa:
         assert torch.equal(fa[k], fb[k]) if isinstance(fa[k], torch.Tensor) else fa[k] == fb[k], k
@@ -183,7 +181,7 @@ def test_happo_weights_each_drone_by_the_ratios_of_the_drones_before_it_in_the_d
     algo.update(batch)
     assert [a for a, _, _ in seen] == expected_order
     product = torch.ones(64)
-    for k, (a, factor, ratio) in enumerate(seen):
+    for _, factor, ratio in seen:
         torch.testing.assert_close(factor, product, rtol=1e-5, atol=1e-6)
         assert (ratio - 1).abs().max() > 1e-3, "every drone's policy moved"
         product = product * ratio

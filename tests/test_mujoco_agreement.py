@@ -13,6 +13,8 @@ from volleybots.physics import RateController, TorchPhysics, WorldParams
 from volleybots.physics.math import euler_to_quat
 from volleybots.physics.mujoco_backend import MujocoPhysics
 
+pytestmark = pytest.mark.mujoco
+
 P = WorldParams()
 HOVER = torch.tensor(P.drone.hover_command)
 STEPS = 50  # 1 s at 50 Hz
@@ -24,13 +26,18 @@ def pair(n=1, d=1, params=P, **state):
     out = []
     for cls in (TorchPhysics, MujocoPhysics):
         ph = cls(params, n, d)
-        ph.set_state(torch.ones(n, dtype=torch.bool), **{k: torch.as_tensor(v, dtype=torch.float32).expand_as(getattr(ph.state, k)) for k, v in state.items()})
+        ph.set_state(
+            torch.ones(n, dtype=torch.bool),
+            **{k: torch.as_tensor(v, dtype=torch.float32).expand_as(getattr(ph.state, k)) for k, v in state.items()},
+        )
         out.append(ph)
     return out
 
 
 def drone_state(pos=(0.0, 0.0, 2.0), **kw):
-    s = dict(pos=pos, quat=(1.0, 0.0, 0.0, 0.0), vel=(0.0, 0.0, 0.0), omega=(0.0, 0.0, 0.0), ball_pos=(40.0, 0.0, 30.0), ball_vel=(0.0, 0.0, 0.0))
+    s = dict(
+        pos=pos, quat=(1.0, 0.0, 0.0, 0.0), vel=(0.0, 0.0, 0.0), omega=(0.0, 0.0, 0.0), ball_pos=(40.0, 0.0, 30.0), ball_vel=(0.0, 0.0, 0.0)
+    )
     s.update(kw)
     return s
 
@@ -38,7 +45,7 @@ def drone_state(pos=(0.0, 0.0, 2.0), **kw):
 def run_both(phs, command_fns, steps=STEPS):
     traj = [[], []]
     for _ in range(steps):
-        for k, (ph, fn) in enumerate(zip(phs, command_fns)):
+        for k, (ph, fn) in enumerate(zip(phs, command_fns, strict=True)):
             ph.step(fn)
             traj[k].append(ph.state.clone())
     return traj
@@ -70,7 +77,7 @@ def test_backend_is_registered_and_keeps_layout():
 def test_ballistic_flight_agrees():
     phs = pair(ball_pos=(1.0, -2.0, 10.0), ball_vel=(2.0, 1.0, 3.0))
     tr = run_both(phs, [lambda s: HOVER.expand(1, 1, 4)] * 2)
-    for a, b in zip(*tr):
+    for a, b in zip(*tr, strict=True):
         assert (a.ball_pos - b.ball_pos).abs().max() < 1e-4
         assert (a.ball_vel - b.ball_vel).abs().max() < 1e-4
     t = STEPS * P.dt
@@ -80,7 +87,7 @@ def test_ballistic_flight_agrees():
 def test_hover_agrees_and_holds():
     phs = pair(**drone_state())
     tr = run_both(phs, [lambda s: HOVER.expand(1, 1, 4)] * 2)
-    for a, b in zip(*tr):
+    for a, b in zip(*tr, strict=True):
         assert max(max_diff(a, b).values()) < 1e-4
     assert (tr[1][-1].pos[0, 0] - torch.tensor([0.0, 0.0, 2.0])).norm() < 0.01
 
@@ -118,11 +125,11 @@ def test_ctbr_rate_step_agrees():
     thrust = torch.tensor([[sum(P.drone.hover_thrusts) / (4 * P.drone.max_rotor_thrust)]])
     fns = [lambda s, c=c: c(s.omega, rates, thrust) for c in ctrls]
     tr = run_both(phs, fns, steps=25)
-    a, b = tr[0][-1], tr[1][-1]
+    b = tr[1][-1]
     achieved = b.omega[0, 0] * 180 / math.pi
     assert (achieved[:2] - rates[0, 0, :2]).abs().max() < 10.0  # roll and pitch track the step
     assert achieved[2] > 10.0  # yaw, with little authority (KF/KM = 62.5), turns the right way
-    for x, y in zip(*tr):
+    for x, y in zip(*tr, strict=True):
         assert (x.omega - y.omega).abs().max() < 2e-3
         assert (x.quat - y.quat).abs().max() < 1e-4
 
@@ -131,7 +138,13 @@ def rebound_height(ph, drop_from: float) -> tuple[float, list[tuple[bool, bool]]
     """Drop the ball onto a hovering drone's racket; return the apex of the first rebound above the
     racket contact height and the (racket, body) flags of the contact steps."""
     m = torch.ones(1, dtype=torch.bool)
-    ph.set_state(m, **{k: torch.tensor(v, dtype=torch.float32).expand_as(getattr(ph.state, k)) for k, v in drone_state(ball_pos=(0.0, 0.0, drop_from)).items()})
+    ph.set_state(
+        m,
+        **{
+            k: torch.tensor(v, dtype=torch.float32).expand_as(getattr(ph.state, k))
+            for k, v in drone_state(ball_pos=(0.0, 0.0, drop_from)).items()
+        },
+    )
     contact_z = 2.0 + P.drone.racket_offset + P.ball.radius
     flags, apex = [], None
     for _ in range(150):

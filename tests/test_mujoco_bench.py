@@ -1,6 +1,10 @@
 """The benchmark helper returns well-formed rows and a table with the torch/MuJoCo ratio (no timing asserts)."""
 
+import pytest
+
 from volleybots.bench import format_table, run_bench, speed_ratios
+
+pytestmark = pytest.mark.mujoco
 
 
 def test_run_bench_rows_and_table():

@@ -12,6 +12,8 @@ from volleybots.physics import WorldParams
 from volleybots.physics.mujoco_backend import build_model, solref_for, unilateral_restitution
 from volleybots.tasks import TASKS
 
+pytestmark = pytest.mark.mujoco
+
 
 def test_check_env_specs_on_mujoco():
     env = volleybots.make_env("solo_bump", num_envs=3, physics="mujoco", seed=1)
@@ -83,7 +85,9 @@ def test_optional_net_stops_the_ball():
     for net in (None, (9.0, 2.43)):
         ph = MujocoPhysics(p, 1, 1, net=net)
         m = torch.ones(1, dtype=torch.bool)
-        ph.set_state(m, pos=torch.tensor([[[5.0, 0.0, 2.0]]]), ball_pos=torch.tensor([[-1.0, 0.0, 1.5]]), ball_vel=torch.tensor([[6.0, 0.0, 3.0]]))
+        ph.set_state(
+            m, pos=torch.tensor([[[5.0, 0.0, 2.0]]]), ball_pos=torch.tensor([[-1.0, 0.0, 1.5]]), ball_vel=torch.tensor([[6.0, 0.0, 3.0]])
+        )
         for _ in range(15):  # 0.3 s: the ball reaches x = 0 after 0.15 s, below the net top
             ph.step(lambda s: hover)
         end_x[net is not None] = ph.state.ball_pos[0, 0].item()

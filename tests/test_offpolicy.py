@@ -18,15 +18,6 @@ OFF_POLICY = ("dqn", "ddpg", "td3", "sac")
 SMALL = {"batch_size": 64, "buffer_size": 4096, "warmup_batches": 2, "hidden": [64, 64]}
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    # the machine is shared: one intra-op thread is several times faster than two under contention
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
-
-
 def make(name: str, num_envs: int = 4, seed: int = 0, episode_len: int | None = None, **overrides):
     cls = ALGOS[name]
     space = "discrete" if name == "dqn" else "prt"
@@ -171,16 +162,16 @@ def test_td3_delays_the_actor_and_targets_follow_every_interval():
     target0 = [p.clone() for p in algo.loss.target_qvalue_network_params.values(True, True)]
     logs = algo.train_step(algo.buffer.sample())
     assert "loss_actor" not in logs  # step 1: critic only
-    assert all(torch.equal(a, b) for a, b in zip(actor0, algo.loss.actor_network_params.values(True, True)))
+    assert all(torch.equal(a, b) for a, b in zip(actor0, algo.loss.actor_network_params.values(True, True), strict=True))
     logs = algo.train_step(algo.buffer.sample())
     assert "loss_actor" in logs  # step 2: critic and actor
-    assert not all(torch.equal(a, b) for a, b in zip(actor0, algo.loss.actor_network_params.values(True, True)))
+    assert not all(torch.equal(a, b) for a, b in zip(actor0, algo.loss.actor_network_params.values(True, True), strict=True))
     algo.train_step(algo.buffer.sample())
-    assert all(torch.equal(a, b) for a, b in zip(target0, algo.loss.target_qvalue_network_params.values(True, True)))
+    assert all(torch.equal(a, b) for a, b in zip(target0, algo.loss.target_qvalue_network_params.values(True, True), strict=True))
     algo.train_step(algo.buffer.sample())  # step 4: Polyak step with tau 0.5
     online = list(algo.loss.qvalue_network_params.values(True, True))
     target = list(algo.loss.target_qvalue_network_params.values(True, True))
-    for t0, t, o in zip(target0, target, online):
+    for t0, t, o in zip(target0, target, online, strict=True):
         assert torch.allclose(t, 0.5 * t0 + 0.5 * o, atol=1e-6)
 
 
@@ -203,9 +194,9 @@ def test_losses_decrease_on_a_fixed_batch(name):
     batch = transitions(rollout(algo, env, 32))[:256]
     logs = [algo.train_step(batch.clone()) for _ in range(150)]
     critic = "loss_q" if name == "dqn" else "loss_critic"
-    first = sum(l[critic] for l in logs[:10]) / 10
-    last = sum(l[critic] for l in logs[-10:]) / 10
+    first = sum(log[critic] for log in logs[:10]) / 10
+    last = sum(log[critic] for log in logs[-10:]) / 10
     assert last < 0.5 * first, (first, last)
     if name != "dqn":
-        actor = [l["loss_actor"] for l in logs if "loss_actor" in l]
+        actor = [log["loss_actor"] for log in logs if "loss_actor" in log]
         assert sum(actor[-5:]) / 5 < sum(actor[:5]) / 5 - 0.05, (actor[:5], actor[-5:])

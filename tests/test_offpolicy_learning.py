@@ -22,6 +22,8 @@ from volleybots.eval import evaluate
 from volleybots.runs import read_metrics
 from volleybots.train import train
 
+pytestmark = pytest.mark.learning
+
 BUDGET = [
     "task=hover", "env.action_space=ctbr", "env.num_envs=32", "total_frames=40960", "seed=0", "threads=1",
     "algo.batch_size=256", "algo.buffer_size=100000", "algo.hidden=[64,64]", "algo.tau=0.05", "algo.target_update_interval=1",

@@ -6,13 +6,13 @@ continuous one with one line."""
 from __future__ import annotations
 
 import math
-import os
-import subprocess
-import sys
 
 import pytest
 import torch
+from conftest import flat
+from typer.testing import CliRunner
 
+from volleybots.cli import app
 from volleybots.config import load
 from volleybots.runs import read_metrics
 from volleybots.train import resume, train
@@ -24,23 +24,6 @@ TINY = [
     "evaluation.record=false",
 ]
 FPB = 4 * 8  # frames per batch
-
-
-@pytest.fixture(autouse=True)
-def one_thread():
-    n = torch.get_num_threads()
-    yield
-    torch.set_num_threads(n)
-
-
-def _flat(state, prefix=""):
-    out = {}
-    for k, v in state.items() if isinstance(state, dict) else enumerate(state):
-        if isinstance(v, (dict, list)):
-            out.update(_flat(v, f"{prefix}{k}."))
-        else:
-            out[f"{prefix}{k}"] = v
-    return out
 
 
 @pytest.mark.parametrize("name", ["dqn", "ddpg", "td3", "sac"])
@@ -78,8 +61,8 @@ def test_resume_with_the_buffer_repeats_the_uninterrupted_run(tmp_path):
     assert state["algo"]["buffer"]["data"]["observation"].shape[0] == 128
     resumed = resume(tmp_path / "half", ["total_frames=192"])
     assert resumed["frames"] == full["frames"] == 192
-    a = _flat(torch.load(tmp_path / "full" / "checkpoints" / "final.pt", weights_only=True)["algo"])
-    b = _flat(torch.load(tmp_path / "half" / "checkpoints" / "final.pt", weights_only=True)["algo"])
+    a = flat(torch.load(tmp_path / "full" / "checkpoints" / "final.pt", weights_only=True)["algo"])
+    b = flat(torch.load(tmp_path / "half" / "checkpoints" / "final.pt", weights_only=True)["algo"])
     assert a.keys() == b.keys()
     for k in a:
         assert torch.equal(a[k], b[k]) if isinstance(a[k], torch.Tensor) else a[k] == b[k], k
@@ -103,33 +86,37 @@ def test_resume_without_the_buffer_warms_up_again_and_goes_on(tmp_path):
     assert int(after["counters"][1]) > int(before["counters"][1])  # it trained on after the warm-up
 
 
-def _cli(*args, cwd):
-    env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    return subprocess.run([sys.executable, "-m", "volleybots.cli", *args], check=False, capture_output=True, text=True, timeout=300, env=env, cwd=cwd)
 
 
-def test_cli_trains_evaluates_and_replays_sac_and_picks_discrete_for_dqn(tmp_path):
+def _invoke(*args):
+    return CliRunner().invoke(app, list(args))
+
+
+def test_cli_trains_evaluates_and_replays_sac_and_picks_discrete_for_dqn(tmp_path, monkeypatch):
+    # the verbs run in this process (each child process costs a fresh import of torch); tests/test_cli.py runs the
+    # command line as a real process
+    monkeypatch.chdir(tmp_path)
     run = tmp_path / "sac"
-    res = _cli("train", "algo=sac", *TINY, "total_frames=64", f"hydra.run.dir={run}", cwd=tmp_path)
-    assert res.returncode == 0, res.stderr[-2000:]
+    res = _invoke("train", "algo=sac", *TINY, "total_frames=64", f"hydra.run.dir={run}")
+    assert res.exit_code == 0, res.output[-2000:]
     assert (run / "metrics.csv").is_file() and (run / "checkpoints" / "final.pt").is_file()
-    res = _cli("eval", str(run), "episodes=3", "--json", cwd=tmp_path)
-    assert res.returncode == 0, res.stderr[-2000:]
+    res = _invoke("eval", str(run), "episodes=3", "--json")
+    assert res.exit_code == 0, res.output[-2000:]
     assert '"episodes": 3' in res.stdout
     out = tmp_path / "sac.rrd"
-    res = _cli("replay", str(run), "--out", str(out), "--no-viewer", cwd=tmp_path)
-    assert res.returncode == 0 and out.is_file() and out.stat().st_size > 0, res.stderr[-2000:]
+    res = _invoke("replay", str(run), "--out", str(out), "--no-viewer")
+    assert res.exit_code == 0 and out.is_file() and out.stat().st_size > 0, res.output[-2000:]
 
     dqn = tmp_path / "dqn"
-    res = _cli("train", "algo=dqn", *TINY, "total_frames=32", f"hydra.run.dir={dqn}", cwd=tmp_path)
-    assert res.returncode == 0, res.stderr[-2000:]
+    res = _invoke("train", "algo=dqn", *TINY, "total_frames=32", f"hydra.run.dir={dqn}")
+    assert res.exit_code == 0, res.output[-2000:]
     state = torch.load(dqn / "checkpoints" / "final.pt", weights_only=True)
     assert state["action_space"] == "discrete"
 
     bad = tmp_path / "bad"
-    res = _cli("train", "algo=dqn", "env.action_space=prt", *TINY, "total_frames=32", f"hydra.run.dir={bad}", cwd=tmp_path)
-    assert res.returncode == 2
-    lines = [l for l in res.stderr.splitlines() if l.strip()]
+    res = _invoke("train", "algo=dqn", "env.action_space=prt", *TINY, "total_frames=32", f"hydra.run.dir={bad}")
+    assert res.exit_code == 2
+    lines = [line for line in res.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and "dqn" in lines[0] and "discrete" in lines[0] and "'prt'" in lines[0], res.stderr
     assert not bad.exists()
 

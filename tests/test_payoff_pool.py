@@ -13,6 +13,8 @@ from volleybots.population.loop import PopulationLoop
 from volleybots.population.run import start
 from volleybots.runs import RunDir
 
+pytestmark = pytest.mark.slow
+
 TINY = [
     "task=1v1", "algo=psro_uniform", "algo.iterations=1", "algo.seed_members=[random,scripted]", "env.num_envs=16",
     "algo.steps_per_batch=16", "algo.minibatches=2", "algo.epochs=1", "algo.hidden=[32,32]", "algo.min_updates=2",

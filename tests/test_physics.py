@@ -107,7 +107,11 @@ def test_fast_ball_never_passes_through_racket(speed):
     aim_a = torch.rand(n, generator=g) * 2 * math.pi
     heading, _ = quat_axes(quat)
     side = torch.cross(up, heading, dim=-1)
-    aim = ph.state.pos[:, 0] + P.drone.racket_offset * up + aim_r[:, None] * (torch.cos(aim_a)[:, None] * heading + torch.sin(aim_a)[:, None] * side)
+    aim = (
+        ph.state.pos[:, 0]
+        + P.drone.racket_offset * up
+        + aim_r[:, None] * (torch.cos(aim_a)[:, None] * heading + torch.sin(aim_a)[:, None] * side)
+    )
     direction = -up
     ph.state.ball_pos[:] = aim - direction * (0.1 + 0.5 + torch.rand(n, 1, generator=g) * 0.1)
     ph.state.ball_vel[:] = direction * speed

@@ -7,13 +7,15 @@ import pytest
 import torch
 
 import volleybots
-from volleybots.policies import Competitor, builtin_member, resolve_competitor
 from volleybots.config import ConfigError, load
+from volleybots.policies import Competitor, builtin_member, resolve_competitor
 from volleybots.population.loop import PopulationLoop
 from volleybots.population.payoffs import PayoffTable
 from volleybots.population.run import resume, start
 from volleybots.runs import RunDir
 from volleybots.train import SelfPlay, collect
+
+pytestmark = pytest.mark.slow
 
 TINY = [
     "task=1v1", "env.num_envs=16", "algo.steps_per_batch=16", "algo.minibatches=2", "algo.epochs=1", "algo.hidden=[32,32]",
@@ -166,7 +168,7 @@ def test_killed_mid_iteration_resumes_to_the_same_population(tmp_path, monkeypat
     assert p1 == p2
     assert [m["mixture"] for m in m1] == [m["mixture"] for m in m2]
     assert [m["oracle"] for m in m1] == [m["oracle"] for m in m2]
-    for a, b in zip(f1, f2):
+    for a, b in zip(f1, f2, strict=True):
         sa, sb = torch.load(a, weights_only=True), torch.load(b, weights_only=True)
         if "algo" in sa:
             for k, v in sa["algo"]["actor"].items():
@@ -220,7 +222,10 @@ def test_a_learner_trains_against_a_named_opponent_and_learns_from_its_team_only
     assert summary["final_eval"]["stats"]["win"]["mean"] >= 0
     tr = Trainer(cfg, RunDir(tmp_path / "other"))
     assert isinstance(tr.seat, Versus) and tr.seat.opponent.label == "random"
-    for bad, words in ((["task=bump_and_pass", "opponent=random"], "is for matches"), (["task=1v1", "algo=sp", "opponent=random"], "seed_members")):
+    for bad, words in (
+        (["task=bump_and_pass", "opponent=random"], "is for matches"),
+        (["task=1v1", "algo=sp", "opponent=random"], "seed_members"),
+    ):
         with pytest.raises(ConfigError, match=words):
             load(bad)
     # a missing opponent file: validation opens no file, the pre-flight check of every start does
@@ -297,7 +302,9 @@ def test_default_psro_fits_three_oracles_and_the_cli_reports_each(tmp_path):
     assert 3 * cfg.algo.max_updates * per_batch <= cfg.total_frames  # >= 3 iterations even if no oracle converges
     assert cfg.algo.min_updates <= cfg.algo.max_updates
     assert _oracle_text(2, {"updates": 14, "converged": True, "win_rate": 0.934}) == "br2 win 0.93 after 14 updates, converged"
-    assert _oracle_text(1, {"updates": 20, "converged": False, "stopped": "max_updates", "win_rate": 0.4}).endswith("not converged (max_updates)")
+    assert _oracle_text(1, {"updates": 20, "converged": False, "stopped": "max_updates", "win_rate": 0.4}).endswith(
+        "not converged (max_updates)"
+    )
     with pytest.raises(ConfigError, match="init=.*learner_init=bc"):
         start(tiny("psro_nash", "algo.learner_init=bc", f"init={tmp_path / 'x.pt'}"), tmp_path / "never")
     assert not (tmp_path / "never").exists()

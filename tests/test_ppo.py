@@ -3,6 +3,7 @@ delta, discrete and multi-drone variants learn from a batch, and PPO clearly imp
 
 from __future__ import annotations
 
+import pytest
 import torch
 import torch.nn.functional as F
 
@@ -61,7 +62,7 @@ def _learns_one_batch(*overrides):
     before = [p.detach().clone() for p in algo.actor.parameters()]
     batch, _ = collect(env, algo.policy(), env.reset(), cfg.algo.steps_per_batch)
     logs = algo.update(batch)
-    moved = max(float((p.detach() - b).abs().max()) for p, b in zip(algo.actor.parameters(), before))
+    moved = max(float((p.detach() - b).abs().max()) for p, b in zip(algo.actor.parameters(), before, strict=True))
     assert moved > 0.0
     for k in ("loss_objective", "loss_critic", "entropy", "kl_approx"):
         assert k in logs and logs[k] == logs[k]  # present and not NaN
@@ -103,6 +104,7 @@ def test_observation_normalisation_tracks_the_batches():
     torch.testing.assert_close(stats.mean, obs.mean(0), rtol=1e-4, atol=1e-4)
 
 
+@pytest.mark.learning
 def test_ppo_improves_hover(tmp_path):
     """About a minute on two busy cores: 100k frames of 64 envs. Random flight crashes within ~30 steps
     (return ~2); PPO must at least quintuple the return and beat random play in evaluation."""

@@ -6,11 +6,9 @@ everything before it writes; usage errors of every verb are one line."""
 from __future__ import annotations
 
 import copy
-import csv
 import dataclasses
 import inspect
 import math
-import os
 import signal
 import subprocess
 import sys
@@ -20,6 +18,7 @@ from pathlib import Path
 
 import pytest
 import torch
+from conftest import CLI_ENV, cli_cmd, snapshot, train_rows
 from typer.testing import CliRunner
 
 from volleybots.algos import ALGOS
@@ -30,7 +29,6 @@ from volleybots.errors import Range, field_range
 from volleybots.tasks import TASKS
 
 runner = CliRunner()
-ENV = {**os.environ, "OMP_NUM_THREADS": "1"}
 STEPS, ENVS = 8, 4
 FPB = STEPS * ENVS  # frames per batch
 TINY = [
@@ -38,14 +36,6 @@ TINY = [
     "algo.hidden=[16]", "task.episode_len=40", "threads=1", "progress=false", "evaluation.episodes=1",
     "evaluation.record=false", "evaluation.every=0",
 ]
-
-
-def _cli(*args):
-    return [sys.executable, "-m", "volleybots.cli", *args]
-
-
-def _snapshot(root: Path):
-    return {str(p): (p.stat().st_mtime_ns, p.stat().st_size) for p in root.rglob("*")} if root.exists() else {}
 
 
 def _one_line_exit_2(res, *words):
@@ -94,7 +84,12 @@ def _numeric_fields(schema, prefix=""):
 
 
 def test_every_numeric_key_declares_its_range():
-    missing = [f"{p}{k}" for p, schema, _, _ in _schemas() for k, owner, _ in _numeric_fields(schema) if field_range(owner, k.rsplit(".", 1)[-1]) is None]
+    missing = [
+        f"{p}{k}"
+        for p, schema, _, _ in _schemas()
+        for k, owner, _ in _numeric_fields(schema)
+        if field_range(owner, k.rsplit(".", 1)[-1]) is None
+    ]
     assert not missing, f"numeric keys without a range (volleybots.errors.ranged / config.TASK_RANGES): {missing}"
     # the bench options are the keywords of run_bench, typed and ranged the same way
     from volleybots.bench import run_bench
@@ -149,12 +144,26 @@ def test_every_numeric_key_rejects_values_outside_its_range_by_name():
     assert seen > 120  # every algorithm's and task's keys, not a handful
 
 
-@pytest.mark.parametrize("args", [
-    ["train", "algo.gamma=2"], ["train", "algo.actor_lr=-1"], ["train", "task.episode_len=0"], ["train", "env.substeps=0"],
-    ["train", "seed=-1"], ["train", "time_limit=inf"], ["train", "algo=sac", "algo.tau=nan"], ["train", "algo.hidden=[0]"],
-    ["train", "task=1v1", "task.serve=2"], ["train", "-m", "seed=0,-1"], ["eval", "random", "episodes=0"],
-    ["replay", "random", "seed=-5"], ["bench", "repeats=0"], ["bench", "num_envs=[0]"], ["bench", "threads=-1"],
-])
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["train", "algo.gamma=2"],
+        ["train", "algo.actor_lr=-1"],
+        ["train", "task.episode_len=0"],
+        ["train", "env.substeps=0"],
+        ["train", "seed=-1"],
+        ["train", "time_limit=inf"],
+        ["train", "algo=sac", "algo.tau=nan"],
+        ["train", "algo.hidden=[0]"],
+        ["train", "task=1v1", "task.serve=2"],
+        ["train", "-m", "seed=0,-1"],
+        ["eval", "random", "episodes=0"],
+        ["replay", "random", "seed=-5"],
+        ["bench", "repeats=0"],
+        ["bench", "num_envs=[0]"],
+        ["bench", "threads=-1"],
+    ],
+)
 def test_out_of_range_on_the_command_line_is_one_line_and_writes_nothing(args, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     key = next(a.split("=")[0].split(".")[-1] for a in args[1:] if "=" in a and not a.startswith(("task=", "algo=")))
@@ -165,36 +174,43 @@ def test_out_of_range_on_the_command_line_is_one_line_and_writes_nothing(args, t
 def test_make_env_names_a_bad_keyword():
     import volleybots
 
-    for kw, key in ((dict(substeps=0), "substeps"), (dict(num_envs=0), "num_envs"), (dict(episode_len=0), "episode_len"),
-                    (dict(ball_drag=math.nan), "ball_drag")):
+    for kw, key in (
+        (dict(substeps=0), "substeps"),
+        (dict(num_envs=0), "num_envs"),
+        (dict(episode_len=0), "episode_len"),
+        (dict(ball_drag=math.nan), "ball_drag"),
+    ):
         with pytest.raises(ValueError, match=f"'{key}'"):
             volleybots.make_env("hover", **kw)
 
 
 # ------------------------------------------------------------------- empty values, usage, paths, memory
-@pytest.mark.parametrize("args,words", [
-    (["train", "resume="], ["resume="]),
-    (["train", "hydra.run.dir="], ["hydra.run.dir"]),
-    (["train", "-m", "seed=0,1", "hydra.sweep.dir="], ["hydra.sweep.dir"]),
-    (["train", "wandb.project="], ["wandb.project", "empty"]),
-    (["fly"], ["fly", "train", "eval"]),
-    (["replay"], ["missing argument"]),
-    (["eval", "random", "--foo"], ["--foo", "--json"]),
-    (["eval", "--jsn", "random"], ["--jsn"]),
-    (["replay", "random", "--outt", "x.rrd"], ["--outt", "--out"]),
-    (["replay", "random", "--out"], ["--out", "requires an argument"]),
-    (["train", "--frames", "3"], ["--frames", "--multirun"]),
-    (["list", "extra"], ["extra"]),
-    (["list", "--all"], ["--all"]),
-    (["bench", "--fast"], ["--fast", "num_envs"]),
-    (["bench", "num_envs=abc"], ["num_envs"]),
-    (["bench", "tasks=[nope]"], ["nope", "hover"]),
-    (["train", "env.num_envs=1e12"], ["env.num_envs=1000000000000", "memory"]),
-    (["train", "algo=sac", "algo.buffer_size=1e14"], ["algo.buffer_size=100000000000000", "memory"]),
-    (["train", "evaluation.episodes=1e12"], ["evaluation.episodes=1000000000000", "memory"]),
-    (["eval", "random", "episodes=1e12"], ["episodes=1000000000000", "memory"]),
-    (["bench", "num_envs=[1e13]"], ["num_envs=10000000000000", "memory"]),
-])
+@pytest.mark.parametrize(
+    "args,words",
+    [
+        (["train", "resume="], ["resume="]),
+        (["train", "hydra.run.dir="], ["hydra.run.dir"]),
+        (["train", "-m", "seed=0,1", "hydra.sweep.dir="], ["hydra.sweep.dir"]),
+        (["train", "wandb.project="], ["wandb.project", "empty"]),
+        (["fly"], ["fly", "train", "eval"]),
+        (["replay"], ["missing argument"]),
+        (["eval", "random", "--foo"], ["--foo", "--json"]),
+        (["eval", "--jsn", "random"], ["--jsn"]),
+        (["replay", "random", "--outt", "x.rrd"], ["--outt", "--out"]),
+        (["replay", "random", "--out"], ["--out", "requires an argument"]),
+        (["train", "--frames", "3"], ["--frames", "--multirun"]),
+        (["list", "extra"], ["extra"]),
+        (["list", "--all"], ["--all"]),
+        (["bench", "--fast"], ["--fast", "num_envs"]),
+        (["bench", "num_envs=abc"], ["num_envs"]),
+        (["bench", "tasks=[nope]"], ["nope", "hover"]),
+        (["train", "env.num_envs=1e12"], ["env.num_envs=1000000000000", "memory"]),
+        (["train", "algo=sac", "algo.buffer_size=1e14"], ["algo.buffer_size=100000000000000", "memory"]),
+        (["train", "evaluation.episodes=1e12"], ["evaluation.episodes=1000000000000", "memory"]),
+        (["eval", "random", "episodes=1e12"], ["episodes=1000000000000", "memory"]),
+        (["bench", "num_envs=[1e13]"], ["num_envs=10000000000000", "memory"]),
+    ],
+)
 def test_bad_input_of_every_verb_is_one_line(args, words, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     _one_line_exit_2(runner.invoke(app, args), *words)
@@ -204,20 +220,17 @@ def test_bad_input_of_every_verb_is_one_line(args, words, tmp_path, monkeypatch)
 def test_unwritable_output_paths_are_one_line(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "afile").write_text("x")
-    before = _snapshot(tmp_path)
-    for args in (["train", *TINY, f"hydra.run.dir={tmp_path / 'afile' / 'run'}"],
-                 ["train", "-m", "seed=0,1", *TINY, f"hydra.sweep.dir={tmp_path / 'afile' / 'sweep'}"],
-                 ["replay", "random", "--no-viewer", "--out", str(tmp_path / "afile" / "x.rrd")]):
+    before = snapshot(tmp_path)
+    for args in (
+        ["train", *TINY, f"hydra.run.dir={tmp_path / 'afile' / 'run'}"],
+        ["train", "-m", "seed=0,1", *TINY, f"hydra.sweep.dir={tmp_path / 'afile' / 'sweep'}"],
+        ["replay", "random", "--no-viewer", "--out", str(tmp_path / "afile" / "x.rrd")],
+    ):
         _one_line_exit_2(runner.invoke(app, args), "afile", "not a directory")
-    assert _snapshot(tmp_path) == before
+    assert snapshot(tmp_path) == before
 
 
 # ------------------------------------------------------------------------ run directories and locks
-def _rows(run: Path, phase="train"):
-    with (run / "metrics.csv").open(newline="") as f:
-        return [r for r in csv.DictReader(f) if r["phase"] == phase]
-
-
 def _tiny_run(path: Path, *extra, task="hover") -> Path:
     res = runner.invoke(app, ["train", f"task={task}", *TINY, f"hydra.run.dir={path}", *extra])
     assert res.exit_code == 0, res.output
@@ -226,10 +239,19 @@ def _tiny_run(path: Path, *extra, task="hover") -> Path:
 
 def _hold_lock(path: Path) -> subprocess.Popen:
     """Another process that makes ``path`` and holds its run-dir lock for up to a minute (kill it when done)."""
-    holder = subprocess.Popen([sys.executable, "-c", (
-        "import time; from volleybots.runs import lock; from pathlib import Path; "
-        f"Path({str(path)!r}).mkdir(parents=True, exist_ok=True); lock({str(path)!r}); print('locked', flush=True); time.sleep(60)")],
-        env=ENV, stdout=subprocess.PIPE, text=True)
+    holder = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            (
+                "import time; from volleybots.runs import lock; from pathlib import Path; "
+                f"Path({str(path)!r}).mkdir(parents=True, exist_ok=True); lock({str(path)!r}); print('locked', flush=True); time.sleep(60)"
+            ),
+        ],
+        env=CLI_ENV,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     assert holder.stdout.readline().strip() == "locked"
     return holder
 
@@ -285,8 +307,17 @@ def test_a_benchmark_rerun_never_removes_a_run_another_process_is_training(tmp_p
 
 
 def test_two_starts_at_once_make_two_intact_runs(tmp_path):
-    procs = [subprocess.Popen(_cli("train", *TINY, f"total_frames={2 * FPB}", f"seed={s}"), cwd=tmp_path, env=ENV,
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for s in (1, 2)]
+    procs = [
+        subprocess.Popen(
+            cli_cmd("train", *TINY, f"total_frames={2 * FPB}", f"seed={s}"),
+            cwd=tmp_path,
+            env=CLI_ENV,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for s in (1, 2)
+    ]
     outs = [p.communicate(timeout=300) for p in procs]
     assert [p.returncode for p in procs] == [0, 0], [o[1][-2000:] for o in outs]
     runs = sorted(p.parent for p in (tmp_path / "outputs").rglob("summary.json"))
@@ -298,53 +329,75 @@ def test_two_starts_at_once_make_two_intact_runs(tmp_path):
     for r in runs:  # each run's own records: Hydra's too
         seed = RunDir(r).load_config().seed
         assert f"seed={seed}" in (r / ".hydra" / "overrides.yaml").read_text()
-        assert [int(x["frames"]) for x in _rows(r)] == [FPB, 2 * FPB]
+        assert [int(x["frames"]) for x in train_rows(r)] == [FPB, 2 * FPB]
 
 
 def test_two_starts_into_one_dir_end_with_one_run_and_one_refusal(tmp_path):
     run = tmp_path / "run"
-    procs = [subprocess.Popen(_cli("train", *TINY, f"total_frames={2 * FPB}", f"seed={s}", f"hydra.run.dir={run}"), env=ENV,
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for s in (1, 2)]
+    procs = [
+        subprocess.Popen(
+            cli_cmd("train", *TINY, f"total_frames={2 * FPB}", f"seed={s}", f"hydra.run.dir={run}"),
+            env=CLI_ENV,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for s in (1, 2)
+    ]
     outs = [p.communicate(timeout=300) for p in procs]
     codes = sorted(p.returncode for p in procs)
     assert codes == [0, 2], [o[1][-2000:] for o in outs]
-    loser = next(o for p, o in zip(procs, outs) if p.returncode == 2)
+    loser = next(o for p, o in zip(procs, outs, strict=True) if p.returncode == 2)
     assert len(loser[1].strip().splitlines()) == 1 and ("in use" in loser[1] or "already holds a run" in loser[1]), loser[1]
     winner = 1 + [p.returncode for p in procs].index(0)
     from volleybots.runs import RunDir
 
     assert RunDir(run).load_config().seed == winner
     assert f"seed={winner}" in (run / ".hydra" / "overrides.yaml").read_text()  # not overwritten by the loser
-    assert [int(x["frames"]) for x in _rows(run)] == [FPB, 2 * FPB] and (run / "summary.json").is_file()
+    assert [int(x["frames"]) for x in train_rows(run)] == [FPB, 2 * FPB] and (run / "summary.json").is_file()
 
 
 def test_two_resumes_at_once_train_once_and_lose_nothing(tmp_path):
     run = _tiny_run(tmp_path / "run", f"total_frames={FPB}")
-    procs = [subprocess.Popen(_cli("train", f"resume={run}", f"total_frames={4 * FPB}"), env=ENV,
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    procs = [
+        subprocess.Popen(
+            cli_cmd("train", f"resume={run}", f"total_frames={4 * FPB}"),
+            env=CLI_ENV,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for _ in range(2)
+    ]
     outs = [p.communicate(timeout=300) for p in procs]
     assert sorted(p.returncode for p in procs) == [0, 2], [o[1][-2000:] for o in outs]
-    loser = next(o for p, o in zip(procs, outs) if p.returncode == 2)
+    loser = next(o for p, o in zip(procs, outs, strict=True) if p.returncode == 2)
     assert len(loser[1].strip().splitlines()) == 1, loser[1]
-    assert [int(x["frames"]) for x in _rows(run)] == [FPB * i for i in range(1, 5)]  # no duplicate rows
+    assert [int(x["frames"]) for x in train_rows(run)] == [FPB * i for i in range(1, 5)]  # no duplicate rows
     assert torch.load(run / "checkpoints" / "final.pt", weights_only=True)["frames"] == 4 * FPB
 
 
 def test_a_run_killed_before_its_first_checkpoint_can_be_retried(tmp_path):
     run = tmp_path / "run"
-    victim = subprocess.Popen(_cli("train", *TINY, "total_frames=1e9", "checkpoint.every=0", f"hydra.run.dir={run}"), env=ENV,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    victim = subprocess.Popen(
+        cli_cmd("train", *TINY, "total_frames=1e9", "checkpoint.every=0", f"hydra.run.dir={run}"),
+        env=CLI_ENV,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     deadline = time.time() + 300
-    while not ((run / "metrics.csv").is_file() and len(_rows(run)) >= 2) and victim.poll() is None and time.time() < deadline:
+    while not ((run / "metrics.csv").is_file() and len(train_rows(run)) >= 2) and victim.poll() is None and time.time() < deadline:
         time.sleep(0.05)
     victim.send_signal(signal.SIGKILL)
     victim.wait()
     assert victim.returncode == -signal.SIGKILL and not (run / "checkpoints").exists()
     # resume= starts it afresh from frame 0 (saying so); the dead process left no lock behind
-    res = subprocess.run(_cli("train", f"resume={run}", f"total_frames={2 * FPB}"), env=ENV, capture_output=True, text=True, timeout=300)
+    res = subprocess.run(
+        cli_cmd("train", f"resume={run}", f"total_frames={2 * FPB}"), env=CLI_ENV, capture_output=True, text=True, timeout=300
+    )
     assert res.returncode == 0, res.stderr[-2000:]
     assert "note:" in res.stderr and "afresh" in res.stderr
-    assert [int(x["frames"]) for x in _rows(run)] == [FPB, 2 * FPB]
+    assert [int(x["frames"]) for x in train_rows(run)] == [FPB, 2 * FPB]
     # and the same for the plain command run again, after another early death
     (run / "checkpoints" / "final.pt").unlink()
     (run / "checkpoints" / "ckpt_000000000000.tmp").write_bytes(b"half")  # a kill while saving
@@ -353,7 +406,7 @@ def test_a_run_killed_before_its_first_checkpoint_can_be_retried(tmp_path):
     assert "afresh" in res.stderr
     from volleybots.runs import RunDir
 
-    assert RunDir(run).load_config().seed == 9 and [int(x["frames"]) for x in _rows(run)] == [FPB]
+    assert RunDir(run).load_config().seed == 9 and [int(x["frames"]) for x in train_rows(run)] == [FPB]
     assert not list((run / "checkpoints").glob("*.tmp"))
 
 
@@ -373,10 +426,10 @@ def test_resume_onto_a_mismatched_checkpoint_names_both_and_writes_nothing(two_r
 
     shutil.copytree(hover, run)
     shutil.copy(bump / "checkpoints" / "final.pt", run / "checkpoints" / "final.pt")
-    before = _snapshot(run)
+    before = snapshot(run)
     err = _one_line_exit_2(runner.invoke(app, ["train", f"resume={run}", f"total_frames={4 * FPB}"]))
     assert "checkpoint is solo_bump (obs 32, prt, ppo), run is hover (obs 26, prt, ppo)" in err, err
-    assert _snapshot(run) == before
+    assert snapshot(run) == before
 
 
 def test_resume_of_a_damaged_run_is_one_line(two_runs, tmp_path):
@@ -393,9 +446,9 @@ def test_resume_of_a_damaged_run_is_one_line(two_runs, tmp_path):
         run = tmp_path / f"r_{name.replace('/', '_')}_{len(damage)}"
         shutil.copytree(hover, run)
         (run / name).write_text(damage)
-        before = _snapshot(run)
+        before = snapshot(run)
         _one_line_exit_2(runner.invoke(app, ["train", f"resume={run}", f"total_frames={2 * FPB}"]), *words)
-        assert _snapshot(run) == before, name
+        assert snapshot(run) == before, name
 
 
 def test_resume_drops_a_row_cut_short_by_a_kill(two_runs, tmp_path):
@@ -408,4 +461,4 @@ def test_resume_drops_a_row_cut_short_by_a_kill(two_runs, tmp_path):
         f.write("tra")  # the start of a row when the process died
     res = runner.invoke(app, ["train", f"resume={run}", f"total_frames={2 * FPB}"])
     assert res.exit_code == 0, res.output
-    assert [int(x["frames"]) for x in _rows(run)] == [FPB, 2 * FPB]
+    assert [int(x["frames"]) for x in train_rows(run)] == [FPB, 2 * FPB]

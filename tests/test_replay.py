@@ -180,7 +180,15 @@ def test_a_recording_is_columns_small_and_holds_its_layout(tmp_path):
     per_step = (size - short.stat().st_size) / (stats["episode_len"] - cut["episode_len"])
     assert 10 * per_step <= VALUE_BY_VALUE_3V3_BYTES_PER_STEP, per_step
     chunks = _chunks_per_entity(long)
-    for ent in ("/world/drone_0", "/world/drone_5", "/reward/drone_3", "/episode/return", "/score/touches_team1", "/score/points_team0", "/events"):
+    for ent in (
+        "/world/drone_0",
+        "/world/drone_5",
+        "/reward/drone_3",
+        "/episode/return",
+        "/score/touches_team1",
+        "/score/points_team0",
+        "/events",
+    ):
         assert chunks.get(ent) == 1, (ent, chunks.get(ent))  # the whole episode in one send
     assert chunks["/world/ball"] == chunks["/world/ball_trail"] == 2  # and one static chunk for its colour and size
     dump = _dump(long)

@@ -74,7 +74,9 @@ def sweep(tmp_path):
     make_run(root, "live", seed=8, summary=False)
     make_run(root, "resumed_killed", seed=5, summary_frames=1_000_000, age=HOUR_AGO)
     population = make_run(root, "psro", task="1v1", algo="psro_nash", summary=False)
-    (population / "summary.json").write_text(json.dumps({"metric": "win", "frames": 2_000_000, "population": {"members": ["random", "br1"]}}))
+    (population / "summary.json").write_text(
+        json.dumps({"metric": "win", "frames": 2_000_000, "population": {"members": ["random", "br1"]}})
+    )
     job = root / "never_started" / ".hydra"
     job.mkdir(parents=True)
     (job / "overrides.yaml").write_text(yaml.safe_dump(["seed=6", "algo.lr=-1"]))
@@ -115,7 +117,7 @@ def test_learning_curve_band_is_the_mean_over_seeds(sweep):
     cv = _cell(build_report([root]), "ppo", variant="algo.lr=0.001")["curve"]
     assert cv["frames"] == [1_000_000, 2_000_000]
     assert cv["mean"] == pytest.approx([np.mean(finals) + 1.0, np.mean(finals)])
-    assert all(lo < m < hi for lo, m, hi in zip(cv["low"], cv["mean"], cv["high"]))
+    assert all(lo < m < hi for lo, m, hi in zip(cv["low"], cv["mean"], cv["high"], strict=True))
 
 
 def test_runs_without_a_result_are_listed_with_their_state(sweep):

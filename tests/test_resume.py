@@ -3,14 +3,16 @@ parameters, optimiser state and learning curve of the same run left uninterrupte
 
 from __future__ import annotations
 
-import csv
 import os
 import signal
 import subprocess
-import sys
 import time
 
+import pytest
 import torch
+from conftest import cli_cmd, flat, train_rows
+
+pytestmark = [pytest.mark.slow, pytest.mark.subprocess]
 
 STEPS, ENVS = 16, 16
 FPB = STEPS * ENVS  # frames per batch
@@ -19,40 +21,19 @@ COMMON = [
     "task=hover", f"env.num_envs={ENVS}", f"algo.steps_per_batch={STEPS}", "algo.minibatches=4", "seed=5",
     "threads=1", "progress=false", f"checkpoint.every={2 * FPB}", "checkpoint.keep=5",
     f"evaluation.every={3 * FPB}", "evaluation.episodes=2", "evaluation.record=false", f"total_frames={TOTAL}",
+    "task.episode_len=60",  # the evaluations in the curve are compared, not their length: 60 steps each, not 500
 ]
-
-
-def _cli(*args):
-    return [sys.executable, "-m", "volleybots.cli", *args]
-
-
-def _train_rows(run):
-    path = run / "metrics.csv"
-    if not path.is_file():
-        return []
-    with path.open(newline="") as f:
-        return [r for r in csv.DictReader(f) if r["phase"] == "train"]
-
-
-def _flat(state, prefix=""):
-    """Every tensor / number of a nested checkpoint dict, by dotted key."""
-    out = {}
-    for k, v in state.items() if isinstance(state, dict) else enumerate(state):
-        key = f"{prefix}{k}"
-        if isinstance(v, (dict, list)):
-            out.update(_flat(v, key + "."))
-        else:
-            out[key] = v
-    return out
 
 
 def test_resume_after_a_kill_repeats_the_uninterrupted_run(tmp_path):
     full, killed = tmp_path / "full", tmp_path / "killed"
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    ref = subprocess.Popen(_cli("train", *COMMON, f"hydra.run.dir={full}"), env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    victim = subprocess.Popen(_cli("train", *COMMON, f"hydra.run.dir={killed}"), env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    ref = subprocess.Popen(cli_cmd("train", *COMMON, f"hydra.run.dir={full}"), env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    victim = subprocess.Popen(
+        cli_cmd("train", *COMMON, f"hydra.run.dir={killed}"), env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
     deadline = time.time() + 300
-    while len(_train_rows(killed)) < 3 and victim.poll() is None and time.time() < deadline:
+    while len(train_rows(killed)) < 3 and victim.poll() is None and time.time() < deadline:
         time.sleep(0.02)
     victim.send_signal(signal.SIGKILL)
     victim.wait()
@@ -60,11 +41,11 @@ def test_resume_after_a_kill_repeats_the_uninterrupted_run(tmp_path):
     assert not (killed / "checkpoints" / "final.pt").exists(), "the run finished before it could be killed"
     ckpts = sorted((killed / "checkpoints").glob("ckpt_*.pt"))
     assert ckpts, "killed before the first checkpoint"
-    kill_frames = int(_train_rows(killed)[-1]["frames"])
+    kill_frames = int(train_rows(killed)[-1]["frames"])
     ck_frames = int(torch.load(ckpts[-1], weights_only=True)["frames"])
     assert ck_frames < kill_frames or ck_frames < TOTAL  # there is work after the checkpoint to redo or finish
 
-    res = subprocess.run(_cli("train", f"resume={killed}"), env=env, capture_output=True, text=True, timeout=600)
+    res = subprocess.run(cli_cmd("train", f"resume={killed}"), env=env, capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr[-2000:]
     ref.wait(timeout=600)
     assert ref.returncode == 0, ref.stderr.read().decode()[-2000:]
@@ -72,7 +53,7 @@ def test_resume_after_a_kill_repeats_the_uninterrupted_run(tmp_path):
     a = torch.load(full / "checkpoints" / "final.pt", weights_only=True)
     b = torch.load(killed / "checkpoints" / "final.pt", weights_only=True)
     assert a["frames"] == b["frames"] == TOTAL and a["iteration"] == b["iteration"] == TOTAL // FPB
-    fa, fb = _flat(a["algo"]), _flat(b["algo"])
+    fa, fb = flat(a["algo"]), flat(b["algo"])
     assert fa.keys() == fb.keys()
     for k in fa:
         if isinstance(fa[k], torch.Tensor):
@@ -80,7 +61,7 @@ def test_resume_after_a_kill_repeats_the_uninterrupted_run(tmp_path):
         else:
             assert fa[k] == fb[k], k
     # the learning curve is the same too, with no duplicate rows from the killed stretch
-    ra, rb = _train_rows(full), _train_rows(killed)
+    ra, rb = train_rows(full), train_rows(killed)
     assert [r["frames"] for r in ra] == [r["frames"] for r in rb] == [str(FPB * i) for i in range(1, 7)]
     for col in ("return", "episode_len", "loss_critic", "entropy"):
         assert [r[col] for r in ra] == [r[col] for r in rb], col

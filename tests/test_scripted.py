@@ -6,10 +6,10 @@ import pytest
 import torch
 
 import volleybots
-from volleybots.play import run_episodes
 from volleybots.physics import TorchPhysics, WorldParams
 from volleybots.physics.params import DroneParams
 from volleybots.physics.torch_backend import Constants
+from volleybots.play import run_episodes
 from volleybots.scripted import DroneController, StrikePlanner, make_scripted_policy, quintic
 from volleybots.scripted.ballistics import ball_at, bounce, launch_for_apex, launch_for_range, racket_for, time_to_height
 from volleybots.scripted.control import DroneObs, heading_yaw_rate
@@ -78,7 +78,7 @@ def test_intercept_prediction_matches_the_physics():
     t_pred = time_to_height(p0[:, 2], v0[:, 2], height)
     p_pred, v_pred = ball_at(p0, v0, t_pred)
     assert torch.allclose(p_pred[:, 2], torch.full((3,), height), atol=1e-5)
-    zs, ps, ts = [], [], []
+    ps, ts = [], []
     hover = torch.tensor(params.drone.hover_command).expand(3, 1, 4)
     for k in range(1, 200):
         phys.step(lambda s: hover)
@@ -127,12 +127,12 @@ def test_strike_reference_ends_in_the_contact_state():
     p, v, a = planner.reference(strike, 0.45)
     assert torch.allclose(p, planner.hold_point(strike, 0.45)) and v.abs().max() == 0  # still waiting
     arrived = planner.reference(type(strike)(**{**strike.__dict__, "t": torch.zeros(1)}), 0.45)
-    for got, want in zip(arrived, (strike.drone_pos, strike.drone_vel, strike.drone_acc)):
+    for got, want in zip(arrived, (strike.drone_pos, strike.drone_vel, strike.drone_acc), strict=True):
         assert torch.allclose(got, want, atol=1e-5)
     # the quintic meets both boundary states
     p0, p1 = torch.zeros(1, 3), torch.ones(1, 3)
     end = quintic(p0, p0, p0, p1, 2 * p1, 3 * p1, torch.tensor([0.7]), torch.tensor([0.7]))
-    assert all(torch.allclose(e, k * p1, atol=1e-5) for e, k in zip(end, (1, 2, 3)))
+    assert all(torch.allclose(e, k * p1, atol=1e-5) for e, k in zip(end, (1, 2, 3), strict=True))
 
 
 def test_registry_and_action_interface():

@@ -82,7 +82,9 @@ def test_low_set_is_wanted_nearer_the_net():
     targets = torch.stack((a[:2], a[:2] - torch.tensor([c.set_low_near * 0.3, 0.0])))
     for shortfall in (0.3, 0.0):
         vel = launch_for_apex(start.expand(2, 3), targets, c.set_apex - shortfall, a[2], pol.params.gravity)
-        o = SimpleNamespace(ball_pos=start.expand(2, 3), ball_vel=vel, hit=torch.ones(2, dtype=torch.bool), body=torch.zeros(2, dtype=torch.bool))
+        o = SimpleNamespace(
+            ball_pos=start.expand(2, 3), ball_vel=vel, hit=torch.ones(2, dtype=torch.bool), body=torch.zeros(2, dtype=torch.bool)
+        )
         cost = pol.set_cost(o)
         assert int(cost.argmin()) == (1 if shortfall > 0 else 0), (shortfall, cost)
         # what it costs beyond the landing is the apex's shortfall, at ``set_low_cost`` per metre

@@ -16,6 +16,8 @@ from typer.testing import CliRunner
 from volleybots.cli import app
 from volleybots.runs import read_metrics
 
+pytestmark = [pytest.mark.slow, pytest.mark.subprocess]
+
 wandb_pb = pytest.importorskip("wandb.proto.wandb_internal_pb2", reason="the wandb extra is part of the test install")
 
 TINY = ["task=hover", "task.episode_len=50", "env.num_envs=4", "algo.steps_per_batch=16", "total_frames=128", "threads=1", "progress=false",

@@ -1,0 +1,100 @@
+"""What many test files share: quiet tiny-run overrides, the command line in a child process, readers of run
+directories and checkpoints, and a session-wide cache of tiny trained runs, so that tests which only read a
+run (evaluate it, start from it, replay it) do not each train their own.
+
+Markers (registered in pyproject.toml) only select: `python -m pytest -q` runs every test, and
+`python -m pytest -q -m "not slow"` is the quick local loop."""
+
+from __future__ import annotations
+
+import csv
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import torch
+
+ROOT = Path(__file__).resolve().parents[1]
+# one torch thread, no progress bar and no rerun recording of evaluations: what every tiny run wants
+QUIET = ["threads=1", "progress=false", "evaluation.record=false"]
+# a child process with one OpenMP thread: the suite shares two cores
+CLI_ENV = {**os.environ, "OMP_NUM_THREADS": "1"}
+
+
+def cli_cmd(*args: str) -> list[str]:
+    """The argv of `volleybots ARGS` run by this interpreter (the package under test, not an installed copy)."""
+    return [sys.executable, "-m", "volleybots.cli", *map(str, args)]
+
+
+def run_cli(*args: str, cwd=None, timeout: int = 600, env=None) -> subprocess.CompletedProcess:
+    """`volleybots ARGS` in a child process, its output captured as text."""
+    return subprocess.run(cli_cmd(*args), cwd=cwd, env=env or CLI_ENV, capture_output=True, text=True, timeout=timeout)
+
+
+def flat(state, prefix: str = "") -> dict:
+    """Every tensor / number of a nested checkpoint dict (or list), by dotted key."""
+    out = {}
+    for k, v in state.items() if isinstance(state, dict) else enumerate(state):
+        if isinstance(v, (dict, list)):
+            out.update(flat(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def train_rows(run: Path) -> list[dict]:
+    """The raw (string) rows of phase ``train`` in a run's metrics.csv; none while the file is not written yet
+    (so a test can poll a run that is still starting)."""
+    path = Path(run) / "metrics.csv"
+    if not path.is_file():
+        return []
+    with path.open(newline="") as f:
+        return [r for r in csv.DictReader(f) if r["phase"] == "train"]
+
+
+def snapshot(root: Path) -> dict:
+    """Modification time and size of everything under ``root``: equal snapshots mean nothing was written."""
+    root = Path(root)
+    return {str(p): (p.stat().st_mtime_ns, p.stat().st_size) for p in root.rglob("*")} if root.exists() else {}
+
+
+def pytest_collection_modifyitems(items):
+    """A learning test trains to a floor: it is slow by nature, so ``-m "not slow"`` leaves it out too."""
+    for item in items:
+        if item.get_closest_marker("learning") and not item.get_closest_marker("slow"):
+            item.add_marker(pytest.mark.slow)
+
+
+@pytest.fixture(autouse=True)
+def _one_torch_thread():
+    """One intra-op thread for every test (on a shared machine it is several times faster than two under
+    contention), and the count put back afterwards, so one test's setting (``threads=N``) never leaks into the next."""
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(n)
+
+
+@pytest.fixture(scope="session")
+def tiny_run(tmp_path_factory):
+    """``tiny_run(*overrides)``: the run directory of ``train(load(overrides + QUIET))``, trained once per session
+    for each distinct list of overrides. Tests that only read a run share it; a test that writes into a run dir
+    (resume, extra checkpoints) trains its own instead."""
+    from volleybots.config import load
+    from volleybots.train import train
+
+    runs: dict[tuple[str, ...], Path] = {}
+
+    def get(*overrides: str) -> Path:
+        key = tuple(overrides)
+        if key not in runs:
+            torch.set_num_threads(1)
+            path = tmp_path_factory.mktemp("tiny_run") / "run"
+            given = {o.split("=", 1)[0] for o in overrides}
+            train(load([*overrides, *(q for q in QUIET if q.split("=", 1)[0] not in given)]), path)
+            runs[key] = path
+        return runs[key]
+
+    return get
