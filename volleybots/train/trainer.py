@@ -174,7 +174,7 @@ class Trainer:
                 batch, td = collect(self.env, policy, td, self.algo.steps_per_batch)
                 self.frames += self.frames_per_batch
                 self.iteration += 1
-                stats = finished_stats(batch)
+                stats = finished_stats(batch, self.seat.team)
                 losses = self.algo.update(self.seat.view(self.env, batch))
                 dt = time.perf_counter() - t_batch
                 row = {"phase": "train", "frames": self.frames, "iteration": self.iteration, "wall_time": self._wall(), "fps": self.frames_per_batch / dt}
