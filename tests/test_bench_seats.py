@@ -16,4 +16,4 @@ def test_competitive_seats_are_measured_beside_mappo_on_the_same_batch():
     for r in train[1:]:
         assert r["vs_mappo"] == r["env_steps_per_s"] / base
     table = format_table(rows)
-    assert "| train psro oracle |" in table and f"{train[2]['vs_mappo']:.1f}x" in table
+    assert "| train psro oracle |" in table and f"{train[2]['vs_mappo']:.2f}x" in table

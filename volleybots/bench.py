@@ -344,6 +344,6 @@ def format_table(rows: Sequence[dict]) -> str:
         lines.append(
             f"| {r['task']} | {kind} | {r['n_drones']} | {r['backend']} | {r['device']} | {'yes' if r['compile'] else 'no'} | {r['threads']} "
             f"| {r['num_envs']} | {_rate(r['env_steps_per_s'])} | {_rate(r['env_steps_per_cpu_s'])} | {r['step_ms']:.2f} "
-            f"| {'' if ratio is None else f'{ratio:.1f}x'} |"
+            f"| {'' if ratio is None else f'{ratio:.2f}x' if 'vs_mappo' in r else f'{ratio:.1f}x'} |"
         )
     return "\n".join(lines)
