@@ -3,7 +3,9 @@
 ``run_bench`` measures full TorchRL env steps (physics, referee, rewards, observations and automatic
 partial resets through ``step_and_maybe_reset``, as a collector does), excluding warm-up and
 compilation, and reports the median over repeats; with ``train=True`` it adds the end-to-end training
-rate (collection + updates, frames/s) of PPO on Solo Bump and MAPPO on 3 vs 3 (``TRAIN_CASES``).
+rate (collection + updates, frames/s) of PPO on Solo Bump and MAPPO on 3 vs 3 (``TRAIN_CASES``), and
+on a match also of the competitive seats (``SEATS``: self-play, a PSRO oracle against a mixed
+population, an exploitability best response) with their rate over MAPPO's (``vs_mappo``).
 ``format_table`` renders the rows as Markdown with the torch/MuJoCo speed ratio of each task measured
 in the same run. ``benchmarks/bench.py`` and the ``volleybots bench`` verb are thin front ends to
 these two functions.
@@ -122,28 +124,33 @@ def _time_env(env, num_envs: int, device: str, repeats: int, steps: int, warmup:
 
 
 def measure_training(
-    task: str, algo: str, num_envs: int, device: str = "cpu", compile: bool = False, batches: int = 3, backend: str = "torch", seed: int = 0
+    task: str, algo: str, num_envs: int, device: str = "cpu", compile: bool = False, batches: int = 3, backend: str = "torch", seed: int = 0,
+    seat: str | None = None, overrides: Sequence[str] = (),
 ) -> dict:
     """End-to-end training frames/s of ``algo`` on ``task``: collection (policy + env steps) and the
     algorithm's update, as ``volleybots train`` runs them, over ``batches`` batches after a first one
-    that warms up (and compiles). The algorithm's own config (steps per batch, epochs) is the default."""
+    that warms up (and compiles). The algorithm's own config (steps per batch, epochs) is the default.
+
+    ``seat`` (a match, ``algo`` MAPPO): the learner plays in a competitive seat of ``SEATS`` instead
+    of driving every drone, on the same task, batch and hyperparameters, so the rows compare."""
     from volleybots.algos import ALGOS
     from volleybots.config import load, make_env
     from volleybots.play.episodes import collect
 
     cfg = load([f"task={task}", f"algo={algo}", f"env.num_envs={num_envs}", f"env.device={device}", f"env.physics={backend}",
-                f"env.compile={str(bool(compile and backend == 'torch')).lower()}", f"seed={seed}"])
+                f"env.compile={str(bool(compile and backend == 'torch')).lower()}", f"seed={seed}", *overrides])
     t0 = time.perf_counter()
     torch.manual_seed(seed)
     env = make_env(cfg)
-    learner = ALGOS[cfg.algo.name](cfg.algo, env, seed=seed)
-    policy = learner.policy()
+    where = _seat(seat, cfg, env, seed)
+    learner = ALGOS[cfg.algo.name](cfg.algo, where.spec(env), seed=seed)
+    policy = where.policy(env, learner.policy())
     td = env.reset()
     frames = num_envs * learner.steps_per_batch
 
     def one_batch(td):
         batch, td = collect(env, policy, td, learner.steps_per_batch)
-        learner.update(batch)
+        learner.update(where.view(env, batch))
         return td
 
     td = one_batch(td)
@@ -160,11 +167,42 @@ def measure_training(
     rate = frames * batches / wall
     return {
         "task": task, "backend": backend, "device": str(device), "compile": bool(compile and backend == "torch"),
-        "num_envs": int(num_envs), "n_drones": int(env.n_drones), "action_space": cfg.env.action_space, "kind": f"train {algo}",
+        "num_envs": int(num_envs), "n_drones": int(env.n_drones), "action_space": cfg.env.action_space, "kind": f"train {seat or algo}",
         "steps": int(learner.steps_per_batch), "repeats": int(batches), "env_steps_per_s": rate, "step_ms": 1e3 * num_envs / rate,
         "all_env_steps_per_s": [rate], "env_steps_per_cpu_s": frames * batches / max(cpu, 1e-9), "setup_s": setup_s,
         "threads": torch.get_num_threads(),
     }
+
+
+# competitive seats measured beside plain MAPPO on a match (same task, batch and hyperparameters):
+# sp: one learner plays both teams (SelfPlay); psro oracle: a learner against a population that mixes
+# the scripted and random players and a learned member (the cost of the scripted planner included);
+# best response: a learner against one fixed learned policy (what `eval exploitability` trains)
+SEATS = ("sp", "psro oracle", "best response")
+
+
+def _seat(seat: str | None, cfg, env, seed: int):
+    """The seat of a training row; a learned member is a fresh MAPPO team policy (acting costs the same
+    as a trained one's)."""
+    from volleybots.algos.base import AgentSpec
+    from volleybots.algos.ppo import MAPPO
+    from volleybots.play.seats import AllAgents, SelfPlay, Versus
+    from volleybots.policies import Competitor, builtin_member
+    from volleybots.policies.competitors import Member
+
+    if seat is None:
+        return AllAgents()
+    if seat == "sp":
+        return SelfPlay()
+    frozen = MAPPO(cfg.algo, AgentSpec.of(env, len(env.team_index(1))), seed=seed + 1)
+    learned = Member("learned", lambda env, deterministic=False: frozen.policy(deterministic=deterministic), {"kind": "bench"})
+    if seat == "psro oracle":
+        opponent = Competitor("population", [builtin_member("scripted"), builtin_member("random"), learned], [1 / 3] * 3)
+    elif seat == "best response":
+        opponent = Competitor("target", [learned])
+    else:
+        raise ValueError(f"unknown seat {seat!r}; allowed: {', '.join(SEATS)}")
+    return Versus(opponent, seed=seed)
 
 
 def run_bench(
@@ -180,6 +218,7 @@ def run_bench(
     threads: int | None = None,
     train: bool = False,
     train_batches: int = 3,
+    train_overrides: Sequence[str] = (),
 ) -> list[dict]:
     """Measure env-steps/s for every combination of task, backend, env count and device.
 
@@ -204,6 +243,7 @@ def run_bench(
             ``TRAIN_CASES`` (task, algorithm) whose task is in ``tasks``, for every env count, device and
             compile mode, on the torch backend.
         train_batches: timed training batches per training row.
+        train_overrides: config overrides of every training row (``algo.steps_per_batch=8``: tiny rows).
 
     Returns:
         One dict per measurement with keys ``task, backend, device, compile, num_envs, n_drones,
@@ -217,7 +257,7 @@ def run_bench(
     try:
         rows = _run(tuple(tasks), tuple(backends), tuple(num_envs), devices, compile, repeats, steps, action_space, progress)
         if train:
-            rows += _run_training(tuple(tasks), tuple(num_envs), devices, compile, train_batches, progress)
+            rows += _run_training(tuple(tasks), tuple(num_envs), devices, compile, train_batches, progress, tuple(train_overrides))
         return rows
     finally:
         torch.set_num_threads(before)
@@ -246,19 +286,29 @@ def _modes(compile) -> tuple[bool, ...]:
     return (bool(compile),) if isinstance(compile, bool) else tuple(bool(c) for c in compile)
 
 
-def _run_training(tasks, num_envs, devices, compile, batches, progress) -> list[dict]:
+def _run_training(tasks, num_envs, devices, compile, batches, progress, overrides=()) -> list[dict]:
     devices = tuple(devices) if devices is not None else default_devices()
-    rows = []
+    rows, base = [], None  # base: the plain MAPPO row each seat's row is compared with
     for task, algo in TRAIN_CASES:
         if task not in tasks:
             continue
         for n in num_envs:
             for device in devices:
                 for comp in _modes(compile):
-                    rows.append(measure_training(task, algo, n, device, compile=comp, batches=batches))
-                    if progress is not None:
-                        progress(rows[-1])
+                    for seat in (None, *SEATS) if _competitive(task) else (None,):
+                        rows.append(measure_training(task, algo, n, device, compile=comp, batches=batches, seat=seat, overrides=overrides))
+                        if seat is not None:  # the seat's cost: its rate over plain MAPPO's of the same run
+                            rows[-1]["vs_mappo"] = rows[-1]["env_steps_per_s"] / base["env_steps_per_s"]
+                        base = rows[-1] if seat is None else base
+                        if progress is not None:
+                            progress(rows[-1])
     return rows
+
+
+def _competitive(task: str) -> bool:
+    from volleybots.tasks import TASKS
+
+    return bool(TASKS[task].competitive)
 
 
 def speed_ratios(rows: Sequence[dict]) -> dict[tuple[str, int, str, bool], float]:
@@ -285,15 +335,15 @@ def format_table(rows: Sequence[dict]) -> str:
     training rows (``kind`` "train ALGO") give frames/s, collection and updates together."""
     ratios = speed_ratios(rows)
     lines = [
-        "| task | measures | drones | backend | device | compile | threads | envs | env-steps/s | per CPU-s | ms / step | torch / MuJoCo |",
+        "| task | measures | drones | backend | device | compile | threads | envs | env-steps/s | per CPU-s | ms / step | torch / MuJoCo, seat / mappo |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         kind = r.get("kind", "env")
-        ratio = ratios.get((r["task"], r["num_envs"], r["device"], r["compile"])) if r["backend"] == "torch" and kind == "env" else None
+        ratio = ratios.get((r["task"], r["num_envs"], r["device"], r["compile"])) if r["backend"] == "torch" and kind == "env" else r.get("vs_mappo")
         lines.append(
             f"| {r['task']} | {kind} | {r['n_drones']} | {r['backend']} | {r['device']} | {'yes' if r['compile'] else 'no'} | {r['threads']} "
             f"| {r['num_envs']} | {_rate(r['env_steps_per_s'])} | {_rate(r['env_steps_per_cpu_s'])} | {r['step_ms']:.2f} "
-            f"| {'' if ratio is None else f'{ratio:.1f}x'} |"
+            f"| {'' if ratio is None else f'{ratio:.2f}x' if 'vs_mappo' in r else f'{ratio:.1f}x'} |"
         )
     return "\n".join(lines)

@@ -76,7 +76,9 @@ def compare_cmd(
 
 
 def _pair_progress(i: int, j: int, games) -> None:
-    typer.echo(f"  pair {i},{j}: W/D/L {'/'.join(map(str, games.total.tolist()))}", err=True)
+    c = games.content()
+    t = c["touches"]
+    typer.echo(f"  pair {i},{j}: W/D/L {'/'.join(map(str, games.total.tolist()))}, touches/game {t[0]:.2f}/{t[1]:.2f}, rally {c['rally_steps']:.0f} steps", err=True)
 
 
 def _show(data: dict, table, as_json: bool, files: list[Path]) -> None:
@@ -98,10 +100,14 @@ def crossplay_cmd(
     out: Optional[Path] = typer.Option(None, "--out", help="Folder for crossplay.json and crossplay.png (new or empty; default outputs/crossplay/<time>_<task>)."),
 ) -> None:
     """Every pair plays N games, each side half of them: W/D/L, win rates with Wilson intervals, average win rate, heatmap."""
+    from rich.console import Group
+
+    from volleybots.eval.content import format_content
     from volleybots.eval.crossplay import format_table, run_crossplay
 
     res, path = run_crossplay(list(args or []), out, progress=None if as_json else _pair_progress)
-    _show(res.to_dict(), format_table(res), as_json, [path / "crossplay.json", path / "crossplay.png"])
+    tables = Group(format_table(res), format_content(res.labels, res.content))
+    _show(res.to_dict(), tables, as_json, [path / "crossplay.json", path / "crossplay.png"])
 
 
 @eval_app.command("exploitability", context_settings=_PASS_THROUGH)
@@ -169,7 +175,7 @@ def replay(
         if path is not None:
             check_writable(path.parent, f"the folder of {opt}")
     viewer = not no_viewer and has_display()
-    from volleybots.eval.crossplay import is_competitor_spec, replay_match
+    from volleybots.eval.match_replay import is_competitor_spec, replay_match
 
     if sum(map(is_competitor_spec, args)) >= 2:
         if still is not None:

@@ -107,6 +107,11 @@ def _echo_summary(summary: dict, run_dir) -> None:
             f"run {run_dir}: {summary['frames']} frames in {summary['wall_time_s']:.0f} s ({summary['frames_per_s']:,.0f} frames/s); "
             f"{summary['iterations']} iteration(s), population {len(pop['members'])}, meta-strategy ({pop['solver']}): {mix}"
         )
+        ev, split = summary.get("final_eval"), summary.get("wall_time_split")
+        if ev:
+            typer.echo(f"  final mixture against {ev['opponent']}: W/D/L {'/'.join(map(str, ev['wdl']))} over {ev['episodes']} games")
+        if split:
+            typer.echo("  wall time: " + ", ".join(f"{k.replace('_', ' ')} {v:.0f} s" for k, v in split.items()))
         oracles = [o for o in summary.get("oracles", []) if o and o.get("converged") is not None]
         if oracles:
             typer.echo("oracles: " + "; ".join(_oracle_text(i, o) for i, o in enumerate(oracles, 1)))

@@ -97,6 +97,7 @@ class BenchOptions:
     threads: Optional[int] = ranged(None, ge=0, le=MAX_THREADS)
     train: bool = False  # also measure PPO (solo_bump) / MAPPO (3v3) training frames/s
     train_batches: int = ranged(3, ge=1)  # timed training batches per training row
+    train_overrides: Optional[list[str]] = None  # config overrides of the training rows (algo.steps_per_batch=8: quick rows)
 
 
 def check_bench_options(options: dict) -> dict:

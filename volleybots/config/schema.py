@@ -69,7 +69,7 @@ class Config:
     algo: Any = MISSING  # checked against the algorithm's config dataclass
     env: EnvConfig = field(default_factory=EnvConfig)
     seed: int = ranged(0, ge=0, le=MAX_SEED)
-    threads: int = ranged(0, ge=0, le=MAX_THREADS)
+    threads: int = ranged(1, ge=0, le=MAX_THREADS)  # 1: fast on a shared small machine; 0: torch's default (docs/training.md)
     total_frames: int = ranged(1_000_000, ge=1)
     time_limit: float = ranged(0.0, ge=0)
     resume: Optional[str] = None

@@ -5,6 +5,8 @@ column one, the game-by-game outcomes (for Elo rounds), and the provenance of ev
 file sha256, config) with the seed, the scenario and the package versions. From it: the win rate over
 decisive games with Wilson 95 % intervals, each competitor's average win rate against the others, the
 zero-sum payoff table of the meta-game, a heatmap and a JSON file that ``CrossPlay.load`` reads back.
+``content`` holds what each pair's games held (touches, rally length, ending faults, serving and
+receiving apart; ``volleybots.eval.content``).
 
 A competitor is not played against itself: its diagonal cell is empty (to measure a competitor against
 itself, enter it twice under two labels, ``a=PATH b=PATH``).
@@ -36,6 +38,7 @@ class CrossPlay:
     outcomes: dict[str, str] = field(default_factory=dict)  # "i,j" (i < j) -> W/D/L per game from i's side, in play order
     side_wdl: dict[str, list] = field(default_factory=dict)  # "i,j" -> [2, 3]: i on team 0 / team 1
     meta: dict = field(default_factory=dict)  # task, games, seed, scenario, competitors' provenance, versions
+    content: dict[str, dict] = field(default_factory=dict)  # "i,j" -> Games.content() from i's side
 
     @property
     def n(self) -> int:
@@ -81,6 +84,7 @@ class CrossPlay:
             "win_rate_high": _nan_to_none(hi),
             "average_win_rate": _nan_to_none(self.average_win_rate()),
             "outcomes": self.outcomes,
+            "content": self.content,
         }
 
     def save(self, path: Path) -> None:
@@ -99,10 +103,11 @@ class CrossPlay:
         if not isinstance(data, dict) or data.get("format") != FORMAT:
             raise ConfigError(f"{str(path)!r} is not a cross-play results file (format is not {FORMAT!r})")
         meta = {k: v for k, v in data.items() if k not in _DERIVED}
-        return cls(list(data["labels"]), np.asarray(data["wdl"], dtype=float), dict(data["outcomes"]), dict(data["side_wdl"]), meta)
+        return cls(list(data["labels"]), np.asarray(data["wdl"], dtype=float), dict(data["outcomes"]), dict(data["side_wdl"]), meta,
+                   dict(data.get("content") or {}))
 
 
-_DERIVED = ("format", "labels", "wdl", "side_wdl", "win_rate", "win_rate_low", "win_rate_high", "average_win_rate", "outcomes")
+_DERIVED = ("format", "labels", "wdl", "side_wdl", "win_rate", "win_rate_low", "win_rate_high", "average_win_rate", "outcomes", "content")
 
 
 def _nan_to_none(a: np.ndarray):
@@ -197,13 +202,14 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
         raise ConfigError(f"cross-play needs at least two competitors; got {n}")
     labels = [c.label for c in competitors]
     wdl = np.zeros((n, n, 3))
-    outcomes, sides, served = {}, {}, {}
+    outcomes, sides, served, content = {}, {}, {}, {}
     for i, j in combinations(range(n), 2):
         g = play_games(cfg, competitors[i], competitors[j], games, seed=seed, batch=batch, scenario=scenario, deterministic=deterministic)
         wdl[i, j], wdl[j, i] = g.total, g.total[::-1]
         outcomes[f"{i},{j}"] = g.outcomes
         sides[f"{i},{j}"] = g.wdl.tolist()
         served[f"{i},{j}"] = g.served
+        content[f"{i},{j}"] = g.content()
         if progress is not None:
             progress(i, j, g)
     specs = specs or labels
@@ -220,7 +226,7 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
         "config": to_dict(cfg),
         "versions": versions(),
     }
-    return CrossPlay(labels, wdl, outcomes, sides, meta)
+    return CrossPlay(labels, wdl, outcomes, sides, meta, content)
 
 
 def heatmap(result: CrossPlay, path: Path, title: str | None = None) -> None:
@@ -234,6 +240,7 @@ def heatmap(result: CrossPlay, path: Path, title: str | None = None) -> None:
     wr = result.win_rate()
     lo, hi = result.interval()
     n = result.n
+    touches = _touch_cells(result)
     fig, ax = plt.subplots(figsize=(1.6 * n + 3, 1.2 * n + 1.5))
     im = ax.imshow(np.ma.masked_invalid(wr), cmap="RdBu", vmin=0, vmax=1)
     for i in range(n):
@@ -241,19 +248,30 @@ def heatmap(result: CrossPlay, path: Path, title: str | None = None) -> None:
             w, d, l_ = result.wdl[i, j].astype(int)
             if np.isfinite(wr[i, j]):
                 colour = "white" if abs(wr[i, j] - 0.5) > 0.3 else "black"
-                ax.text(j, i, f"{wr[i, j]:.2f}\n[{lo[i, j]:.2f}, {hi[i, j]:.2f}]\n{w}/{d}/{l_}", ha="center", va="center", fontsize=8, color=colour)
+                ax.text(j, i, f"{wr[i, j]:.2f}\n[{lo[i, j]:.2f}, {hi[i, j]:.2f}]\n{w}/{d}/{l_}{touches[i][j]}", ha="center", va="center", fontsize=8, color=colour)
             elif i != j:
-                ax.text(j, i, "no decisive\ngame", ha="center", va="center", fontsize=7, color="grey")
+                ax.text(j, i, f"no decisive\ngame{touches[i][j]}", ha="center", va="center", fontsize=7, color="grey")
     avg = result.average_win_rate()
     ax.set_xticks(range(n), result.labels, rotation=30, ha="right")
     ax.set_yticks(range(n), [f"{lab}  (avg {a:.2f})" for lab, a in zip(result.labels, avg)])
-    ax.set_xlabel("opponent (column); cells: win rate [Wilson 95 %], W/D/L")
+    ax.set_xlabel("opponent (column); cells: win rate [Wilson 95 %], W/D/L" + (", touches per game row/column" if result.content else ""))
     m = result.meta
     ax.set_title(title or f"{m.get('task')} cross-play: win rate of row over decisive games\n{m.get('games_per_pair')} games per pair, seed {m.get('seed')}, scenario {m.get('scenario')}", fontsize=9)
     fig.colorbar(im, ax=ax, fraction=0.046)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def _touch_cells(result: CrossPlay) -> list[list[str]]:
+    """Per cell, a line "t ROW/COL": touches per game of the row and of the column ("" without content)."""
+    cells = [[""] * result.n for _ in range(result.n)]
+    for key, c in result.content.items():
+        i, j = map(int, key.split(","))
+        if c.get("games"):
+            a, b = c["touches"]
+            cells[i][j], cells[j][i] = f"\nt {a:.1f}/{b:.1f}", f"\nt {b:.1f}/{a:.1f}"
+    return cells
 
 
 def format_table(result: CrossPlay):
@@ -337,49 +355,3 @@ def run_crossplay(args, out: Path | None = None, progress=None, verb: str = "cro
     res.save(path / RESULTS)
     heatmap(res, path / HEATMAP)
     return res, path
-
-
-REPLAY_OPTIONS = {"seed": int, "scenario": str, "deterministic": bool}
-
-
-def is_competitor_spec(arg: str) -> bool:
-    """A replay argument names a competitor (rather than a config override) when it has no ``=`` or
-    labels a built-in player or an existing path: ``replay A B`` records a match, ``replay A k=v`` one policy."""
-    from volleybots.policies import BUILTIN
-
-    label, eq, value = arg.partition("=")
-    return not eq or value in BUILTIN or (bool(value) and Path(value).exists())
-
-
-def replay_match(args, out: Path | None, viewer: bool) -> tuple[dict, Path | None, list[str]]:
-    """``volleybots replay A B task=3v3``: one match between two competitors recorded to rerun (team
-    colours, touches, the point and its fault); returns (env 0's statistics, the file, the labels)."""
-    import time
-
-    from volleybots.play.games import side_env
-    from volleybots.replay import record_match
-    from volleybots.tasks.multi import TeamPolicies
-
-    specs = split_args(args, REPLAY_OPTIONS)[0]
-    if len(specs) != 2:
-        raise ConfigError(f"a match replay takes two competitors; got {len(specs)}: {' '.join(specs)}")
-    comps, specs, opts, cfg = setup(args, REPLAY_OPTIONS)
-    labels = [c.label for c in comps]
-    if out is None and not viewer:
-        stamp = time.strftime("%Y%m%d-%H%M%S")
-        name = "_vs_".join(lab.replace("@", "_").replace("/", "_") for lab in labels)
-        out = Path("outputs") / "replays" / f"replay_{cfg.task.name}_{name}_{stamp}.rrd"
-    if out is not None:
-        out.parent.mkdir(parents=True, exist_ok=True)
-    seed = opts.get("seed", 0)
-    env = side_env(cfg, 0, opts.get("scenario", "any"), 1, seed)  # A is team 0 (blue)
-    gen = torch_generator(seed)
-    policy = TeamPolicies(env, tuple(c.team_policy(env, opts.get("deterministic", False), gen) for c in comps))
-    return record_match(env, policy, tuple(labels), out, viewer=viewer), out, labels
-
-
-def torch_generator(seed: int):
-    import torch
-
-    torch.manual_seed(seed)
-    return torch.Generator().manual_seed(seed)

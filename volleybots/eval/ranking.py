@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from volleybots.errors import ConfigError, Range
+from volleybots.eval.content import by_competitor
 from volleybots.eval.crossplay import CrossPlay, _nan_to_none
 from volleybots.population.solvers import exploitability, member_exploitability, nash
 from volleybots.ratings import ELO_K, ELO_START, bradley_terry_intervals, elo_history, round_robin, sample_round_robin
@@ -79,6 +80,8 @@ def ratings(result: CrossPlay, rounds: int = 2000, k: float = ELO_K, seed: int =
         "nash_exploitability": 50.0 * exploitability(pay, mix),
         "exploitability_in_population": (50.0 * member_exploitability(pay)).tolist(),
         "crossplay": {k: result.meta.get(k) for k in ("task", "action_space", "games_per_pair", "seed", "scenario", "competitors")},
+        # what the games held: per competitor over all its pairs, and per pair from the first one's side
+        "content": {"competitors": by_competitor(result.labels, result.content), "pairs": result.content},
     }
 
 
@@ -121,10 +124,17 @@ def format_table(report: dict):
 
     e, bt = report["elo"], report["bradley_terry"]
     table = Table(title=f"ratings on {report['crossplay']['task']}: Elo K={e['k']:g} over {e['rounds']} rounds ({e['games']} games); BT with 95 % profile-likelihood intervals")
-    for col in ("competitor", "Elo", "Bradley-Terry [95 %]", "avg win rate", "Nash weight", "exploitability in population (pp)"):
+    cols = ("competitor", "Elo", "Bradley-Terry [95 %]", "avg win rate", "Nash weight", "exploitability in population (pp)",
+            "touches/game (opp.)", "rally steps", "serving W/D/L", "receiving W/D/L")
+    for col in cols:
         table.add_column(col, justify="left" if col == "competitor" else "right")
+    content = report.get("content", {}).get("competitors") or [None] * len(report["labels"])
     for i, lab in enumerate(report["labels"]):
         avg = report["average_win_rate"][i]
+        c = content[i]
+        played = ("-",) * 4 if c is None else (
+            f"{c['touches']:.2f} ({c['opponent_touches']:.2f})", f"{c['rally_steps']:.0f}",
+            "/".join(map(str, c["serve_wdl"])), "/".join(map(str, c["receive_wdl"])))
         table.add_row(
             lab,
             f"{e['ratings'][i]:.0f}",
@@ -132,6 +142,7 @@ def format_table(report: dict):
             "n/a" if avg is None else f"{avg:.3f}",
             f"{report['nash'][i]:.3f}",
             f"{report['exploitability_in_population'][i]:.1f}",
+            *played,
         )
     return table
 

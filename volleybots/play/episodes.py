@@ -61,8 +61,12 @@ def collect(env, policy, td, steps: int):
     return torch.stack(out, dim=1), td
 
 
-def finished_stats(batch) -> dict[str, float]:
-    """Means of the statistics of the episodes that ended in ``batch`` (NaN when none did)."""
+def finished_stats(batch, team: int | None = None) -> dict[str, float]:
+    """Means of the statistics of the episodes that ended in ``batch`` (NaN when none did).
+
+    ``team=0`` (a seat whose learner plays team 0): ``return`` and ``r_*`` are that team's (a
+    competitive task's ``*_team0`` statistics) and the all-drone means move to ``*_all``; on a match
+    the all-drone ``r_win_or_lose`` is 0 by construction, since one team's win is the other's loss."""
     nxt = batch["next"]
     done = nxt["done"].reshape(-1)
     n = int(done.sum())
@@ -70,6 +74,11 @@ def finished_stats(batch) -> dict[str, float]:
     for k in nxt["stats"].keys():
         v = nxt["stats", k].reshape(-1)[done]
         out[k] = float(v.mean()) if n else math.nan
+    suffix = f"_team{team}"
+    if team is not None:
+        for base in [k for k in out if k == "return" or k.startswith("r_")]:
+            if base + suffix in out:
+                out[f"{base}_all"], out[base] = out[base], out.pop(base + suffix)
     return out
 
 

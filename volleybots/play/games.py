@@ -12,6 +12,12 @@ generator)``: ``tasks.multi.TeamPolicies`` gives it only its team's agents, mirr
 population competitor draws its member per env when that env's episode starts. A game's random
 numbers come from ``seed`` alone (torch's global generator is forked, so the caller's state is left
 as it was): the same call gives the same games whatever ran before it.
+
+Besides the results, a ``Games`` keeps every game's content from the episode statistics the match
+task already reports: the touches of each team, the rally's length in steps, who served, and the
+fault that ended it. ``Games.content()`` sums them up (means per side, ending faults per team, W/D/L
+with A serving and receiving apart), so that a table shows whether the players play volleyball or
+win on the other side's serve faults.
 """
 
 from __future__ import annotations
@@ -40,7 +46,42 @@ class Games:
     wdl: np.ndarray  # [2, 3] int: A on team 0 / on team 1 -> wins, draws, losses
     outcomes: str  # one letter of OUTCOMES per game, in play order
     faults: np.ndarray = field(default_factory=lambda: np.zeros((2, len(Referee.FAULTS)), dtype=int))  # [A, B] x fault: the faults that lost games
-    served: int = 0  # games in which A served
+    side: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))  # [games] A's team in each game
+    a_served: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))  # [games] A served
+    touches: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=int))  # [games, 2] touches of A, of B
+    steps: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))  # [games] rally length in control steps
+
+    @property
+    def served(self) -> int:
+        """Games in which A served."""
+        return int(self.a_served.sum())
+
+    def serve_wdl(self) -> np.ndarray:
+        """[2, 3] wins, draws, losses from A's side: the games A served, the games A received."""
+        out = np.zeros((2, 3), dtype=int)
+        for o, s in zip(self.outcomes, self.a_served):
+            out[0 if s else 1, OUTCOMES.index(o)] += 1
+        return out
+
+    def content(self) -> dict:
+        """What the games held, from A's side: touches per team and rally length (means overall and
+        per side, A on team 0 / team 1), the faults that ended them per team, W/D/L serving and receiving."""
+        rally = self.touches.sum(1)
+        per_side = [self.side == s for s in (0, 1)]
+        serve, receive = self.serve_wdl().tolist()
+        return {
+            "games": len(self.outcomes),
+            "touches": _mean(self.touches),
+            "touches_per_side": [_mean(self.touches[m]) for m in per_side],
+            "rally_steps": _mean(self.steps),
+            "rally_steps_per_side": [_mean(self.steps[m]) for m in per_side],
+            "rally_touches": _mean(rally),
+            "rally_touches_max": int(rally.max()) if rally.size else 0,
+            "games_3plus_touches": int((rally >= 3).sum()),
+            "faults": {team: {f: int(n) for f, n in zip(Referee.FAULTS, row) if n} for team, row in zip("AB", self.faults)},
+            "serve_wdl": serve,
+            "receive_wdl": receive,
+        }
 
     @property
     def total(self) -> np.ndarray:
@@ -50,6 +91,14 @@ class Games:
     @property
     def games(self) -> int:
         return int(self.wdl.sum())
+
+
+def _mean(a: np.ndarray):
+    """Mean over games (axis 0): a float, a list per team, or None when there is no game."""
+    if len(a) == 0:
+        return None if a.ndim == 1 else [None] * a.shape[1]
+    m = a.mean(0)
+    return float(m) if np.ndim(m) == 0 else [float(x) for x in m]
 
 
 def check_games(games: int) -> int:
@@ -94,7 +143,7 @@ def play_games(cfg, a, b, games: int, seed: int = 0, batch: int = DEFAULT_BATCH,
     wdl = np.zeros((2, 3), dtype=int)
     faults = np.zeros((2, len(Referee.FAULTS)), dtype=int)
     outcomes: list[str] = []
-    a_served = 0
+    side_of, served, touches, steps = [], [], [], []
     per_side = (batch_sizes(games - games // 2, batch), batch_sizes(games // 2, batch) if games > 1 else [])
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(seed)
@@ -104,13 +153,17 @@ def play_games(cfg, a, b, games: int, seed: int = 0, batch: int = DEFAULT_BATCH,
             for side, player in enumerate(sides):
                 if k >= len(per_side[side]):
                     continue
-                for o, reason, served in player.play(per_side[side][k]):
+                for o, reason, a_served, hits, length in player.play(per_side[side][k]):
                     wdl[side, OUTCOMES.index(o)] += 1
-                    a_served += served
                     if o != "D":
                         faults[0 if o == "L" else 1, reason] += 1  # a lost game is the loser's fault
                     outcomes.append(o)
-    return Games(wdl, "".join(outcomes), faults, a_served)
+                    side_of.append(side)
+                    served.append(a_served)
+                    touches.append(hits)
+                    steps.append(length)
+    return Games(wdl, "".join(outcomes), faults, np.array(side_of, dtype=int), np.array(served, dtype=bool),
+                 np.array(touches, dtype=int).reshape(-1, 2), np.array(steps, dtype=int))
 
 
 def head_to_head(cfg, a, b, games: int, seed: int, deterministic: bool = False) -> dict[str, int]:
@@ -129,8 +182,14 @@ class _Side:
         pa, pb = (c.team_policy(self.env, deterministic, gen) for c in (a, b))
         self.policy = TeamPolicies(self.env, (pa, pb) if side == 0 else (pb, pa))
 
-    def play(self, size: int) -> list[tuple[str, int, bool]]:
-        """(outcome from A's side, index of the ending fault or -1, whether A served) for ``size`` games."""
+    def play(self, size: int) -> list[tuple[str, int, bool, tuple[int, int], int]]:
+        """(outcome from A's side, index of the ending fault or -1, whether A served, touches of A and
+        of B, rally steps) for ``size`` games."""
         res = run_episodes(self.env, self.policy)
-        winner, reason, serve = (res[k][:size].round().long().tolist() for k in ("winner", "reason", "serve_team"))
-        return [("D" if w < 0 else "W" if w == self.side else "L", r, s == self.side) for w, r, s in zip(winner, reason, serve)]
+        keys = ("winner", "reason", "serve_team", "hits_team0", "hits_team1", "episode_len")
+        winner, reason, serve, h0, h1, length = (res[k][:size].round().long().tolist() for k in keys)
+        a = self.side
+        return [
+            ("D" if w < 0 else "W" if w == a else "L", r, s == a, (t0, t1) if a == 0 else (t1, t0), n)
+            for w, r, s, t0, t1, n in zip(winner, reason, serve, h0, h1, length)
+        ]

@@ -29,6 +29,7 @@ class AllAgents:
     """The learner drives every drone and learns from all of them."""
 
     yardstick = None  # a competitor the evaluations play on team 1 (None: the learner plays every drone)
+    team = None  # the team whose return and reward terms metrics.csv logs (None: every drone's mean)
 
     def spec(self, env) -> AgentSpec:
         return AgentSpec.of(env)
@@ -57,6 +58,8 @@ class SelfPlay(AllAgents):
     """One learner for a team plays both teams; each team's samples train it (mirrored views), as
     2N envs of one team each, so a centralised critic sees its own team."""
 
+    team = 0  # both teams are the learner; team 0's figures, since both teams' together cancel out
+
     def __init__(self, yardstick=None):
         self.yardstick = yardstick
 
@@ -70,6 +73,8 @@ class SelfPlay(AllAgents):
 class Versus(AllAgents):
     """The learner plays team 0 against a frozen ``Competitor`` on team 1 (the sides are mirror images,
     so a learner always on team 0 loses nothing: serves are drawn at random)."""
+
+    team = 0  # the learner's
 
     def __init__(self, opponent, deterministic: bool = False, seed: int = 0, yardstick=None):
         self.opponent, self.deterministic, self.yardstick = opponent, deterministic, yardstick

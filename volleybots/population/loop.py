@@ -28,6 +28,7 @@ import json
 import math
 import shutil
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -42,16 +43,20 @@ from volleybots.play.seats import SelfPlay, Versus
 from volleybots.policies import BUILTIN, Competitor, checkpoint_member, member_path, population_members, resolve_competitor
 from volleybots.policies.competitors import POPULATION_DIR
 from volleybots.population.clone import CLONE, clone_member, make_clone, needs_clone
+from volleybots.population.final import evaluate_mixture, log_final_eval
 from volleybots.population.payoffs import PayoffTable, plot, write_atomic
 from volleybots.population.solvers import SOLVERS
+from volleybots.replay import write_curves
 from volleybots.runs import CKPT_FORMAT, RunDir, check_writable, locked, read_checkpoint
 from volleybots.train import RESUME_KEYS as TRAIN_RESUME_KEYS
 from volleybots.train import Trainer, resume_config
 from volleybots.train.wandb import WandbLogger
+from volleybots.train.progress import hms
 from volleybots.version import __version__
 
 ITERATION_SEED = 1_000  # iteration i runs with seed + i * ITERATION_SEED
 GAMES_SEED = 500_000  # payoff games of member k against j use seed + GAMES_SEED + 1000 k + j
+SPLIT = ("oracle_training", "payoff_games", "evaluations")  # the parts of a run's wall time it reports
 
 
 @dataclass
@@ -139,14 +144,19 @@ class PopulationLoop:
     def fit(self) -> dict:
         self.dir.mkdir(parents=True, exist_ok=True)
         t0 = time.perf_counter()
-        wall0 = self.metas()[-1]["wall_time"] if self.metas() else 0.0
-        wall = lambda: wall0 + time.perf_counter() - t0  # noqa: E731
+        metas = self.metas()
+        wall0 = metas[-1]["wall_time"] if metas else 0.0
+        self._wall = wall = lambda: wall0 + time.perf_counter() - t0  # noqa: E731
+        # where the wall time goes, summed over the run (a resumed run continues its last record)
+        done = (metas[-1].get("wall_time_split") or {}) if metas else {}
+        self.split = {k: float(done.get(k, 0.0)) for k in SPLIT}
         if self.cfg.logger == "wandb":  # one W&B run over all iterations, continued by a resume
-            self.wandb = WandbLogger(self.cfg, self.run.path, resume=bool(self.metas() or self.run.periodic_checkpoints()))
+            self.wandb = WandbLogger(self.cfg, self.run.path, resume=bool(metas or self.run.periodic_checkpoints()))
         seeds = list(self.m.seed_members)
         self.clone = make_clone(self.cfg, self.run.path) if needs_clone(self.m) else None  # once per run, then reused
         if seeds and not self.metas():
-            self._seed_population(seeds)
+            with self._timed("payoff_games"):
+                self._seed_population(seeds)
             self._solve_and_record(0, frames=0, updates=0, wall=wall(), oracle=None)
         while True:
             metas = self.metas()
@@ -157,11 +167,23 @@ class PopulationLoop:
                 break
             k = len(seeds) + i - 1
             if not member_path(self.run.path, k).is_file():
-                self._oracle(i, k, frames, updates, wall())
+                with self._timed("oracle_training"):
+                    evals = self._oracle(i, k, frames, updates, wall())
+                self.split["oracle_training"] -= evals  # the oracle's periodic evaluations are counted apart
+                self.split["evaluations"] += evals
             member = read_checkpoint(member_path(self.run.path, k))
-            self._play_payoffs()
+            with self._timed("payoff_games"):
+                self._play_payoffs()
             self._solve_and_record(i, int(member["frames"]), int(member["iteration"]), wall(), member["oracle"])
-        return self._finish(wall())
+        return self._finish()
+
+    @contextmanager
+    def _timed(self, part: str):
+        t = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.split[part] += time.perf_counter() - t
 
     def _seed_population(self, seeds: list[str]) -> None:
         """Members 0..s-1: built-in players as records, trained policies as copies of their checkpoint
@@ -211,7 +233,7 @@ class PopulationLoop:
         mixture = SOLVERS[self.m.solver](table.matrix())
         self._append_meta({
             "iteration": i, "members": table.labels, "solver": self.m.solver, "mixture": [float(x) for x in mixture],
-            "frames": frames, "updates": updates, "wall_time": wall, "oracle": oracle,
+            "frames": frames, "updates": updates, "wall_time": wall, "oracle": oracle, "wall_time_split": dict(self.split),
         })
         plot(table, mixture, self.run.path / "payoffs.png", f"{self.m.name} on {self.cfg.task.name}: iteration {i}")
 
@@ -231,8 +253,9 @@ class PopulationLoop:
             data["total_frames"] = min(self.cfg.total_frames, frames + self.m.max_updates * per_batch)
         return validate(data)
 
-    def _oracle(self, i: int, k: int, frames: int, updates: int, wall: float) -> None:
-        """Train iteration ``i``'s learner (resuming its checkpoint if one exists) and save it as member ``k``."""
+    def _oracle(self, i: int, k: int, frames: int, updates: int, wall: float) -> float:
+        """Train iteration ``i``'s learner (resuming its checkpoint if one exists) and save it as member
+        ``k``; returns the seconds its periodic evaluations took."""
         cfg, m = self._iteration_cfg(i, frames), self.m
         yardstick = resolve_competitor(m.eval_opponent)
         if m.self_play:
@@ -252,11 +275,26 @@ class PopulationLoop:
             learned = [p for p in population_members(self.run.path)[: k] if "algo" in read_checkpoint(p)]
             if m.learner_init == "last" and learned:
                 tr.algo.load_state_dict(read_checkpoint(learned[-1], device=tr.env.device)["algo"])
-        tr.train_loop(stop=stop, row_extra={"pop_iteration": i})
+        tr.train_loop(stop=stop, row_extra={"pop_iteration": i}, note=self._note(i, stop))
         state = tr.state()
         label = "sp" if m.self_play else f"br{i}"
         state.update(label=label, oracle=(stop.summary() if stop else {"updates": tr.iteration - updates, "converged": None}))
         self._save_member(k, state)
+        return tr.eval_wall
+
+    def _note(self, i: int, stop):
+        """The progress line's note: the iteration, the oracle's updates and the whole run's ETA (the
+        frames left at the oracle's rate; payoff games and evaluations come on top)."""
+        cfg = self.cfg
+
+        def note(frames: int, fps: float) -> str:
+            upd = f", oracle update {stop.updates}/{self.m.max_updates}" if stop is not None else ""
+            left = (cfg.total_frames - frames) / max(fps, 1e-9)
+            if cfg.time_limit:
+                left = min(left, cfg.time_limit - self._wall())
+            return f"iteration {i}/{self.m.iterations}{upd}, run ETA {hms(left)}"
+
+        return note
 
     def _checkpoint_of(self, i: int) -> Path | None:
         """The newest periodic checkpoint written during iteration ``i`` (None: it starts afresh)."""
@@ -267,7 +305,7 @@ class PopulationLoop:
         return None
 
     # ---------------------------------------------------------------------------- the end
-    def _finish(self, wall: float) -> dict:
+    def _finish(self) -> dict:
         metas = self.metas()
         last = metas[-1] if metas else {}
         paths = population_members(self.run.path)
@@ -277,6 +315,15 @@ class PopulationLoop:
             shutil.copyfile(learned[-1], self.run.final_path.with_suffix(".tmp"))
             self.run.final_path.with_suffix(".tmp").replace(self.run.final_path)
         frames = int(last.get("frames", 0))
+        final_eval = None
+        if last.get("mixture"):
+            with self._timed("evaluations"):
+                final_eval = evaluate_mixture(self.cfg, self._population(last["mixture"]), self.m.eval_opponent)
+            log_final_eval(self.run, final_eval, frames, int(last.get("updates", 0)), self._wall())
+        if self.run.metrics_path.is_file():
+            write_curves(self.run.metrics_path, self.run.curves_path)
+        wall = self._wall()
+        split = {**{k: round(v, 3) for k, v in self.split.items()}, "other": round(max(wall - sum(self.split.values()), 0.0), 3)}
         summary = {
             "task": self.cfg.task.name,
             "algo": self.m.name,
@@ -287,7 +334,9 @@ class PopulationLoop:
             "iterations": sum(1 for m in metas if m["iteration"] >= 1),
             "wall_time_s": wall,
             "frames_per_s": frames / max(wall, 1e-9),
+            "wall_time_split": split,  # seconds; other: solving, plots, files, and time lost to a kill before a resume
             "metric": "win",
+            **({"final_eval": final_eval} if final_eval is not None else {}),
             "population": {"members": last.get("members", []), "mixture": last.get("mixture", []), "solver": self.m.solver},
             "oracles": [m["oracle"] for m in metas if m["iteration"] >= 1],
             "version": __version__,

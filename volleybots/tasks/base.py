@@ -139,7 +139,12 @@ class VolleyEnv(EnvBase):
         self.referee = Referee(self.referee_config(), num_envs, list(self.teams), self.device)
         self.rng = torch.Generator(device=self.device)
         self.t = torch.zeros(num_envs, dtype=torch.long, device=self.device)
-        self._stats_keys = ("return", "episode_len", self.metric, *self.extra_stats, *(f"r_{k}" for k in self.reward_terms), "nonfinite_action")
+        # a competitive task's all-drone means cancel out (team 0's +100 for a win is team 1's -100), so
+        # it also keeps team 0's: what a learner on team 0 (a Versus or self-play seat) is paid
+        self._team0 = torch.tensor([i for i, t in enumerate(self.teams) if t == 0], device=self.device) if self.competitive else None
+        team0 = ("return_team0", *(f"r_{k}_team0" for k in self.reward_terms)) if self.competitive else ()
+        # nonfinite_action stays last: the step reads it as the stats tensor's last column
+        self._stats_keys = ("return", "episode_len", self.metric, *self.extra_stats, *(f"r_{k}" for k in self.reward_terms), *team0, "nonfinite_action")
         self._stats = {k: torch.zeros(num_envs, device=self.device) for k in self._stats_keys}
         self._warned_nonfinite = False
         self._make_specs()
@@ -309,7 +314,11 @@ class VolleyEnv(EnvBase):
                 val = torch.zeros_like(val)
             reward = reward + val
             self._stats[f"r_{name}"] = self._stats[f"r_{name}"] + val.mean(1)
+            if self._team0 is not None:
+                self._stats[f"r_{name}_team0"] = self._stats[f"r_{name}_team0"] + val[:, self._team0].mean(1)
         self._stats["return"] = self._stats["return"] + reward.mean(1)
+        if self._team0 is not None:
+            self._stats["return_team0"] = self._stats["return_team0"] + reward[:, self._team0].mean(1)
         self._stats["episode_len"] = self._stats["episode_len"] + 1.0
         for k, v in res.stats.items():
             # a copy, never the task's own buffer: aliased inputs would recompile the reset graph

@@ -32,6 +32,7 @@ from volleybots.play.seats import default_seat
 from volleybots.replay import write_curves
 from volleybots.runs import CKPT_FORMAT, MetricsLog, RunDir, load_algo_state, read_checkpoint
 from volleybots.train.init import apply_init
+from volleybots.train.progress import Progress
 from volleybots.train.wandb import WandbLogger
 from volleybots.version import __version__
 
@@ -74,6 +75,7 @@ class Trainer:
         self.frames_per_batch = self.env.num_envs * self.algo.steps_per_batch
         self.metric = self.env.metric
         self._eval_env = None
+        self.eval_wall = 0.0  # seconds spent in evaluations (a population run's wall-time split counts them apart)
 
     # ---------------------------------------------------------------------- checkpoint state
     def _rng_state(self) -> dict:
@@ -159,9 +161,13 @@ class Trainer:
         summary = getattr(stop, "summary", None)
         return self.finish({"stop": summary()} if summary else None)
 
-    def train_loop(self, stop=None, row_extra=None) -> None:
+    def train_loop(self, stop=None, row_extra=None, note=None) -> None:
         """Collect and update until ``total_frames`` (or ``time_limit``), or until ``stop(row)`` says so
-        after a batch; ``row_extra`` adds columns to every metrics row."""
+        after a batch; ``row_extra`` adds columns to every metrics row; ``note(frames, fps)`` adds the
+        caller's words to the progress line.
+
+        ``time_limit`` is kept by not starting a batch that would end past it, judged by the last
+        batch's duration (batches of a minute or more would otherwise overshoot by one)."""
         cfg, run = self.cfg, self.run
         resumed = self.frames > 0
         self.metrics = MetricsLog(run.metrics_path, keep_until_frames=self.frames if resumed else None)
@@ -175,15 +181,16 @@ class Trainer:
         next_ck = _next_multiple(self.frames, ck_every)
         next_ev = _next_multiple(self.frames, ev_every)
         last: dict = {}
-        with _progress(cfg.progress, cfg.total_frames, self.frames) as bar:
-            while self.frames < cfg.total_frames and not (cfg.time_limit and self._wall() >= cfg.time_limit):
+        last_dt = 0.0
+        with Progress(cfg.progress, cfg.total_frames, self.frames, cfg.time_limit) as bar:
+            while self.frames < cfg.total_frames and not (cfg.time_limit and self._wall() + last_dt > cfg.time_limit):
                 t_batch = time.perf_counter()
                 batch, td = collect(self.env, policy, td, self.algo.steps_per_batch)
                 self.frames += self.frames_per_batch
                 self.iteration += 1
-                stats = finished_stats(batch)
+                stats = finished_stats(batch, self.seat.team)
                 losses = self.algo.update(self.seat.view(self.env, batch))
-                dt = time.perf_counter() - t_batch
+                dt = last_dt = time.perf_counter() - t_batch  # also the next batch's estimate for time_limit
                 row = {"phase": "train", "frames": self.frames, "iteration": self.iteration, "wall_time": self._wall(), "fps": self.frames_per_batch / dt}
                 row.update(row_extra or {})
                 row.update(stats)
@@ -194,9 +201,9 @@ class Trainer:
                     wandb.log(row)
                 if not math.isnan(stats.get(self.metric, math.nan)):
                     last = stats
-                bar(self.frames, row["fps"], self.metric, last.get(self.metric))
                 # the caller's counters see this batch before a checkpoint records them
                 stopping = stop is not None and stop(row)
+                bar(self.frames, row["fps"], self.metric, last.get(self.metric), row["wall_time"], note(self.frames, row["fps"]) if note else "")
                 if stopping:
                     break
                 if ck_every and self.frames >= next_ck and self.frames < cfg.total_frames:
@@ -241,7 +248,9 @@ class Trainer:
         return summary
 
     def _evaluate_and_log(self, wandb) -> dict:
+        t = time.perf_counter()
         ev = self.evaluate()
+        self.eval_wall += time.perf_counter() - t
         self._log_eval(ev, wandb)
         if self.cfg.checkpoint.best and self._best() is ev:  # a new best: it beats every earlier one
             self.run.save_checkpoint(self.state(), best=True)
@@ -278,35 +287,3 @@ class Trainer:
 
 def _next_multiple(frames: int, every: int) -> int:
     return (frames // every + 1) * every if every else sys.maxsize
-
-
-class _progress:
-    """A rich progress bar (frames, frames/s, the task metric of the last finished episodes)."""
-
-    def __init__(self, enabled: bool, total: int, start: int):
-        self.enabled, self.total, self.start = enabled, total, start
-
-    def __enter__(self):
-        if not self.enabled:
-            return lambda *a: None
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-
-        self.p = Progress(
-            TextColumn("[bold]train"), BarColumn(), MofNCompleteColumn(), TextColumn("frames"),
-            TimeElapsedColumn(), TimeRemainingColumn(), TextColumn("{task.fields[info]}"),
-        )
-        self.p.__enter__()
-        self.task = self.p.add_task("train", total=self.total, completed=self.start, info="")
-
-        def update(frames, fps, metric, value):
-            shown = "-" if value is None or math.isnan(value) else f"{value:.3g}"
-            self.p.update(self.task, completed=min(frames, self.total), info=f"{fps:,.0f} frames/s  {metric} {shown}")
-
-        return update
-
-    def __exit__(self, *exc):
-        if self.enabled:
-            self.p.__exit__(*exc)
-        return False
-
-

@@ -1,0 +1,94 @@
+"""What a run shows while it trains (``progress=true``).
+
+In a terminal: a rich progress bar (frames, elapsed time, ETA, frames/s, the task metric of the last
+finished episodes). Without one (a log file, ``nohup``, a batch job) a bar prints nothing useful, so
+a plain line goes to stderr instead, after the first batch and then at most every ``every`` seconds
+(a batch of a minute or more gets a line of its own)::
+
+    train 32,768/1,000,000 frames (3.3 %)  2,905 frames/s  elapsed 0:00:11  ETA 0:05:33  win 0.42  | iteration 2/5, oracle update 4/300
+
+The ETA is the remaining frames over the rate since this loop started, or the time left to
+``time_limit`` if that comes first. A caller may add a note after ``|`` (the population loop: its
+iteration and the oracle's updates).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+PLAIN_EVERY_S = 10.0  # at most one plain line per this many seconds: enough to follow, few enough to read
+
+
+def hms(seconds: float) -> str:
+    if seconds is None or not math.isfinite(seconds):
+        return "-"
+    s = int(round(max(seconds, 0.0)))
+    return f"{s // 3600}:{s % 3600 // 60:02d}:{s % 60:02d}"
+
+
+class Progress:
+    """A context manager; calling it after each batch with (frames, frames/s, metric name, value, wall
+    time, note) shows the run's state."""
+
+    def __init__(self, enabled: bool, total: int, start: int, time_limit: float = 0.0, label: str = "train",
+                 stream=None, every: float = PLAIN_EVERY_S):
+        self.enabled, self.total, self.start, self.time_limit, self.label = enabled, total, start, time_limit, label
+        self.stream = stream if stream is not None else sys.stderr
+        self.every = every
+        self.plain = enabled and not _is_tty(self.stream)
+        self._t0 = time.perf_counter()
+        self._last_line = -math.inf
+
+    def eta(self, frames: int, wall: float) -> float:
+        elapsed = time.perf_counter() - self._t0
+        done = frames - self.start
+        eta = (self.total - frames) * elapsed / done if done > 0 else math.inf
+        if self.time_limit:
+            eta = min(eta, self.time_limit - wall)
+        return max(eta, 0.0)
+
+    def line(self, frames: int, fps: float, metric: str, value, wall: float, note: str = "") -> str:
+        shown = "-" if value is None or math.isnan(value) else f"{value:.3g}"
+        pct = 100.0 * frames / self.total if self.total else 100.0
+        text = (f"{self.label} {frames:,}/{self.total:,} frames ({pct:.1f} %)  {fps:,.0f} frames/s  "
+                f"elapsed {hms(wall)}  ETA {hms(self.eta(frames, wall))}  {metric} {shown}")
+        return f"{text}  | {note}" if note else text
+
+    def __enter__(self):
+        if self.enabled and not self.plain:
+            from rich.progress import BarColumn, MofNCompleteColumn, Progress as Bar, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+            self.bar = Bar(
+                TextColumn(f"[bold]{self.label}"), BarColumn(), MofNCompleteColumn(), TextColumn("frames"),
+                TimeElapsedColumn(), TimeRemainingColumn(), TextColumn("{task.fields[info]}"),
+            )
+            self.bar.__enter__()
+            self.task = self.bar.add_task(self.label, total=self.total, completed=self.start, info="")
+        return self
+
+    def __call__(self, frames: int, fps: float, metric: str, value, wall: float, note: str = "") -> None:
+        if not self.enabled:
+            return
+        if self.plain:
+            now = time.perf_counter()
+            if now - self._last_line >= self.every or frames >= self.total:
+                self._last_line = now
+                print(self.line(frames, fps, metric, value, wall, note), file=self.stream, flush=True)
+            return
+        shown = "-" if value is None or math.isnan(value) else f"{value:.3g}"
+        info = f"{fps:,.0f} frames/s  {metric} {shown}" + (f"  {note}" if note else "")
+        self.bar.update(self.task, completed=min(frames, self.total), info=info)
+
+    def __exit__(self, *exc):
+        if self.enabled and not self.plain:
+            self.bar.__exit__(*exc)
+        return False
+
+
+def _is_tty(stream) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):
+        return False
