@@ -69,9 +69,6 @@ def validate(cfg) -> DictConfig:
         if importlib.util.find_spec("wandb") is None:
             raise ConfigError("logger=wandb needs the wandb package: pip install 'volleybots[wandb]' (or use logger=csv)")
     algo_cls.check(typed_algo, TASKS[typed_task.name], env)
-    if typed_algo.get("learner_init") == "bc" and rest.init is not None:
-        raise ConfigError(f"init={rest.init!r} and algo.learner_init=bc both say where learners start; give one "
-                          f"(algo.learner_init=scratch with init=, or no init=)")
     if rest.opponent is not None:
         _check_opponent(rest, TASKS[typed_task.name], algo_cls)
     elif getattr(algo_cls, "needs_seat_on_matches", False) and class_attr(TASKS[typed_task.name], "competitive"):

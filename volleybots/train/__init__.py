@@ -18,7 +18,12 @@ from volleybots.train.trainer import EVAL_SEED_OFFSET, RESUME_KEYS, Trainer
 
 
 def preflight(cfg) -> None:
-    """Everything a start checks before writing: memory, the files the config names, ``init=``."""
+    """Everything a start checks before writing: memory, the files the config names, ``init=``.
+
+    (A population run gives each learner ``init=`` its clone itself, in configs that skip this.)"""
+    if cfg.algo.get("learner_init") == "bc" and cfg.get("init") is not None:
+        raise ConfigError(f"init={cfg.init!r} and algo.learner_init=bc both say where learners start; give one "
+                          f"(algo.learner_init=scratch with init=, or no init=)")
     check_memory(cfg)
     check_references(cfg)
     check_init(cfg)
