@@ -8,10 +8,11 @@ the symmetry of the court and is not played. Entries are added as members join, 
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np
+
+from volleybots.files import Fields, read_json, write_atomic
 
 
 class PayoffTable:
@@ -62,19 +63,14 @@ class PayoffTable:
 
     @classmethod
     def load(cls, path: Path) -> "PayoffTable":
+        """The table saved at ``path`` (empty if there is none); a damaged file is one line naming it."""
         path = Path(path)
         if not path.is_file():
             return cls()
-        data = json.loads(path.read_text())
-        return cls(data["members"], data)
-
-
-def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` so that a process killed meanwhile leaves the old file whole."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+        f = Fields(read_json(path, "payoff table"), f"payoff table {str(path)!r}")
+        labels = f.need("members", list)
+        n = len(labels)
+        return cls(labels, {k: f.counts(k, (n, n)) for k in ("wins", "draws", "losses")})
 
 
 def plot(table: PayoffTable, mixture, path: Path, title: str = "") -> None:
@@ -104,5 +100,7 @@ def plot(table: PayoffTable, mixture, path: Path, title: str = "") -> None:
     bx.set_title("meta-strategy", fontsize=8)
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        write_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=110), "the payoff plot")
+    finally:
+        plt.close(fig)

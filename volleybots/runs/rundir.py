@@ -18,6 +18,7 @@ from volleybots.runs.locks import InUseError, lock, make_dir, note, unlock
 from volleybots.runs.metrics import _is_number
 
 CKPT_FORMAT = 1
+POPULATION_DIR = "population"  # a population run's members, payoffs.json and meta.jsonl
 _CKPT = re.compile(r"ckpt_(\d+)\.pt$")
 
 
@@ -41,7 +42,11 @@ class RunDir:
         return any(p.exists() for p in (self.config_path, self.metrics_path, self.ckpt_dir, self.summary_path))
 
     def has_checkpoint(self) -> bool:
-        return bool(self.periodic_checkpoints()) or self.final_path.is_file()
+        """Whether the run holds trained work: a checkpoint, or a population member a learner trained."""
+        if self.periodic_checkpoints() or self.final_path.is_file():
+            return True
+        members = sorted((self.path / POPULATION_DIR).glob("member_*.pt"))
+        return any(_is_trained(p) for p in members)
 
     def checkpoint_stamp(self) -> tuple:
         """The checkpoints' names and modification times: a change means another process trained here."""
@@ -71,23 +76,33 @@ class RunDir:
         saying so on stderr; Hydra's records and user files stay."""
         rows = max(0, sum(1 for _ in self.metrics_path.open()) - 1) if self.metrics_path.is_file() else 0
         note(f"{self.path} held a run that wrote no checkpoint ({rows} metrics rows): starting it afresh")
-        stale = [self.config_path, self.metrics_path, self.summary_path, self.curves_path, *self.path.glob("eval_*.rrd")]
+        stale = [self.config_path, self.metrics_path, self.summary_path, self.curves_path, self.path / "payoffs.png", *self.path.glob("eval_*.rrd")]
         stale += list(self.ckpt_dir.glob("*.tmp")) if self.ckpt_dir.is_dir() else []
+        pop = self.path / POPULATION_DIR
+        if pop.is_dir():
+            # a population killed before its first checkpoint holds only seed members and their games:
+            # kept, they would silently become the new run's population whatever its seed_members say
+            note(f"{self.path} held a population ({len(list(pop.glob('member_*.pt')))} member file(s)) of that run: removed")
+            stale += [p for p in pop.iterdir() if p.is_file()]
         for p in stale:
             p.unlink(missing_ok=True)
-        if self.ckpt_dir.is_dir() and not any(self.ckpt_dir.iterdir()):
-            self.ckpt_dir.rmdir()
+        for d in (self.ckpt_dir, pop):
+            if d.is_dir() and not any(d.iterdir()):
+                d.rmdir()
 
     def load_config(self):
         """The run's validated config; a damaged or hand-broken config.yaml is one line naming it."""
         if not self.is_run():
             raise ConfigError(f"{self.path} is not a run directory (no config.yaml)")
         try:
-            data = OmegaConf.to_container(OmegaConf.load(self.config_path), resolve=True)
+            # not resolved: a run dir may come from someone else, and ``${oc.env:VAR}`` would fill in
+            # this machine's environment (then written in clear into the resumed run's files)
+            data = OmegaConf.to_container(OmegaConf.load(self.config_path), resolve=False)
         except Exception as e:  # noqa: BLE001 - YAML and OmegaConf errors alike: the file is damaged
             raise ConfigError(f"{self.config_path} is damaged ({' '.join(str(e).split())[:200]}); restore it or start a new run") from None
         if not isinstance(data, dict):
             raise ConfigError(f"{self.config_path} is damaged (not a mapping of config keys); restore it or start a new run")
+        refuse_interpolation(data, str(self.config_path))
         try:
             return validate(data)
         except ConfigError as e:
@@ -132,14 +147,6 @@ class RunDir:
         except ConfigError as e:
             raise ConfigError(f"{e}; move it out of {self.ckpt_dir} to use the run's other checkpoints") from None
 
-    def policy_checkpoint(self, what: str) -> Path:
-        """The checkpoint that stands for the run's policy: final.pt, else the latest; ``what`` names
-        the run in the error when there is none."""
-        ckpt = self.final_path if self.final_path.is_file() else self.latest_checkpoint()
-        if ckpt is None:
-            raise ConfigError(f"{what} has no checkpoint yet (checkpoints/ is empty)")
-        return ckpt
-
     def save_checkpoint(self, state: dict, final: bool = False, keep: int = 3, best: bool = False) -> Path:
         """A periodic checkpoint, ``final.pt`` or ``best.pt``. Only periodic and final ones are resumed
         from: ``best.pt`` is written at an evaluation, mid-episode, so it is a policy, not a clean cut."""
@@ -157,6 +164,25 @@ class RunDir:
         self.summary_path.write_text(json.dumps(summary, indent=2, default=float) + "\n")
 
 
+def refuse_interpolation(data, where: str, prefix: str = "") -> None:
+    """Refuse any ``${...}`` in a saved config (``data``: plain containers), naming the first key: a
+    saved config holds resolved values only, so one there was planted."""
+    items = data.items() if isinstance(data, dict) else enumerate(data) if isinstance(data, list) else ()
+    for k, v in items:
+        key = f"{prefix}[{k}]" if isinstance(data, list) else f"{prefix}{'.' if prefix else ''}{k}"
+        if isinstance(v, str) and "${" in v:
+            raise ConfigError(f"{where}: {key} holds an interpolation {v[:60]!r}; a saved config holds plain values only, "
+                              "so it was edited: restore the value or start a new run")
+        refuse_interpolation(v, where, key)
+
+
+def _is_trained(path: Path) -> bool:
+    try:
+        return "oracle" in read_checkpoint(path)  # a learner's member; seed members are copies or records
+    except ConfigError:
+        return True  # a damaged member is not cleared away silently: the run is refused instead
+
+
 def read_checkpoint(path, device="cpu") -> dict:
     """Load a checkpoint written by ``RunDir.save_checkpoint`` (``weights_only=True``)."""
     path = Path(path)
@@ -165,7 +191,8 @@ def read_checkpoint(path, device="cpu") -> dict:
     try:
         state = torch.load(path, map_location=device, weights_only=True)
     except Exception as e:  # noqa: BLE001 - any unreadable file is the same user error
-        raise ConfigError(f"{str(path)!r} is not a volleybots checkpoint ({type(e).__name__})") from None
+        raise ConfigError(f"{str(path)!r} is damaged or not a volleybots checkpoint ({type(e).__name__}: "
+                          f"{' '.join(str(e).split())[:120]})") from None
     if not isinstance(state, dict) or state.get("format") != CKPT_FORMAT:
         raise ConfigError(f"{str(path)!r} is not a volleybots checkpoint (format {CKPT_FORMAT} expected)")
     return state
