@@ -22,7 +22,7 @@ policies and population, checked against what the run says it holds), ``metrics`
 """
 
 from volleybots.runs.locks import (
-    LOCK_NAME, InUseError, check_writable, lock, locked, make_dir, memory_errors_as, note, unlock,
+    LOCK_NAME, InUseError, check_writable, lock, locked, make_dir, memory_errors_as, note, output_dir, reserve_file, unlock,
 )
 from volleybots.runs.metrics import MetricsLog, read_metrics, write_curves
 from volleybots.runs.rundir import (
@@ -35,5 +35,5 @@ from volleybots.runs.contents import (
 __all__ = [
     "CKPT_FORMAT", "LOCK_NAME", "META_FILE", "POPULATION_DIR", "Population", "is_population_run", "member_path", "population_members",
     "read_metas", "read_population", "refuse_interpolation", "run_policy_checkpoint", "InUseError", "MetricsLog", "RunDir", "check_writable", "claim_run_dir", "load_algo_state", "lock",
-    "locked", "make_dir", "memory_errors_as", "note", "read_checkpoint", "read_metrics", "unlock", "write_curves",
+    "locked", "make_dir", "memory_errors_as", "note", "output_dir", "reserve_file", "read_checkpoint", "read_metrics", "unlock", "write_curves",
 ]
