@@ -114,6 +114,10 @@ def _read_run(d: Path, stale_after: float, now: float) -> Run:
         config = yaml.safe_load(run.config_path.read_text())
     except yaml.YAMLError as e:
         return Run(d, "failed", f"config.yaml unreadable ({type(e).__name__})")
+    try:
+        run.load_config()  # wrong value types, unknown keys, planted interpolation: listed as failed, never grouped
+    except ConfigError as e:
+        return Run(d, "failed", f"config.yaml invalid ({str(e).replace(str(run.config_path) + ': ', '')})")
     if not run.summary_path.is_file():
         total = config.get("total_frames", "?")
         hint = f"; `volleybots train resume={d}` continues it" if any(run.ckpt_dir.glob("*.pt")) else ""

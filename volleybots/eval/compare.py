@@ -15,6 +15,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from pathlib import Path
+
 import numpy as np
 import torch
 from scipy import stats
@@ -89,8 +91,9 @@ def check_finite(metric: np.ndarray, who: str, name: str = "metric") -> None:
 
 def split(args) -> tuple[list[str], list[str]]:
     """Targets (no ``=``) and overrides (``key=value``) of a command line, in order."""
-    targets = [a for a in args if "=" not in a]
-    overrides = [a for a in args if "=" in a]
+    # a path whose name holds '=' (an existing run dir or checkpoint) is a target, not an override
+    targets = [a for a in args if "=" not in a or Path(a).exists()]
+    overrides = [a for a in args if a not in targets]
     if len(targets) < 2:
         raise ConfigError(f"eval compare needs a baseline and at least one target to compare with it, got {targets or 'none'}")
     return targets, overrides
