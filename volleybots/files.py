@@ -56,6 +56,14 @@ def write_json(path, data, what: str = "", indent: int = 1) -> Path:
     return write_atomic(path, json.dumps(data, indent=indent, default=float) + "\n", what)
 
 
+def exists(path) -> bool:
+    """Whether ``path`` exists; a name the OS cannot even look up (too long, invalid) does not."""
+    try:
+        return Path(path).exists()
+    except (OSError, ValueError):
+        return False
+
+
 def _one_line(e: Exception) -> str:
     return " ".join(str(getattr(e, "msg", None) or e).split())[:160]
 
@@ -145,4 +153,4 @@ class Fields:
         return [float(w) for w in v]
 
 
-__all__ = ["Fields", "read_json", "read_jsonl", "write_atomic", "write_json"]
+__all__ = ["Fields", "exists", "read_json", "read_jsonl", "write_atomic", "write_json"]

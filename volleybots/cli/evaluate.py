@@ -154,6 +154,8 @@ def replay(
     _refuse_flags(args, "--out FILE.rrd, --no-viewer, --help")
     if out is not None and out.suffix != ".rrd":
         raise ConfigError(f"--out {str(out)!r} must end in .rrd")
+    if out is not None and len(out.name.encode()) > 255:  # the limit of most file systems (NAME_MAX)
+        raise ConfigError(f"--out {out.name[:40]!r}... is too long for a file name ({len(out.name.encode())} bytes, at most 255)")
     if out is not None and (out.exists() or out.is_symlink()):
         raise ConfigError(f"--out {str(out)!r} exists; choose another file (replays never overwrite)")
     if out is not None:

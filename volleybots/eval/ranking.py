@@ -159,9 +159,9 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
     else:
         if rounds % 2:
             raise ConfigError(f"rounds={rounds} must be even: the games of every pair are played half on each side")
+        check_rounds(rounds, max(2, len(specs)))  # before the competitors load: rounds are the games per pair
         play = [a for a in args if a.partition("=")[0] not in ELO_OPTIONS] + [f"games={rounds}"]
         comps, specs, play_opts, cfg = setup(play, OPTIONS)
-        check_rounds(rounds, len(comps))
         task, sample = cfg.task.name, opts.get("sample", False)
     with output_dir(out, default_out(task, "elo")) as path:  # claimed and locked before any game
         if source is None:

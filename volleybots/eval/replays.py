@@ -19,7 +19,9 @@ def is_competitor_spec(arg: str) -> bool:
     from volleybots.policies import BUILTIN
 
     label, eq, value = arg.partition("=")
-    return not eq or value in BUILTIN or (bool(value) and Path(value).exists())
+    from volleybots.files import exists
+
+    return not eq or value in BUILTIN or (bool(value) and exists(value)) or exists(arg)
 
 
 def replay_match(args, out: Path | None, viewer: bool) -> tuple[dict, Path | None, list[str]]:

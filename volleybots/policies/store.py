@@ -27,6 +27,7 @@ from pathlib import Path
 import torch
 
 from volleybots.errors import ConfigError
+from volleybots.files import exists
 from volleybots.runs import RunDir, load_algo_state, read_checkpoint, refuse_interpolation, run_policy_checkpoint
 
 KINDS = ("builtin", "checkpoint", "run", "drills")
@@ -52,7 +53,7 @@ class Spec:
 def parse_spec(spec: str, builtins=("scripted", "random", "hierarchical"), what: str = "competitor") -> Spec:
     """Split ``[NAME=]TARGET`` and say what TARGET is; a missing file is one ``ConfigError`` line."""
     label, eq, target = str(spec).partition("=")
-    if not eq or Path(str(spec)).exists():  # a path whose name holds '=' is that path, not NAME=PATH
+    if not eq or exists(str(spec)):  # a path whose name holds '=' is that path, not NAME=PATH
         label, target = "", str(spec)
     allowed = f"a run dir, a checkpoint file, or one of: {', '.join(builtins)}"
     if not target.strip():
@@ -60,6 +61,8 @@ def parse_spec(spec: str, builtins=("scripted", "random", "hierarchical"), what:
     if target in builtins:
         return Spec(label, "builtin", target)
     path = Path(target)
+    if not exists(path):
+        raise ConfigError(f"{what} {target[:80]!r} does not exist; expected {allowed}")
     if path.is_file():
         return Spec(label, "drills" if path.suffix in (".yaml", ".yml") else "checkpoint", target)
     if path.is_dir():
