@@ -33,7 +33,8 @@ import numpy as np
 import yaml
 
 from volleybots.errors import ConfigError
-from volleybots.runs import RunDir, read_metrics
+from volleybots.files import write_atomic, write_json
+from volleybots.runs import RunDir, check_writable, make_dir, read_metrics
 
 CONFIDENCE = 0.95
 RESAMPLES = 10_000  # bootstrap resamples (seeds are few: this costs milliseconds)
@@ -378,8 +379,10 @@ def plot_curves(report: dict, out: Path) -> list[Path]:
         ax.grid(alpha=0.3)
         fig.tight_layout()
         path = out / f"curves_{task}.png"
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
+        try:
+            write_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=120), "the report's curves")
+        finally:
+            plt.close(fig)
         files.append(path)
     return files
 
@@ -388,6 +391,7 @@ def check_out(out: Path) -> None:
     """Refuse an output folder that already holds a report (reports are never overwritten)."""
     if out.exists() and not out.is_dir():
         raise ConfigError(f"--out {str(out)!r} is a file; give a folder")
+    check_writable(out, "--out")
     taken = [p.name for p in out.glob("*") if p.name in OUTPUT_FILES or (p.name.startswith("curves_") and p.suffix == ".png")] if out.is_dir() else []
     if taken:
         raise ConfigError(f"--out {str(out)!r} already holds a report ({', '.join(sorted(taken))}); choose another folder")
@@ -395,9 +399,9 @@ def check_out(out: Path) -> None:
 
 def write_report(report: dict, out: Path) -> list[Path]:
     """report.md, report.json and curves_<task>.png in ``out``."""
-    out.mkdir(parents=True, exist_ok=True)
+    make_dir(out, "--out")
     files = plot_curves(report, out)
     md = format_markdown(report) + "\n" + "".join(f"![{p.stem}]({p.name})\n" for p in files)
-    (out / "report.md").write_text(md)
-    (out / "report.json").write_text(json.dumps(report, indent=2) + "\n")
+    write_atomic(out / "report.md", md, "the report")
+    write_json(out / "report.json", report, "the report", indent=2)
     return [out / "report.md", out / "report.json", *files]

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import json
 import math
-import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -161,8 +160,7 @@ class PopulationLoop:
                     record["drills"] = dict(src["drills"])
                 self._save_member(k, record)
             else:
-                shutil.copyfile(src["path"], path.with_suffix(".tmp"))
-                path.with_suffix(".tmp").replace(path)
+                write_atomic(path, Path(src["path"]).read_bytes(), "a population member")
         self._play_payoffs()
 
     def _population(self, mixture) -> Competitor:
@@ -247,8 +245,7 @@ class PopulationLoop:
         learned = [p for p in paths if "algo" in read_checkpoint(p)]
         if learned:
             self.run.ckpt_dir.mkdir(exist_ok=True)
-            shutil.copyfile(learned[-1], self.run.final_path.with_suffix(".tmp"))
-            self.run.final_path.with_suffix(".tmp").replace(self.run.final_path)
+            write_atomic(self.run.final_path, learned[-1].read_bytes(), "the final checkpoint")
         frames = int(last.get("frames", 0))
         summary = {
             "task": self.cfg.task.name,

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import csv
 import itertools
-import json
-import os
 import re
 from pathlib import Path
 
@@ -14,6 +12,7 @@ from omegaconf import OmegaConf
 
 from volleybots.config import to_dict, validate
 from volleybots.errors import ConfigError
+from volleybots.files import write_atomic, write_json
 from volleybots.runs.locks import InUseError, lock, make_dir, note, unlock
 from volleybots.runs.metrics import _is_number
 
@@ -67,9 +66,7 @@ class RunDir:
 
     def write_config(self, cfg) -> None:
         """config.yaml, replaced at once (a reader never sees half of it)."""
-        tmp = self.config_path.with_suffix(".yaml.tmp")
-        tmp.write_text(OmegaConf.to_yaml(OmegaConf.create(to_dict(cfg))))
-        os.replace(tmp, self.config_path)
+        write_atomic(self.config_path, OmegaConf.to_yaml(OmegaConf.create(to_dict(cfg))), "the run's config")
 
     def clear_unfinished(self) -> None:
         """Remove what a run killed before its first checkpoint left (nothing of it can be resumed),
@@ -152,16 +149,15 @@ class RunDir:
         from: ``best.pt`` is written at an evaluation, mid-episode, so it is a policy, not a clean cut."""
         self.ckpt_dir.mkdir(parents=True, exist_ok=True)
         path = self.final_path if final else self.best_path if best else self.ckpt_dir / f"ckpt_{state['frames']:012d}.pt"
-        tmp = path.with_suffix(".tmp")
-        torch.save(state, tmp)
-        os.replace(tmp, path)  # a run killed while writing leaves the previous checkpoint intact
+        # a run killed while writing leaves the previous checkpoint intact; a full disk is one line
+        write_atomic(path, lambda f: torch.save(state, f), "a checkpoint")
         if not (final or best):
             for old in self.periodic_checkpoints()[:-keep]:
                 old.unlink()
         return path
 
     def write_summary(self, summary: dict) -> None:
-        self.summary_path.write_text(json.dumps(summary, indent=2, default=float) + "\n")
+        write_json(self.summary_path, summary, "the run's summary", indent=2)
 
 
 def refuse_interpolation(data, where: str, prefix: str = "") -> None:
