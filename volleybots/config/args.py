@@ -17,7 +17,6 @@ from volleybots.errors import ConfigError, Range
 OPTION_SEED_MAX = 2**62
 OPTION_RANGES = {
     "seed": Range(0, OPTION_SEED_MAX),
-    "games": Range(low=1),
     "rounds": Range(low=1),
     "batch": Range(low=1),
     "episodes": Range(low=1),
