@@ -217,7 +217,7 @@ def test_a_damaged_payoff_table_is_one_line(tmp_path):
     with pytest.raises(ConfigError, match="losses should be a list of 2 entries"):
         PayoffTable.load(path)
     path.write_text("[1, 2")
-    with pytest.raises(ConfigError, match="payoff table .* is damaged"):
+    with pytest.raises(ConfigError, match="is damaged or not a payoff table"):
         PayoffTable.load(path)
 
 
@@ -233,3 +233,23 @@ def test_a_broken_drills_file_is_one_line(text, words, tmp_path):
     path.write_text(text)
     one_line_exit_2(runner.invoke(app, ["eval", "crossplay", str(path), "random", "task=3v3", "games=2", "--out", str(tmp_path / "o")]), *words)
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("edit, reason", [
+    (lambda c: c.update(task=5), "task.name is not a name"),
+    (lambda c: c["task"].update(name=[1]), "task.name is not a name"),
+    (lambda c: c.update(algo=[1, 2]), "algo.name is not a name"),
+    (lambda c: c.update(seed="x"), "seed is 'x'"),
+    (lambda c: c.update(total_frames="many"), "total_frames is 'many'"),
+    (lambda c: c.update(evaluation="oops"), "evaluation is str"),
+])
+def test_report_lists_a_run_whose_config_has_wrong_types_as_failed(edit, reason, tiny_run, copy_run):
+    bad, good = copy_run(tiny_run, "bad"), copy_run(tiny_run, "good")
+    cfg = yaml.safe_load((bad / "config.yaml").read_text())
+    edit(cfg)
+    (bad / "config.yaml").write_text(yaml.safe_dump(cfg))
+    res = runner.invoke(app, ["report", str(bad), str(good), "--json"])
+    assert res.exit_code == 0, res.output
+    runs = {Path(r["path"]).name: r for r in json.loads(res.stdout)["runs"]}
+    assert runs["bad"]["status"] == "failed" and reason in runs["bad"]["reason"]
+    assert runs["good"]["status"] == "complete"

@@ -76,7 +76,7 @@ def read_json(path, what: str):
     try:
         return json.loads(p.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise ConfigError(f"{what} {str(path)!r} is damaged (not JSON: {_one_line(e)})") from None
+        raise ConfigError(f"{str(path)!r} is damaged or not a {what} (not JSON: {_one_line(e)})") from None
 
 
 def read_jsonl(path, what: str) -> list:

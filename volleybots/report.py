@@ -115,10 +115,9 @@ def _read_run(d: Path, stale_after: float, now: float) -> Run:
         config = yaml.safe_load(run.config_path.read_text())
     except yaml.YAMLError as e:
         return Run(d, "failed", f"config.yaml unreadable ({type(e).__name__})")
-    try:
-        run.load_config()  # wrong value types, unknown keys, planted interpolation: listed as failed, never grouped
-    except ConfigError as e:
-        return Run(d, "failed", f"config.yaml invalid ({str(e).replace(str(run.config_path) + ': ', '')})")
+    bad = _bad_config(config)
+    if bad:  # a hand-edited config.yaml: listed as failed, never grouped with the runs it would break
+        return Run(d, "failed", f"config.yaml invalid ({bad})")
     if not run.summary_path.is_file():
         total = config.get("total_frames", "?")
         hint = f"; `volleybots train resume={d}` continues it" if any(run.ckpt_dir.glob("*.pt")) else ""
@@ -139,6 +138,27 @@ def _read_run(d: Path, stale_after: float, now: float) -> Run:
     if not math.isfinite(value):
         return Run(d, "failed", f"final {summary['metric']} is {value} (training diverged)", config, summary)
     return Run(d, "complete", "", config, summary)
+
+
+def _bad_config(config) -> str:
+    """What is wrong with the keys the report reads in a run's config (types only: a run of an older
+    version whose keys were renamed still aggregates); "" when nothing."""
+    if not isinstance(config, dict):
+        return "not a mapping of config keys"
+    for group in ("task", "algo"):
+        if not isinstance(config.get(group), dict) or not isinstance(config[group].get("name"), str):
+            return f"{group}.name is not a name"
+    number = (int, float)
+    for key, kinds, optional in (("seed", (int,), False), ("total_frames", number, True), ("time_limit", number, True)):
+        v = config.get(key)
+        if (v is None and not optional) or (v is not None and (isinstance(v, bool) or not isinstance(v, kinds))):
+            return f"{key} is {v!r}, not a number"
+    for key in ("evaluation", "env", "checkpoint", "wandb"):
+        if key in config and not isinstance(config[key], (dict, type(None))):
+            return f"{key} is {type(config[key]).__name__}, not a group of keys"
+    if "${" in json.dumps(config, default=str):
+        return "it holds an interpolation ${...}; a saved config holds plain values only"
+    return ""
 
 
 def _unfinished(run: Run, d: Path, stale_after: float, now: float, failed_reason: str) -> Run:

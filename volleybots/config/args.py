@@ -22,7 +22,6 @@ OPTION_RANGES = {
     "episodes": Range(low=1),
     "budget": Range(low=1),
     "num_envs": Range(low=1),
-    "k": Range(low=0.0, low_open=True),
 }
 OVERRIDE_KEYS = ("task", "threads")  # and every task.KEY / env.KEY
 OVERRIDE_PREFIXES = ("task.", "env.")
