@@ -34,7 +34,7 @@ import yaml
 
 from volleybots.errors import ConfigError
 from volleybots.files import write_atomic, write_json
-from volleybots.runs import RunDir, check_writable, make_dir, read_metrics
+from volleybots.runs import RunDir, config_problem, make_dir, read_metrics
 
 CONFIDENCE = 0.95
 RESAMPLES = 10_000  # bootstrap resamples (seeds are few: this costs milliseconds)
@@ -115,7 +115,7 @@ def _read_run(d: Path, stale_after: float, now: float) -> Run:
         config = yaml.safe_load(run.config_path.read_text())
     except yaml.YAMLError as e:
         return Run(d, "failed", f"config.yaml unreadable ({type(e).__name__})")
-    bad = _bad_config(config)
+    bad = config_problem(config)
     if bad:  # a hand-edited config.yaml: listed as failed, never grouped with the runs it would break
         return Run(d, "failed", f"config.yaml invalid ({bad})")
     if not run.summary_path.is_file():
@@ -138,27 +138,6 @@ def _read_run(d: Path, stale_after: float, now: float) -> Run:
     if not math.isfinite(value):
         return Run(d, "failed", f"final {summary['metric']} is {value} (training diverged)", config, summary)
     return Run(d, "complete", "", config, summary)
-
-
-def _bad_config(config) -> str:
-    """What is wrong with the keys the report reads in a run's config (types only: a run of an older
-    version whose keys were renamed still aggregates); "" when nothing."""
-    if not isinstance(config, dict):
-        return "not a mapping of config keys"
-    for group in ("task", "algo"):
-        if not isinstance(config.get(group), dict) or not isinstance(config[group].get("name"), str):
-            return f"{group}.name is not a name"
-    number = (int, float)
-    for key, kinds, optional in (("seed", (int,), False), ("total_frames", number, True), ("time_limit", number, True)):
-        v = config.get(key)
-        if (v is None and not optional) or (v is not None and (isinstance(v, bool) or not isinstance(v, kinds))):
-            return f"{key} is {v!r}, not a number"
-    for key in ("evaluation", "env", "checkpoint", "wandb"):
-        if key in config and not isinstance(config[key], (dict, type(None))):
-            return f"{key} is {type(config[key]).__name__}, not a group of keys"
-    if "${" in json.dumps(config, default=str):
-        return "it holds an interpolation ${...}; a saved config holds plain values only"
-    return ""
 
 
 def _unfinished(run: Run, d: Path, stale_after: float, now: float, failed_reason: str) -> Run:
@@ -405,16 +384,6 @@ def plot_curves(report: dict, out: Path) -> list[Path]:
             plt.close(fig)
         files.append(path)
     return files
-
-
-def check_out(out: Path) -> None:
-    """Refuse an output folder that already holds a report (reports are never overwritten)."""
-    if out.exists() and not out.is_dir():
-        raise ConfigError(f"--out {str(out)!r} is a file; give a folder")
-    check_writable(out, "--out")
-    taken = [p.name for p in out.glob("*") if p.name in OUTPUT_FILES or (p.name.startswith("curves_") and p.suffix == ".png")] if out.is_dir() else []
-    if taken:
-        raise ConfigError(f"--out {str(out)!r} already holds a report ({', '.join(sorted(taken))}); choose another folder")
 
 
 def write_report(report: dict, out: Path) -> list[Path]:

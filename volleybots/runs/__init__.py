@@ -26,7 +26,7 @@ from volleybots.runs.locks import (
 )
 from volleybots.runs.metrics import MetricsLog, read_metrics, write_curves
 from volleybots.runs.rundir import (
-    CKPT_FORMAT, POPULATION_DIR, RunDir, claim_run_dir, load_algo_state, read_checkpoint, refuse_interpolation,
+    CKPT_FORMAT, POPULATION_DIR, RunDir, claim_run_dir, config_problem, load_algo_state, read_checkpoint, refuse_interpolation,
 )
 from volleybots.runs.contents import (
     META_FILE, Population, is_population_run, member_path, population_members, read_metas, read_population, run_policy_checkpoint,
@@ -34,6 +34,6 @@ from volleybots.runs.contents import (
 
 __all__ = [
     "CKPT_FORMAT", "LOCK_NAME", "META_FILE", "POPULATION_DIR", "Population", "is_population_run", "member_path", "population_members",
-    "read_metas", "read_population", "refuse_interpolation", "run_policy_checkpoint", "InUseError", "MetricsLog", "RunDir", "check_writable", "claim_run_dir", "load_algo_state", "lock",
+    "read_metas", "read_population", "refuse_interpolation", "run_policy_checkpoint", "InUseError", "MetricsLog", "RunDir", "check_writable", "claim_run_dir", "config_problem", "load_algo_state", "lock",
     "locked", "make_dir", "memory_errors_as", "note", "output_dir", "reserve_file", "read_checkpoint", "read_metrics", "unlock", "write_curves",
 ]

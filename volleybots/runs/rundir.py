@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import itertools
+import json
 import re
 from pathlib import Path
 
@@ -170,6 +171,28 @@ def refuse_interpolation(data, where: str, prefix: str = "") -> None:
             raise ConfigError(f"{where}: {key} holds an interpolation {v[:60]!r}; a saved config holds plain values only, "
                               "so it was edited: restore the value or start a new run")
         refuse_interpolation(v, where, key)
+
+
+def config_problem(config) -> str:
+    """What is wrong with the keys that identify a run in its config.yaml (``config``: as YAML read
+    it), for ``volleybots report``: types only, so that a run of an older version whose keys were
+    renamed still aggregates; "" when nothing."""
+    if not isinstance(config, dict):
+        return "not a mapping of config keys"
+    for group in ("task", "algo"):
+        if not isinstance(config.get(group), dict) or not isinstance(config[group].get("name"), str):
+            return f"{group}.name is not a name"
+    number = (int, float)
+    for key, kinds, optional in (("seed", (int,), False), ("total_frames", number, True), ("time_limit", number, True)):
+        v = config.get(key)
+        if (v is None and not optional) or (v is not None and (isinstance(v, bool) or not isinstance(v, kinds))):
+            return f"{key} is {v!r}, not a number"
+    for key in ("evaluation", "env", "checkpoint", "wandb"):
+        if key in config and not isinstance(config[key], (dict, type(None))):
+            return f"{key} is {type(config[key]).__name__}, not a group of keys"
+    if "${" in json.dumps(config, default=str):
+        return "it holds an interpolation ${...}; a saved config holds plain values only"
+    return ""
 
 
 def _is_trained(path: Path) -> bool:
