@@ -14,7 +14,7 @@ MAX_LINES = 400
 # Floor of every module or package prefix (the longest prefix wins). Leaves import nothing of volleybots
 # and may be imported from any floor; the top-level package ``volleybots`` is the façade above all.
 FLOORS = {
-    "volleybots.errors": 0, "volleybots.paths": 0, "volleybots.version": 0, "volleybots.ratings": 0,
+    "volleybots.errors": 0, "volleybots.files": 0, "volleybots.paths": 0, "volleybots.version": 0, "volleybots.ratings": 0,
     "volleybots.population.solvers": 0, "volleybots.zoo": 0, "volleybots.population.payoffs": 0, "volleybots.tasks.layout": 0,
     "volleybots.physics": 1,
     "volleybots.rules": 2,

@@ -33,7 +33,8 @@ import numpy as np
 import yaml
 
 from volleybots.errors import ConfigError
-from volleybots.runs import RunDir, read_metrics
+from volleybots.files import write_atomic, write_json
+from volleybots.runs import RunDir, config_problem, make_dir, read_metrics
 
 CONFIDENCE = 0.95
 RESAMPLES = 10_000  # bootstrap resamples (seeds are few: this costs milliseconds)
@@ -114,6 +115,9 @@ def _read_run(d: Path, stale_after: float, now: float) -> Run:
         config = yaml.safe_load(run.config_path.read_text())
     except yaml.YAMLError as e:
         return Run(d, "failed", f"config.yaml unreadable ({type(e).__name__})")
+    bad = config_problem(config)
+    if bad:  # a hand-edited config.yaml: listed as failed, never grouped with the runs it would break
+        return Run(d, "failed", f"config.yaml invalid ({bad})")
     if not run.summary_path.is_file():
         total = config.get("total_frames", "?")
         hint = f"; `volleybots train resume={d}` continues it" if any(run.ckpt_dir.glob("*.pt")) else ""
@@ -374,26 +378,19 @@ def plot_curves(report: dict, out: Path) -> list[Path]:
         ax.grid(alpha=0.3)
         fig.tight_layout()
         path = out / f"curves_{task}.png"
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
+        try:
+            write_atomic(path, lambda fh, fig=fig: fig.savefig(fh, format="png", dpi=120), "the report's curves")
+        finally:
+            plt.close(fig)
         files.append(path)
     return files
 
 
-def check_out(out: Path) -> None:
-    """Refuse an output folder that already holds a report (reports are never overwritten)."""
-    if out.exists() and not out.is_dir():
-        raise ConfigError(f"--out {str(out)!r} is a file; give a folder")
-    taken = [p.name for p in out.glob("*") if p.name in OUTPUT_FILES or (p.name.startswith("curves_") and p.suffix == ".png")] if out.is_dir() else []
-    if taken:
-        raise ConfigError(f"--out {str(out)!r} already holds a report ({', '.join(sorted(taken))}); choose another folder")
-
-
 def write_report(report: dict, out: Path) -> list[Path]:
     """report.md, report.json and curves_<task>.png in ``out``."""
-    out.mkdir(parents=True, exist_ok=True)
+    make_dir(out, "--out")
     files = plot_curves(report, out)
     md = format_markdown(report) + "\n" + "".join(f"![{p.stem}]({p.name})\n" for p in files)
-    (out / "report.md").write_text(md)
-    (out / "report.json").write_text(json.dumps(report, indent=2) + "\n")
+    write_atomic(out / "report.md", md, "the report")
+    write_json(out / "report.json", report, "the report", indent=2)
     return [out / "report.md", out / "report.json", *files]

@@ -145,14 +145,6 @@ def elo_cmd(
     _show(report, format_table(report), as_json, [path / "ratings.json", path / "ratings.png"])
 
 
-def _free_path(path: Path) -> Path:
-    stem, n = path.stem, 2
-    while path.exists():
-        path = path.with_name(f"{stem}_{n}{path.suffix}")
-        n += 1
-    return path
-
-
 @app.command(context_settings=_PASS_THROUGH)
 @_user_errors
 def replay(
@@ -170,12 +162,14 @@ def replay(
     for opt, path, suffix in (("--out", out, ".rrd"), ("--still", still, ".png")):
         if path is not None and path.suffix != suffix:
             raise ConfigError(f"{opt} {str(path)!r} must end in {suffix}")
+        if path is not None and len(path.name.encode()) > 255:  # the limit of most file systems (NAME_MAX)
+            raise ConfigError(f"{opt} {path.name[:40]!r}... is too long for a file name ({len(path.name.encode())} bytes, at most 255)")
         if path is not None and (path.exists() or path.is_symlink()):
             raise ConfigError(f"{opt} {str(path)!r} exists; choose another file (replays never overwrite)")
         if path is not None:
             check_writable(path.parent, f"the folder of {opt}")
     viewer = not no_viewer and has_display()
-    from volleybots.eval.match_replay import is_competitor_spec, replay_match
+    from volleybots.eval.replays import is_competitor_spec, replay_match
 
     if sum(map(is_competitor_spec, args)) >= 2:
         if still is not None:
@@ -190,20 +184,24 @@ def replay(
 
 def _replay_one(target: str, overrides: list[str], out: Path | None, viewer: bool, still: Path | None = None) -> None:
     from volleybots.config import make_env
+    from volleybots.eval.replays import replay_file, replay_name
     from volleybots.policies import resolve_target
     from volleybots.replay import record_episode
-    from volleybots.runs import check_writable, make_dir
 
     t = resolve_target(target, overrides)
+    default = None
     if out is None and not viewer:
-        stamp = time.strftime("%Y%m%d-%H%M%S")
         base = Path(target) if Path(target).is_dir() else Path("outputs") / "replays"
-        check_writable(base, "the replay folder (choose another with --out)")
-        out = _free_path(base / f"replay_{t.cfg.task.name}_{t.label.replace('@', '_')}_{stamp}.rrd")
-    if out is not None:
-        make_dir(out.parent, "the folder of --out")
+        default = base / replay_name(t.cfg.task.name, [t.label], time.strftime("%Y%m%d-%H%M%S"))
     env = make_env(t.cfg, num_envs=1, seed=t.cfg.seed)
-    stats = record_episode(env, t.make_policy(env), out, viewer=viewer, still=still)
+    policy = t.make_policy(env)
+    out = replay_file(out, default)
+    try:
+        stats = record_episode(env, policy, out, viewer=viewer, still=still)
+    except BaseException:
+        if out is not None and out.is_file() and out.stat().st_size == 0:
+            out.unlink()
+        raise
     where = str(out) if out is not None else "the viewer"
     where += f" and {still}" if still is not None else ""
     typer.echo(f"recorded one episode of {t.label} on {t.cfg.task.name} to {where}: {env.metric} {stats[env.metric]:.4g}, return {stats['return']:.4g}")

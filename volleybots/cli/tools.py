@@ -108,7 +108,7 @@ def report(
     stale_after: float = typer.Option(1800.0, "--stale-after", help="Seconds without a write after which a run with no summary.json counts as failed, not running."),
 ) -> None:
     """Aggregate runs across seeds: per task x algorithm the final metric's mean, IQM and 95% bootstrap intervals, learning curves."""
-    from volleybots.report import build_report, check_out, format_markdown, write_report
+    from volleybots.report import build_report, format_markdown, write_report
 
     if out is not None:
         check_out(out)
@@ -118,3 +118,14 @@ def report(
     typer.echo(json.dumps(result, indent=2) if as_json else format_markdown(result))
 
 
+def check_out(out: Path) -> None:
+    """Refuse an output folder that already holds a report (reports are never overwritten)."""
+    from volleybots.report import OUTPUT_FILES
+    from volleybots.runs import check_writable
+
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"--out {str(out)!r} is a file; give a folder")
+    check_writable(out, "--out")
+    taken = [p.name for p in out.glob("*") if p.name in OUTPUT_FILES or (p.name.startswith("curves_") and p.suffix == ".png")] if out.is_dir() else []
+    if taken:
+        raise ConfigError(f"--out {str(out)!r} already holds a report ({', '.join(sorted(taken))}); choose another folder")

@@ -20,15 +20,26 @@ def _jobs(overrides: list[str], multirun: bool) -> list[list[str]]:
     try:
         parsed = OverridesParser.create().parse_overrides(overrides)
     except HydraException as e:
-        raise ConfigError(f"bad override: {' '.join(str(e).split())}") from None
+        raise ConfigError(f"bad override: {' '.join(str(e).split())}{_quote_hint(overrides)}") from None
     sweeps = [o for o in parsed if o.is_sweep_override()]
     if sweeps and not multirun:
-        raise ConfigError(f"override {sweeps[0].input_line!r} sweeps several values; add -m to run one job per value")
+        raise ConfigError(f"override {sweeps[0].input_line!r} sweeps several values; add -m to run one job per value{_quote_hint([sweeps[0].input_line])}")
     choices = [
         [f"{o.get_key_element()}={v}" for v in o.sweep_string_iterator()] if o.is_sweep_override() else [o.input_line]
         for o in parsed
     ]
     return [list(c) for c in itertools.product(*choices)] or [[]]
+
+
+def _quote_hint(overrides: list[str]) -> str:
+    """A hint for a value Hydra's grammar reads only quoted (non-ASCII letters, ',', '=', spaces): a
+    directory name may hold them when written as KEY='VALUE'."""
+    for o in overrides:
+        key, eq, value = o.partition("=")
+        pathlike = "/" in value or key.lstrip("+").endswith(("dir", "resume", "init", "opponent"))
+        if eq and pathlike and not value.startswith(("'", '"')) and (not value.isascii() or any(c in value for c in ",= ()[]{}")):
+            return f" (if {key} is one value, quote it for Hydra: \"{key}={_hydra_quote(value)}\")"
+    return ""
 
 
 _DIR_KEYS = {False: "hydra.run.dir", True: "hydra.sweep.dir"}

@@ -9,8 +9,20 @@ config overrides; anything else names what plays (``name=PATH`` included).
 from __future__ import annotations
 
 from volleybots.config.compose import parse_value
-from volleybots.errors import ConfigError
+from volleybots.errors import ConfigError, Range
 
+# The ranges of the verbs' count options, checked as they are read (memory is checked later, against
+# the match: ``volleybots.config.resources.check_play``). A seed leaves room for the offsets the verbs
+# add per pair, side and game, so that no generator is seeded past int64.
+OPTION_SEED_MAX = 2**62
+OPTION_RANGES = {
+    "seed": Range(0, OPTION_SEED_MAX),
+    "rounds": Range(low=1),
+    "batch": Range(low=1),
+    "episodes": Range(low=1),
+    "budget": Range(low=1),
+    "num_envs": Range(low=1),
+}
 OVERRIDE_KEYS = ("task", "threads")  # and every task.KEY / env.KEY
 OVERRIDE_PREFIXES = ("task.", "env.")
 
@@ -22,6 +34,9 @@ def typed_option(key: str, value: str, kind: type):
         v = float(v)
     if not isinstance(v, kind) or (kind is int and isinstance(v, bool)):
         raise ConfigError(f"{key}={value!r} must be {'an integer' if kind is int else 'true or false' if kind is bool else 'a ' + kind.__name__}")
+    rng = OPTION_RANGES.get(key)
+    if rng is not None and kind in (int, float) and v not in rng:
+        raise ConfigError(f"{key}={value} is out of range: it must be {'an integer' if kind is int else 'a number'} {rng}")
     return v
 
 
@@ -51,4 +66,4 @@ def parse_options(args, allowed, what: str) -> dict:
     return out
 
 
-__all__ = ["parse_options", "split_args", "typed_option"]
+__all__ = ["OPTION_RANGES", "OPTION_SEED_MAX", "parse_options", "split_args", "typed_option"]

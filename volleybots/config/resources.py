@@ -37,6 +37,30 @@ def check_memory(cfg, worlds: int | None = None) -> None:
     check_fits(needs)
 
 
+GAME_BYTES = 16  # a lower bound of what one played game keeps: its outcome in the list, the string and the JSON
+
+
+def check_play(cfg, games: int, pairs: int, batch: int) -> None:
+    """Refuse ``games`` per pair for ``pairs`` pairs in batches of ``batch`` worlds that cannot fit in
+    memory, before any game is played: each side's env holds a batch, and every game's outcome is kept
+    (for Elo's rounds and the results file)."""
+    probe = make_env(cfg, num_envs=1, seed=0)
+    step = _step_bytes(probe)
+    worlds = 2 * min(batch, games)
+    check_fits([
+        (worlds * step, f"batch={batch} ({step} bytes per world, one env of a batch per side)", "batch", cfg.env.device),
+        (games * pairs * GAME_BYTES, f"games={games} x {pairs} pair(s) ({GAME_BYTES} bytes per game kept)", "games", "cpu"),
+    ])
+
+
+def check_rounds(rounds: int, n: int) -> None:
+    """Refuse Elo over ``rounds`` round robins of ``n`` competitors whose games and rating history
+    (float64, one row per game) cannot fit in memory."""
+    pairs = n * (n - 1) // 2
+    per = 8 * (n + 3)
+    check_fits([(rounds * pairs * per, f"rounds={rounds} x {pairs} pair(s) ({per} bytes per game)", "rounds", "cpu")])
+
+
 def check_fits(needs) -> None:
     """``needs``: (bytes, what needs them, the keys to lower, device); their sums per device must fit."""
     per_device: dict[str, int] = {}
@@ -132,4 +156,4 @@ def check_bench_options(options: dict) -> dict:
     return out
 
 
-__all__ = ["BenchOptions", "available_memory", "check_bench_options", "check_fits", "check_memory"]
+__all__ = ["BenchOptions", "GAME_BYTES", "available_memory", "check_bench_options", "check_fits", "check_memory", "check_play", "check_rounds"]

@@ -33,11 +33,11 @@ def validate(cfg) -> DictConfig:
         # saved by versions whose task constructor took compile_physics (now env.compile): the
         # runs and checkpoints they wrote still load; the value only ever mirrored env.compile
         task = {k: v for k, v in task.items() if k != "compile_physics"}
-    if not isinstance(task, dict) or "name" not in task:
+    if not isinstance(task, dict) or not isinstance(task.get("name"), str):
         raise ConfigError(f"the config has no task; choose one with task=NAME, allowed: {', '.join(sorted(TASKS))}")
     if task["name"] not in TASKS:
         raise ConfigError(f"unknown task {task['name']!r}; allowed: {', '.join(sorted(TASKS))}")
-    if not isinstance(algo, dict) or "name" not in algo:
+    if not isinstance(algo, dict) or not isinstance(algo.get("name"), str):
         raise ConfigError(f"the config has no algo; choose one with algo=NAME, allowed: {', '.join(ALGOS)}")
     if algo["name"] not in ALGOS:
         raise ConfigError(f"unknown algo {algo['name']!r}; allowed: {', '.join(ALGOS)}")

@@ -20,6 +20,7 @@ import torch
 from scipy import stats
 
 from volleybots.errors import ConfigError
+from volleybots.files import exists
 
 from volleybots.eval import play
 from volleybots.policies import BUILTIN as POLICY_NAMES
@@ -89,8 +90,9 @@ def check_finite(metric: np.ndarray, who: str, name: str = "metric") -> None:
 
 def split(args) -> tuple[list[str], list[str]]:
     """Targets (no ``=``) and overrides (``key=value``) of a command line, in order."""
-    targets = [a for a in args if "=" not in a]
-    overrides = [a for a in args if "=" in a]
+    # a path whose name holds '=' (an existing run dir or checkpoint) is a target, not an override
+    targets = [a for a in args if "=" not in a or exists(a)]
+    overrides = [a for a in args if a not in targets]
     if len(targets) < 2:
         raise ConfigError(f"eval compare needs a baseline and at least one target to compare with it, got {targets or 'none'}")
     return targets, overrides

@@ -14,7 +14,6 @@ itself, enter it twice under two labels, ``a=PATH b=PATH``).
 
 from __future__ import annotations
 
-import json
 import platform
 from dataclasses import dataclass, field
 from itertools import combinations
@@ -24,7 +23,9 @@ import numpy as np
 
 from volleybots.config import load, make_env, to_dict
 from volleybots.config.args import split_args
+from volleybots.config.resources import check_play
 from volleybots.errors import ConfigError
+from volleybots.files import Fields, read_json, write_atomic, write_json
 from volleybots.play.games import DEFAULT_BATCH, check_scenario, play_games
 from volleybots.ratings import wilson_interval
 
@@ -88,23 +89,37 @@ class CrossPlay:
         }
 
     def save(self, path: Path) -> None:
-        Path(path).write_text(json.dumps(self.to_dict(), indent=1) + "\n")
+        write_json(path, self.to_dict(), "the cross-play results")
 
     @classmethod
     def load(cls, path) -> CrossPlay:
-        """Read a results file that ``save`` wrote; anything else is a ``ConfigError``."""
-        p = Path(path)
-        if not p.is_file():
-            raise ConfigError(f"cross-play results file {str(path)!r} does not exist")
-        try:
-            data = json.loads(p.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError) as e:
-            raise ConfigError(f"{str(path)!r} is not a cross-play results file (not JSON: {e.msg if hasattr(e, 'msg') else e})") from None
+        """Read a results file that ``save`` wrote, checked key by key (labels, an n x n x 3 table of
+        counts, outcomes of W/D/L per pair); anything else is one ``ConfigError`` line."""
+        data = read_json(path, "cross-play results file")
         if not isinstance(data, dict) or data.get("format") != FORMAT:
             raise ConfigError(f"{str(path)!r} is not a cross-play results file (format is not {FORMAT!r})")
+        f = Fields(data, f"cross-play results file {str(path)!r}")
+        labels = f.need("labels", list)
+        n = len(labels)
+        if n < 2 or not all(isinstance(x, str) for x in labels):
+            f.fail("'labels' must name at least two competitors")
+        wdl = np.asarray(f.counts("wdl", (n, n, 3)), dtype=float)
+        outcomes = f.need("outcomes", dict)
+        for key, seq in outcomes.items():
+            i, _, j = str(key).partition(",")
+            if not (i.isdigit() and j.isdigit() and int(i) < int(j) < n) or not isinstance(seq, str) or set(seq) - set("WDL"):
+                f.fail(f"outcomes[{key!r}] is not a pair 'i,j' of competitors with a string of W, D and L")
+            w, d, l_ = (seq.count(c) for c in "WDL")
+            if [w, d, l_] != wdl[int(i), int(j)].astype(int).tolist():
+                f.fail(f"outcomes[{key!r}] holds {w}/{d}/{l_} games, wdl says {'/'.join(map(str, wdl[int(i), int(j)].astype(int)))}")
+        side_wdl = f.need("side_wdl", dict)
+        for key in side_wdl:
+            Fields(side_wdl, f.where).counts(key, (2, 3))
         meta = {k: v for k, v in data.items() if k not in _DERIVED}
-        return cls(list(data["labels"]), np.asarray(data["wdl"], dtype=float), dict(data["outcomes"]), dict(data["side_wdl"]), meta,
-                   dict(data.get("content") or {}))
+        content = data.get("content") or {}
+        if not isinstance(content, dict):
+            f.fail("'content' must be a mapping of pairs 'i,j' to game content")
+        return cls(list(labels), wdl, dict(outcomes), dict(side_wdl), meta, dict(content))
 
 
 _DERIVED = ("format", "labels", "wdl", "side_wdl", "win_rate", "win_rate_low", "win_rate_high", "average_win_rate", "outcomes", "content")
@@ -259,8 +274,10 @@ def heatmap(result: CrossPlay, path: Path, title: str | None = None) -> None:
     ax.set_title(title or f"{m.get('task')} cross-play: win rate of row over decisive games\n{m.get('games_per_pair')} games per pair, seed {m.get('seed')}, scenario {m.get('scenario')}", fontsize=9)
     fig.colorbar(im, ax=ax, fraction=0.046)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    try:
+        write_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=120), "the heatmap")
+    finally:
+        plt.close(fig)
 
 
 def _touch_cells(result: CrossPlay) -> list[list[str]]:
@@ -305,14 +322,21 @@ RESULTS = "crossplay.json"
 HEATMAP = "crossplay.png"
 
 
-def out_dir(out: Path | None, task: str, verb: str) -> Path:
-    """Where a verb writes: ``out`` or ``outputs/<verb>/<date>_<time>_<task>``; never into a folder
-    that already holds results."""
+def default_out(task: str, verb: str) -> Path:
     import time
 
-    path = Path(out) if out is not None else Path("outputs") / verb / f"{time.strftime('%Y-%m-%d_%H-%M-%S')}_{task}"
+    return Path("outputs") / verb / f"{time.strftime('%Y-%m-%d_%H-%M-%S')}_{task}"
+
+
+def out_dir(out: Path | None, task: str, verb: str) -> Path:
+    """Where a verb writes: ``out`` or ``outputs/<verb>/<date>_<time>_<task>``; never into a folder
+    that already holds results, and refused before any game when it cannot be written."""
+    from volleybots.runs import check_writable
+
+    path = Path(out) if out is not None else default_out(task, verb)
     if path.exists() and (not path.is_dir() or any(path.iterdir())):
         raise ConfigError(f"--out {str(path)!r} exists and is not an empty folder; results are never overwritten")
+    check_writable(path, "--out")
     return path
 
 
@@ -324,11 +348,11 @@ def setup(args, options: dict, min_competitors: int = 2):
     games = opts.get("games", 1000)
     if "games" in options and (games < 2 or games % 2):
         raise ConfigError(f"games={games} must be an even number >= 2 (each side plays half of them)")
-    if opts.get("batch", DEFAULT_BATCH) < 1:
-        raise ConfigError(f"batch={opts['batch']} must be >= 1")
     comps = resolve_all(specs)
     cfg = match_config(comps, overrides)
     check_scenario(opts.get("scenario", "any"), cfg)
+    if "games" in options:  # absurd counts are refused here, before any game
+        check_play(cfg, games, len(comps) * (len(comps) - 1) // 2, opts.get("batch", DEFAULT_BATCH))
     return comps, specs, opts, cfg
 
 
@@ -345,13 +369,20 @@ def run_crossplay(args, out: Path | None = None, progress=None, verb: str = "cro
     Returns:
         ``(result, directory)``: the ``CrossPlay`` and where its files were written.
     """
+    from volleybots.runs import output_dir
+
     comps, specs, opts, cfg = setup(args, OPTIONS)
-    path = out_dir(out, cfg.task.name, verb)
+    with output_dir(out, default_out(cfg.task.name, verb)) as path:  # claimed and locked before the games
+        res = play_and_save(comps, specs, opts, cfg, path, progress)
+    return res, path
+
+
+def play_and_save(comps, specs, opts, cfg, path: Path, progress=None) -> CrossPlay:
+    """Play the cross-play ``setup`` validated and write its results and heatmap into ``path``."""
     res = crossplay(
         cfg, comps, opts.get("games", 1000), seed=opts.get("seed", 0), batch=opts.get("batch", DEFAULT_BATCH),
         scenario=opts.get("scenario", "any"), deterministic=opts.get("deterministic", False), specs=specs, progress=progress,
     )
-    path.mkdir(parents=True, exist_ok=True)
     res.save(path / RESULTS)
     heatmap(res, path / HEATMAP)
-    return res, path
+    return res

@@ -18,7 +18,6 @@ depend on the pair's results and the seed only, never on the order in which they
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +25,7 @@ import numpy as np
 from volleybots.errors import ConfigError, Range
 from volleybots.eval.content import by_competitor
 from volleybots.eval.crossplay import CrossPlay, _nan_to_none
+from volleybots.files import write_atomic, write_json
 from volleybots.population.solvers import exploitability, member_exploitability, nash
 from volleybots.ratings import ELO_K, ELO_START, bradley_terry_intervals, elo_history, round_robin, sample_round_robin
 
@@ -115,8 +115,10 @@ def plot(report: dict, path: Path) -> None:
     right.set_title(f"{cp['task']}: {cp['games_per_pair']} games per pair, cross-play seed {cp['seed']}", fontsize=9)
     right.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    try:
+        write_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=120), "the ratings plot")
+    finally:
+        plt.close(fig)
 
 
 def format_table(report: dict):
@@ -167,7 +169,9 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
     Returns:
         ``(report, directory)``: the dict of ``ratings`` and where it was written (JSON and plot).
     """
-    from volleybots.eval.crossplay import HEATMAP, OPTIONS, RESULTS, heatmap, out_dir, resolve_all, run_crossplay, split_args
+    from volleybots.config.resources import check_rounds
+    from volleybots.eval.crossplay import HEATMAP, OPTIONS, RESULTS, default_out, heatmap, play_and_save, resolve_all, setup, split_args
+    from volleybots.runs import output_dir
 
     if any(a.partition("=")[0] == "bootstrap" for a in args):
         raise ConfigError("bootstrap= is no longer an option of eval elo: Bradley-Terry's intervals are profile-likelihood intervals, which draw no resamples; leave it out")
@@ -184,21 +188,24 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
         result = CrossPlay.load(source)
         if specs:
             _check_same_competitors(result, resolve_all(specs), source)
-        path = out_dir(out, result.meta.get("task", "task"), "elo")
-        path.mkdir(parents=True, exist_ok=True)
-        sample = True
+        check_rounds(rounds, result.n)
+        task, sample = result.meta.get("task", "task"), True
     else:
         if rounds % 2:
             raise ConfigError(f"rounds={rounds} must be even: the games of every pair are played half on each side")
+        check_rounds(rounds, max(2, len(specs)))  # before the competitors load: rounds are the games per pair
         play = [a for a in args if a.partition("=")[0] not in ELO_OPTIONS] + [f"games={rounds}"]
-        result, path = run_crossplay(play, out, progress, verb="elo")
-        sample = opts.get("sample", False)
-    report = ratings(result, rounds, k, opts.get("seed", 0), sample)
-    report["source"] = str(source) if source is not None else str(path / RESULTS)
-    (path / REPORT).write_text(json.dumps(report, indent=1) + "\n")
-    plot(report, path / PLOT)
-    if source is not None:
-        heatmap(result, path / HEATMAP)
+        comps, specs, play_opts, cfg = setup(play, OPTIONS)
+        task, sample = cfg.task.name, opts.get("sample", False)
+    with output_dir(out, default_out(task, "elo")) as path:  # claimed and locked before any game
+        if source is None:
+            result = play_and_save(comps, specs, play_opts, cfg, path, progress)
+        report = ratings(result, rounds, k, opts.get("seed", 0), sample)
+        report["source"] = str(source) if source is not None else str(path / RESULTS)
+        write_json(path / REPORT, report, "the ratings")
+        plot(report, path / PLOT)
+        if source is not None:
+            heatmap(result, path / HEATMAP)
     return report, path
 
 

@@ -16,7 +16,7 @@ import torch
 from tensordict import TensorDictBase
 
 from volleybots.errors import ConfigError
-from volleybots.runs import RunDir, read_checkpoint
+from volleybots.runs import read_checkpoint, run_policy_checkpoint
 
 HIERARCHICAL_TASK = "3v3"
 
@@ -68,7 +68,7 @@ def learned_drill(name: str, spec, env, deterministic: bool = True):
     s = parse_spec(str(spec), builtins=(), what=f"drill {name!r}")
     if s.kind not in ("checkpoint", "run"):
         raise ConfigError(f"drill {name!r}: {str(spec)!r} is not a trained policy; name a checkpoint file or a run directory")
-    path = s.path if s.kind == "checkpoint" else RunDir(s.path).policy_checkpoint(f"drill {name!r}: run {s.target!r}")
+    path = s.path if s.kind == "checkpoint" else run_policy_checkpoint(s.path, f"drill {name!r}: run {s.target!r}")
     state = read_checkpoint(path)
     if "algo" not in state:
         raise ConfigError(f"drill {name!r}: {str(path)!r} is a built-in player, not a trained drill")
@@ -120,6 +120,11 @@ def read_drills_file(path: Path) -> dict:
     drills = data.get("hierarchical") if isinstance(data, dict) else None
     if not isinstance(drills, dict) or not all(isinstance(v, str) and v for v in drills.values()):
         raise ConfigError(f"{str(path)!r} is no hierarchical team: expected a mapping 'hierarchical: {{drill: checkpoint}}'")
+    from volleybots.scripted.hierarchical import DRILLS
+
+    unknown = sorted(str(k) for k in drills if str(k) not in DRILLS)
+    if unknown:
+        raise ConfigError(f"{str(path)!r}: unknown drills {unknown}; allowed: {', '.join(DRILLS)}")
     return {str(k): str((Path(path).parent / v) if not Path(v).is_absolute() else v) for k, v in drills.items()}
 
 

@@ -19,7 +19,6 @@ checkpoint of one member, or a record naming ``scripted`` / ``random``), ``popul
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -30,14 +29,10 @@ from tensordict import TensorDictBase
 from volleybots.errors import ConfigError
 from volleybots.policies.builtin import BUILTIN, HIERARCHICAL_TASK, PLAYERS, acted, hierarchical_policy, read_drills_file
 from volleybots.policies.store import load_learner, parse_spec, saved_config, sha256
-from volleybots.runs import RunDir, read_checkpoint
-
-POPULATION_DIR = "population"
-META_FILE = "meta.jsonl"
-
-
-def member_path(run_path: Path, k: int) -> Path:
-    return Path(run_path) / POPULATION_DIR / f"member_{k:03d}.pt"
+from volleybots.runs import (
+    META_FILE, POPULATION_DIR, is_population_run, member_path, population_members, read_checkpoint, read_metas, read_population,
+    run_policy_checkpoint,
+)
 
 
 @dataclass
@@ -150,15 +145,8 @@ def checkpoint_member(path, label: str | None = None) -> Member:
 
 
 def read_meta(run_path: Path) -> list[list[float]]:
-    """Every meta-strategy a population run wrote, oldest first."""
-    path = Path(run_path) / POPULATION_DIR / META_FILE
-    if not path.is_file():
-        return []
-    return [json.loads(line)["mixture"] for line in path.read_text().splitlines() if line.strip()]
-
-
-def population_members(run_path: Path) -> list[Path]:
-    return sorted((Path(run_path) / POPULATION_DIR).glob("member_*.pt"))
+    """Every meta-strategy a population run wrote, oldest first (each line checked)."""
+    return [m["mixture"] for m in read_metas(run_path)]
 
 
 def resolve_competitor(spec: str) -> Competitor:
@@ -175,15 +163,15 @@ def resolve_competitor(spec: str) -> Competitor:
         m = checkpoint_member(s.path)
         return Competitor(s.label or m.label, [m])
     path = s.path
-    members, metas = population_members(path), read_meta(path)
-    if members and metas and len(metas[-1]) == len(members):
-        ms = [checkpoint_member(p, f"{path.name}/{p.stem}") for p in members]
-        return Competitor(s.label or path.name, ms, metas[-1])
-    ckpt = RunDir(path).policy_checkpoint(f"run {s.target!r}")
+    if is_population_run(path):  # exactly its last complete iteration, or refused (runs.contents)
+        pop = read_population(path, f"run {s.target!r}")
+        ms = [checkpoint_member(p, f"{path.name}/{p.stem}") for p in pop.members]
+        return Competitor(s.label or path.name, ms, pop.mixture)
+    ckpt = run_policy_checkpoint(path, f"run {s.target!r}")
     return Competitor(s.label or path.name, [checkpoint_member(ckpt, path.name)])
 
 
 __all__ = [
-    "Competitor", "Member", "MixturePolicy", "builtin_member", "checkpoint_member", "hierarchical_member", "member_path",
+    "META_FILE", "POPULATION_DIR", "Competitor", "Member", "MixturePolicy", "builtin_member", "checkpoint_member", "hierarchical_member", "member_path",
     "population_members", "read_meta", "resolve_competitor",
 ]

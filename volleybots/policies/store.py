@@ -29,7 +29,8 @@ import torch
 
 from volleybots import zoo
 from volleybots.errors import ConfigError
-from volleybots.runs import RunDir, load_algo_state, read_checkpoint
+from volleybots.files import exists
+from volleybots.runs import RunDir, load_algo_state, read_checkpoint, refuse_interpolation, run_policy_checkpoint
 
 KINDS = ("builtin", "checkpoint", "run", "drills")
 # (sha256, device, n_agents, obs_dim, action_space) -> the learner with its weights loaded; shared safely because
@@ -54,7 +55,7 @@ class Spec:
 def parse_spec(spec: str, builtins=("scripted", "random", "hierarchical"), what: str = "competitor") -> Spec:
     """Split ``[NAME=]TARGET`` and say what TARGET is; a missing file is one ``ConfigError`` line."""
     label, eq, target = str(spec).partition("=")
-    if not eq:
+    if not eq or exists(str(spec)):  # a path whose name holds '=' is that path, not NAME=PATH
         label, target = "", str(spec)
     allowed = f"a run dir, a checkpoint file, or one of: {', '.join(builtins)}"
     if not target.strip():
@@ -68,6 +69,8 @@ def parse_spec(spec: str, builtins=("scripted", "random", "hierarchical"), what:
             raise ConfigError(f"{what} {target!r} is not in the zoo; shipped: {shipped}")
         return Spec(label or target, "checkpoint", str(entry.checkpoint))
     path = Path(target)
+    if not exists(path):
+        raise ConfigError(f"{what} {target[:80]!r} does not exist; expected {allowed}")
     if path.is_file():
         return Spec(label, "drills" if path.suffix in (".yaml", ".yml") else "checkpoint", target)
     if path.is_dir():
@@ -93,6 +96,9 @@ def saved_config(state: dict, what: str):
     """A checkpoint's config, validated (files it names are not opened)."""
     from volleybots.config import validate
 
+    if not isinstance(state.get("config"), dict):
+        raise ConfigError(f"{what} is damaged (it holds no config)")
+    refuse_interpolation(state["config"], what)
     try:
         return validate(state["config"])
     except ConfigError as e:
@@ -140,7 +146,7 @@ def load_policy(path, env, deterministic: bool = True, n_agents: int | None = No
 
 def run_checkpoint(run_path, what: str) -> Path:
     """The checkpoint that stands for a run's policy: final.pt, else the latest."""
-    return RunDir(run_path).policy_checkpoint(what)
+    return run_policy_checkpoint(run_path, what)
 
 
 __all__ = ["KINDS", "Spec", "build_learner", "learner_class", "load_learner", "load_policy", "parse_spec", "run_checkpoint", "saved_config", "sha256"]

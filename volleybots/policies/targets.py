@@ -15,7 +15,7 @@ from volleybots.algos.population import CLONE
 from volleybots.errors import ConfigError
 from volleybots.policies.builtin import BUILTIN, PLAYERS
 from volleybots.policies.store import load_learner, parse_spec
-from volleybots.runs import RunDir, read_checkpoint
+from volleybots.runs import read_checkpoint, refuse_interpolation, run_policy_checkpoint
 
 # keys of a checkpoint's config that evaluation may change; the rest fix what the policy was trained on.
 # The episode limit and Solo Bump's start curriculum are in no observation, so a run trained on short
@@ -38,7 +38,7 @@ def policy_checkpoint(spec: str, what: str) -> Path:
     if s.kind == "checkpoint":
         return s.path
     if s.kind == "run":
-        return RunDir(s.path).policy_checkpoint(f"{what} {s.target!r}")
+        return run_policy_checkpoint(s.path, f"{what} {s.target!r}")
     raise ConfigError(f"{what} {spec!r} is not a trained policy; expected a run directory or a checkpoint file")
 
 
@@ -58,6 +58,7 @@ def resolve_target(target: str, overrides=()) -> Target:
     state = read_checkpoint(ckpt)
     if "algo" not in state:
         raise ConfigError(f"{str(ckpt)!r} is a built-in player ({state.get('builtin')}): evaluate it by name")
+    refuse_interpolation(state.get("config") or {}, f"checkpoint {str(ckpt)!r}")
     cfg = apply_overrides(state["config"], overrides, EVAL_KEYS, f"checkpoint {str(ckpt)!r}")
 
     def make_policy(env):

@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import json
 import math
-import shutil
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -40,14 +39,14 @@ from volleybots.config import to_dict, validate
 from volleybots.errors import ConfigError
 from volleybots.play.pool import head_to_heads
 from volleybots.play.seats import SelfPlay, Versus
+from volleybots.files import write_atomic
 from volleybots.policies import BUILTIN, Competitor, checkpoint_member, member_path, population_members, resolve_competitor
-from volleybots.policies.competitors import POPULATION_DIR
 from volleybots.population.clone import CLONE, clone_member, make_clone, needs_clone
 from volleybots.population.final import evaluate_mixture, log_final_eval
-from volleybots.population.payoffs import PayoffTable, plot, write_atomic
+from volleybots.population.payoffs import PayoffTable, plot
 from volleybots.population.solvers import SOLVERS
 from volleybots.replay import write_curves
-from volleybots.runs import CKPT_FORMAT, RunDir, check_writable, locked, read_checkpoint
+from volleybots.runs import CKPT_FORMAT, POPULATION_DIR, RunDir, check_writable, locked, read_checkpoint, read_metas, read_population
 from volleybots.train import RESUME_KEYS as TRAIN_RESUME_KEYS
 from volleybots.train import Trainer, resume_config
 from volleybots.train.wandb import WandbLogger
@@ -122,9 +121,7 @@ class PopulationLoop:
 
     # ---------------------------------------------------------------------------- disk state
     def metas(self) -> list[dict]:
-        if not self.meta_path.is_file():
-            return []
-        return [json.loads(line) for line in self.meta_path.read_text().splitlines() if line.strip()]
+        return read_metas(self.run.path)
 
     def _append_meta(self, line: dict) -> None:
         write_atomic(self.meta_path, "".join(json.dumps(m) + "\n" for m in [*self.metas(), line]))
@@ -135,10 +132,7 @@ class PopulationLoop:
         return state.get("label", path.stem)
 
     def _save_member(self, k: int, state: dict) -> None:
-        path = member_path(self.run.path, k)
-        tmp = path.with_suffix(".tmp")
-        torch.save(state, tmp)
-        tmp.replace(path)
+        write_atomic(member_path(self.run.path, k), lambda f: torch.save(state, f), "a population member")
 
     # ---------------------------------------------------------------------------- the loop
     def fit(self) -> dict:
@@ -205,8 +199,7 @@ class PopulationLoop:
                     record["drills"] = dict(src["drills"])
                 self._save_member(k, record)
             else:
-                shutil.copyfile(src["path"], path.with_suffix(".tmp"))
-                path.with_suffix(".tmp").replace(path)
+                write_atomic(path, Path(src["path"]).read_bytes(), "a population member")
         self._play_payoffs()
 
     def _population(self, mixture) -> Competitor:
@@ -312,8 +305,7 @@ class PopulationLoop:
         learned = [p for p in paths if "algo" in read_checkpoint(p)]
         if learned:
             self.run.ckpt_dir.mkdir(exist_ok=True)
-            shutil.copyfile(learned[-1], self.run.final_path.with_suffix(".tmp"))
-            self.run.final_path.with_suffix(".tmp").replace(self.run.final_path)
+            write_atomic(self.run.final_path, learned[-1].read_bytes(), "the final checkpoint")
         frames = int(last.get("frames", 0))
         final_eval = None
         if last.get("mixture"):
@@ -370,15 +362,25 @@ def resume(run_dir, overrides=()) -> dict:
     check_writable(run.path, "the run directory")
     check_references(cfg)
     loop = PopulationLoop(cfg, run)
+    metas = loop.metas()  # a damaged meta.jsonl line is one line naming it
+    if metas:  # every member meta.jsonl lists is there and reads back; a member written after it is completed below
+        read_population(run.path, f"run {str(run_dir)!r}", quiet=True)
     for path in population_members(run.path):
         read_checkpoint(path)  # a damaged member is one line naming it
-    metas = loop.metas()
     done = sum(1 for m in metas if m["iteration"] >= 1)
     frames = metas[-1]["frames"] if metas else 0
+    if cfg.algo.self_play and done >= 1:
+        raise ConfigError(
+            f"run {str(run_dir)!r} has finished: self-play trains one learner for the run's whole budget ({frames} frames), and its "
+            f"member is final; neither total_frames nor algo.iterations continues it. Start a new run from its policy: "
+            f"volleybots train task={cfg.task.name} algo=sp init={run_dir} total_frames=N"
+        )
     if done >= cfg.algo.iterations or frames >= cfg.total_frames:
         raise ConfigError(
-            f"run {str(run_dir)!r} has finished ({done} iteration(s), {frames} frames); "
-            f"raise algo.iterations (now {cfg.algo.iterations}) or total_frames (now {cfg.total_frames}) to continue it"
+            f"run {str(run_dir)!r} has finished ({done} iteration(s), {frames} frames); raise "
+            + " and ".join(x for x, spent in ((f"algo.iterations (now {cfg.algo.iterations})", done >= cfg.algo.iterations),
+                                              (f"total_frames (now {cfg.total_frames})", frames >= cfg.total_frames)) if spent)
+            + " to continue it"
         )
     with locked(run.path):
         run.write_config(cfg)

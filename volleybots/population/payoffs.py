@@ -20,11 +20,11 @@ meta-solver fitted to such a table fits noise of that size; more ``payoff_games`
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 
+from volleybots.files import Fields, read_json, write_atomic
 from volleybots.ratings import wilson_interval  # a leaf too: numpy / scipy only
 
 Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile: two-sided 95 % intervals
@@ -100,24 +100,19 @@ class PayoffTable:
 
     @classmethod
     def load(cls, path: Path) -> "PayoffTable":
+        """The table saved at ``path`` (empty if there is none); a damaged file is one line naming it."""
         path = Path(path)
         if not path.is_file():
             return cls()
-        data = json.loads(path.read_text())
-        return cls(data["members"], data)
+        f = Fields(read_json(path, "payoff table"), f"payoff table {str(path)!r}")
+        labels = f.need("members", list)
+        n = len(labels)
+        return cls(labels, {k: f.counts(k, (n, n)) for k in ("wins", "draws", "losses")})
 
 
 def _json(a: np.ndarray) -> list:
     """Nested lists with None for nan (JSON has no nan)."""
     return np.where(np.isnan(a), None, a).tolist()
-
-
-def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` so that a process killed meanwhile leaves the old file whole."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
 
 
 def plot(table: PayoffTable, mixture, path: Path, title: str = "") -> None:
@@ -147,5 +142,7 @@ def plot(table: PayoffTable, mixture, path: Path, title: str = "") -> None:
     bx.set_title("meta-strategy", fontsize=8)
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        write_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=110), "the payoff plot")
+    finally:
+        plt.close(fig)

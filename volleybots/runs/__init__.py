@@ -16,17 +16,24 @@ A directory whose run wrote no checkpoint (killed or crashed early) holds nothin
 run or ``resume=`` starts it afresh. Checkpoints hold tensors, numbers, strings and plain containers
 only, so that ``torch.load(path, weights_only=True)`` reads them.
 
-Persistence only: ``rundir`` (RunDir, checkpoints, claiming a directory), ``metrics`` (metrics.csv),
+Persistence only: ``rundir`` (RunDir, checkpoints, claiming a directory), ``contents`` (a run's
+policies and population, checked against what the run says it holds), ``metrics`` (metrics.csv),
 ``locks`` (the directory lock, writable paths, out-of-memory as one line).
 """
 
 from volleybots.runs.locks import (
-    LOCK_NAME, InUseError, check_writable, lock, locked, make_dir, memory_errors_as, note, unlock,
+    LOCK_NAME, InUseError, check_writable, lock, locked, make_dir, memory_errors_as, note, output_dir, reserve_file, unlock,
 )
 from volleybots.runs.metrics import MetricsLog, read_metrics
-from volleybots.runs.rundir import CKPT_FORMAT, RunDir, claim_run_dir, load_algo_state, read_checkpoint
+from volleybots.runs.rundir import (
+    CKPT_FORMAT, POPULATION_DIR, RunDir, claim_run_dir, config_problem, load_algo_state, read_checkpoint, refuse_interpolation,
+)
+from volleybots.runs.contents import (
+    META_FILE, Population, is_population_run, member_path, population_members, read_metas, read_population, run_policy_checkpoint,
+)
 
 __all__ = [
-    "CKPT_FORMAT", "LOCK_NAME", "InUseError", "MetricsLog", "RunDir", "check_writable", "claim_run_dir", "load_algo_state", "lock",
-    "locked", "make_dir", "memory_errors_as", "note", "read_checkpoint", "read_metrics", "unlock",
+    "CKPT_FORMAT", "LOCK_NAME", "META_FILE", "POPULATION_DIR", "Population", "is_population_run", "member_path", "population_members",
+    "read_metas", "read_population", "refuse_interpolation", "run_policy_checkpoint", "InUseError", "MetricsLog", "RunDir", "check_writable", "claim_run_dir", "config_problem", "load_algo_state", "lock",
+    "locked", "make_dir", "memory_errors_as", "note", "output_dir", "reserve_file", "read_checkpoint", "read_metrics", "unlock",
 ]

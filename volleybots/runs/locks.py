@@ -8,6 +8,8 @@ killed run never leaves its directory stuck.
 from __future__ import annotations
 
 import contextlib
+import errno
+import itertools
 import os
 import socket
 import sys
@@ -99,6 +101,71 @@ def make_dir(path, what: str) -> Path:
         raise ConfigError(f"{what} {str(path)!r} cannot be created: {e.strerror}") from None
     return Path(path)
 
+def _holds_results(path: Path) -> bool:
+    return path.exists() and (not path.is_dir() or any(p.name != LOCK_NAME for p in path.iterdir()))
+
+
+@contextlib.contextmanager
+def output_dir(out, default, what: str = "--out"):
+    """Claim a verb's output folder, hold its lock while the verb writes, and yield it.
+
+    ``out`` (the user's, or None for ``default``) must be new or empty: checked before and again
+    under the lock, so two processes writing one folder at once end with one result and one refusal
+    rather than a silent overwrite. The default, time-stamped folder moves on to ``_2``, ``_3``, ...
+    when taken. A verb that fails leaves no folder behind that it created."""
+    explicit = out is not None
+    base = Path(out if explicit else default)
+    for n in itertools.count(1):
+        cand = base if n == 1 else base.with_name(f"{base.name}_{n}")
+        if _holds_results(cand):
+            if explicit:
+                raise ConfigError(f"{what} {str(cand)!r} exists and is not an empty folder; results are never overwritten")
+            continue
+        created = not cand.exists()
+        make_dir(cand, what)
+        try:
+            lock(cand)
+        except InUseError as e:
+            if explicit:
+                raise ConfigError(f"{what} {str(cand)!r} is being written by another command ({e}); choose another folder") from None
+            continue
+        if _holds_results(cand):  # another process was first
+            unlock(cand)
+            if explicit:
+                raise ConfigError(f"{what} {str(cand)!r} exists and is not an empty folder; results are never overwritten")
+            continue
+        break
+    try:
+        yield cand
+    except BaseException:
+        if created and not _holds_results(cand):
+            (cand / LOCK_NAME).unlink(missing_ok=True)
+            with contextlib.suppress(OSError):
+                cand.rmdir()
+        raise
+    finally:
+        unlock(cand)
+
+
+def reserve_file(path, explicit: bool, what: str = "--out") -> Path:
+    """Create the file ``path`` empty and exclusively (``O_EXCL``), so that two processes never pick
+    the same name: the first free one of ``path``, ``<stem>_2<suffix>``, ... unless ``explicit``
+    (then an existing file is refused). The caller replaces it with its result, or removes it."""
+    path = Path(path)
+    for n in itertools.count(1):
+        cand = path if n == 1 else path.with_name(f"{path.stem}_{n}{path.suffix}")
+        try:
+            os.close(os.open(cand, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
+            return cand
+        except FileExistsError:
+            if explicit:
+                raise ConfigError(f"{what} {str(cand)!r} exists; choose another file (never overwritten)") from None
+        except OSError as e:
+            if e.errno == errno.ENAMETOOLONG:
+                raise ConfigError(f"{what} {cand.name[:40]!r}... is too long for a file name ({len(cand.name)} characters); "
+                                  "choose a shorter label or --out FILE") from None
+            raise ConfigError(f"{what} {str(cand)!r} cannot be written: {e.strerror}") from None
+    raise AssertionError("unreachable")
 
 
 @contextlib.contextmanager

@@ -6,7 +6,6 @@ import contextlib
 import csv
 import itertools
 import json
-import os
 import re
 from pathlib import Path
 
@@ -15,10 +14,12 @@ from omegaconf import OmegaConf
 
 from volleybots.config import to_dict, validate
 from volleybots.errors import ConfigError
+from volleybots.files import write_atomic, write_json
 from volleybots.runs.locks import InUseError, lock, make_dir, note, unlock
 from volleybots.runs.metrics import _is_number
 
 CKPT_FORMAT = 1
+POPULATION_DIR = "population"  # a population run's members, payoffs.json and meta.jsonl
 _CKPT = re.compile(r"ckpt_(\d+)\.pt$")
 
 
@@ -42,7 +43,11 @@ class RunDir:
         return any(p.exists() for p in (self.config_path, self.metrics_path, self.ckpt_dir, self.summary_path))
 
     def has_checkpoint(self) -> bool:
-        return bool(self.periodic_checkpoints()) or self.final_path.is_file()
+        """Whether the run holds trained work: a checkpoint, or a population member a learner trained."""
+        if self.periodic_checkpoints() or self.final_path.is_file():
+            return True
+        members = sorted((self.path / POPULATION_DIR).glob("member_*.pt"))
+        return any(_is_trained(p) for p in members)
 
     def checkpoint_stamp(self) -> tuple:
         """The checkpoints' names and modification times: a change means another process trained here."""
@@ -74,32 +79,40 @@ class RunDir:
 
     def write_config(self, cfg) -> None:
         """config.yaml, replaced at once (a reader never sees half of it)."""
-        tmp = self.config_path.with_suffix(".yaml.tmp")
-        tmp.write_text(OmegaConf.to_yaml(OmegaConf.create(to_dict(cfg))))
-        os.replace(tmp, self.config_path)
+        write_atomic(self.config_path, OmegaConf.to_yaml(OmegaConf.create(to_dict(cfg))), "the run's config")
 
     def clear_unfinished(self) -> None:
         """Remove what a run killed before its first checkpoint left (nothing of it can be resumed),
         saying so on stderr; Hydra's records and user files stay."""
         rows = max(0, sum(1 for _ in self.metrics_path.open()) - 1) if self.metrics_path.is_file() else 0
         note(f"{self.path} held a run that wrote no checkpoint ({rows} metrics rows): starting it afresh")
-        stale = [self.config_path, self.metrics_path, self.summary_path, self.curves_path, *self.path.glob("eval_*.rrd")]
+        stale = [self.config_path, self.metrics_path, self.summary_path, self.curves_path, self.path / "payoffs.png", *self.path.glob("eval_*.rrd")]
         stale += list(self.ckpt_dir.glob("*.tmp")) if self.ckpt_dir.is_dir() else []
+        pop = self.path / POPULATION_DIR
+        if pop.is_dir():
+            # a population killed before its first checkpoint holds only seed members and their games:
+            # kept, they would silently become the new run's population whatever its seed_members say
+            note(f"{self.path} held a population ({len(list(pop.glob('member_*.pt')))} member file(s)) of that run: removed")
+            stale += [p for p in pop.iterdir() if p.is_file()]
         for p in stale:
             p.unlink(missing_ok=True)
-        if self.ckpt_dir.is_dir() and not any(self.ckpt_dir.iterdir()):
-            self.ckpt_dir.rmdir()
+        for d in (self.ckpt_dir, pop):
+            if d.is_dir() and not any(d.iterdir()):
+                d.rmdir()
 
     def load_config(self):
         """The run's validated config; a damaged or hand-broken config.yaml is one line naming it."""
         if not self.is_run():
             raise ConfigError(f"{self.path} is not a run directory (no config.yaml)")
         try:
-            data = OmegaConf.to_container(OmegaConf.load(self.config_path), resolve=True)
+            # not resolved: a run dir may come from someone else, and ``${oc.env:VAR}`` would fill in
+            # this machine's environment (then written in clear into the resumed run's files)
+            data = OmegaConf.to_container(OmegaConf.load(self.config_path), resolve=False)
         except Exception as e:  # noqa: BLE001 - YAML and OmegaConf errors alike: the file is damaged
             raise ConfigError(f"{self.config_path} is damaged ({' '.join(str(e).split())[:200]}); restore it or start a new run") from None
         if not isinstance(data, dict):
             raise ConfigError(f"{self.config_path} is damaged (not a mapping of config keys); restore it or start a new run")
+        refuse_interpolation(data, str(self.config_path))
         try:
             return validate(data)
         except ConfigError as e:
@@ -144,29 +157,61 @@ class RunDir:
         except ConfigError as e:
             raise ConfigError(f"{e}; move it out of {self.ckpt_dir} to use the run's other checkpoints") from None
 
-    def policy_checkpoint(self, what: str) -> Path:
-        """The checkpoint that stands for the run's policy: final.pt, else the latest; ``what`` names
-        the run in the error when there is none."""
-        ckpt = self.final_path if self.final_path.is_file() else self.latest_checkpoint()
-        if ckpt is None:
-            raise ConfigError(f"{what} has no checkpoint yet (checkpoints/ is empty)")
-        return ckpt
-
     def save_checkpoint(self, state: dict, final: bool = False, keep: int = 3, best: bool = False) -> Path:
         """A periodic checkpoint, ``final.pt`` or ``best.pt``. Only periodic and final ones are resumed
         from: ``best.pt`` is written at an evaluation, mid-episode, so it is a policy, not a clean cut."""
         self.ckpt_dir.mkdir(parents=True, exist_ok=True)
         path = self.final_path if final else self.best_path if best else self.ckpt_dir / f"ckpt_{state['frames']:012d}.pt"
-        tmp = path.with_suffix(".tmp")
-        torch.save(state, tmp)
-        os.replace(tmp, path)  # a run killed while writing leaves the previous checkpoint intact
+        # a run killed while writing leaves the previous checkpoint intact; a full disk is one line
+        write_atomic(path, lambda f: torch.save(state, f), "a checkpoint")
         if not (final or best):
             for old in self.periodic_checkpoints()[:-keep]:
                 old.unlink()
         return path
 
     def write_summary(self, summary: dict) -> None:
-        self.summary_path.write_text(json.dumps(summary, indent=2, default=float) + "\n")
+        write_json(self.summary_path, summary, "the run's summary", indent=2)
+
+
+def refuse_interpolation(data, where: str, prefix: str = "") -> None:
+    """Refuse any ``${...}`` in a saved config (``data``: plain containers), naming the first key: a
+    saved config holds resolved values only, so one there was planted."""
+    items = data.items() if isinstance(data, dict) else enumerate(data) if isinstance(data, list) else ()
+    for k, v in items:
+        key = f"{prefix}[{k}]" if isinstance(data, list) else f"{prefix}{'.' if prefix else ''}{k}"
+        if isinstance(v, str) and "${" in v:
+            raise ConfigError(f"{where}: {key} holds an interpolation {v[:60]!r}; a saved config holds plain values only, "
+                              "so it was edited: restore the value or start a new run")
+        refuse_interpolation(v, where, key)
+
+
+def config_problem(config) -> str:
+    """What is wrong with the keys that identify a run in its config.yaml (``config``: as YAML read
+    it), for ``volleybots report``: types only, so that a run of an older version whose keys were
+    renamed still aggregates; "" when nothing."""
+    if not isinstance(config, dict):
+        return "not a mapping of config keys"
+    for group in ("task", "algo"):
+        if not isinstance(config.get(group), dict) or not isinstance(config[group].get("name"), str):
+            return f"{group}.name is not a name"
+    number = (int, float)
+    for key, kinds, optional in (("seed", (int,), False), ("total_frames", number, True), ("time_limit", number, True)):
+        v = config.get(key)
+        if (v is None and not optional) or (v is not None and (isinstance(v, bool) or not isinstance(v, kinds))):
+            return f"{key} is {v!r}, not a number"
+    for key in ("evaluation", "env", "checkpoint", "wandb"):
+        if key in config and not isinstance(config[key], (dict, type(None))):
+            return f"{key} is {type(config[key]).__name__}, not a group of keys"
+    if "${" in json.dumps(config, default=str):
+        return "it holds an interpolation ${...}; a saved config holds plain values only"
+    return ""
+
+
+def _is_trained(path: Path) -> bool:
+    try:
+        return "oracle" in read_checkpoint(path)  # a learner's member; seed members are copies or records
+    except ConfigError:
+        return True  # a damaged member is not cleared away silently: the run is refused instead
 
 
 def read_checkpoint(path, device="cpu") -> dict:
@@ -177,7 +222,8 @@ def read_checkpoint(path, device="cpu") -> dict:
     try:
         state = torch.load(path, map_location=device, weights_only=True)
     except Exception as e:  # noqa: BLE001 - any unreadable file is the same user error
-        raise ConfigError(f"{str(path)!r} is not a volleybots checkpoint ({type(e).__name__})") from None
+        raise ConfigError(f"{str(path)!r} is damaged or not a volleybots checkpoint ({type(e).__name__}: "
+                          f"{' '.join(str(e).split())[:120]})") from None
     if not isinstance(state, dict) or state.get("format") != CKPT_FORMAT:
         raise ConfigError(f"{str(path)!r} is not a volleybots checkpoint (format {CKPT_FORMAT} expected)")
     return state

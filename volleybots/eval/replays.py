@@ -1,0 +1,91 @@
+"""Match replays (``volleybots replay A B``): one match between two competitors recorded to rerun, and
+the file a replay writes, reserved so that two replays never write one file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from volleybots.config.args import split_args
+from volleybots.errors import ConfigError
+from volleybots.eval.crossplay import setup
+
+
+REPLAY_OPTIONS = {"seed": int, "scenario": str, "deterministic": bool}
+
+
+def is_competitor_spec(arg: str) -> bool:
+    """A replay argument names a competitor (rather than a config override) when it has no ``=`` or
+    labels a built-in player or an existing path: ``replay A B`` records a match, ``replay A k=v`` one policy."""
+    from volleybots.policies import BUILTIN
+
+    label, eq, value = arg.partition("=")
+    from volleybots.files import exists
+
+    return not eq or value in BUILTIN or (bool(value) and exists(value)) or exists(arg)
+
+
+def replay_match(args, out: Path | None, viewer: bool) -> tuple[dict, Path | None, list[str]]:
+    """``volleybots replay A B task=3v3``: one match between two competitors recorded to rerun (team
+    colours, touches, the point and its fault); returns (env 0's statistics, the file, the labels)."""
+    import time
+
+    from volleybots.play.games import side_env
+    from volleybots.replay import record_match
+    from volleybots.tasks.multi import TeamPolicies
+
+    specs = split_args(args, REPLAY_OPTIONS)[0]
+    if len(specs) != 2:
+        raise ConfigError(f"a match replay takes two competitors; got {len(specs)}: {' '.join(specs)}")
+    comps, specs, opts, cfg = setup(args, REPLAY_OPTIONS)
+    labels = [c.label for c in comps]
+    default = None
+    if out is None and not viewer:
+        default = Path("outputs") / "replays" / replay_name(cfg.task.name, labels, time.strftime("%Y%m%d-%H%M%S"))
+    seed = opts.get("seed", 0)
+    env = side_env(cfg, 0, opts.get("scenario", "any"), 1, seed)  # A is team 0 (blue)
+    gen = torch_generator(seed)
+    policy = TeamPolicies(env, tuple(c.team_policy(env, opts.get("deterministic", False), gen) for c in comps))
+    out = replay_file(out, default)
+    try:
+        return record_match(env, policy, tuple(labels), out, viewer=viewer), out, labels
+    except BaseException:
+        if out is not None and out.is_file() and out.stat().st_size == 0:
+            out.unlink()
+        raise
+
+
+def replay_file(out: Path | None, default: Path | None):
+    """The file a replay writes, reserved at once (``reserve_file``: two replays never pick one
+    name), or None for the viewer alone; the caller removes it if the recording fails."""
+    from volleybots.runs import check_writable, make_dir, reserve_file
+
+    if out is None and default is None:
+        return None
+    path = out if out is not None else default
+    if out is None:
+        check_writable(path.parent, "the replay folder (choose another with --out)")
+    make_dir(path.parent, "the folder of --out")
+    return reserve_file(path, explicit=out is not None)
+
+
+NAME_MAX = 200  # bytes of a file name the replay's labels may take (most file systems allow 255)
+
+
+def replay_name(task: str, labels, stamp: str) -> str:
+    """A replay's default file name from its labels: characters a path cannot hold replaced, and
+    labels too long for a file name shortened, with a hash so that different ones stay apart."""
+    import hashlib
+    import re
+
+    name = "_vs_".join(re.sub(r"[^\w.+-]", "_", lab) for lab in labels)
+    if len(f"replay_{task}_{name}_{stamp}.rrd".encode()) > NAME_MAX:
+        digest = hashlib.sha256(name.encode()).hexdigest()[:10]
+        name = name.encode()[: NAME_MAX - 60].decode(errors="ignore") + f"~{digest}"
+    return f"replay_{task}_{name}_{stamp}.rrd"
+
+
+def torch_generator(seed: int):
+    import torch
+
+    torch.manual_seed(seed)
+    return torch.Generator().manual_seed(seed)

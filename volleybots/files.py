@@ -1,0 +1,156 @@
+"""The files the project writes and reads back: atomic writes and one reader for its JSON formats.
+
+A leaf module (it imports nothing of volleybots but ``errors``), so that run directories, the
+population loop's payoff table and the evaluation verbs write and read the same way.
+
+Writes are atomic: the data goes to ``<name>.<pid>.tmp`` beside the file and is moved into place when
+complete, so a process killed meanwhile leaves the old file whole. A write that fails (a full disk, a
+folder made read-only) removes its temporary file and is one ``ConfigError`` line naming the file.
+
+Reads turn every way a file can be damaged or hand-edited (missing, not JSON, a key missing, a value
+of the wrong type or shape) into one ``ConfigError`` line naming the file and what is wrong in it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Callable, Union
+
+from volleybots.errors import ConfigError
+
+Data = Union[str, bytes, Callable]  # text, bytes, or a function writing to a binary file object
+
+
+def _write(f, data: Data) -> None:
+    """Write ``data`` to the open binary file ``f`` (monkeypatched by tests to simulate a full disk)."""
+    if callable(data):
+        data(f)
+    else:
+        f.write(data.encode() if isinstance(data, str) else data)
+
+
+def write_atomic(path, data: Data, what: str = "") -> Path:
+    """Write ``data`` to ``path`` atomically; an OS error (ENOSPC, EACCES, ...) is one line, and no
+    temporary file is left behind."""
+    path = Path(path)
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "wb") as f:
+            _write(f, data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except OSError as e:
+        tmp.unlink(missing_ok=True)
+        raise ConfigError(f"cannot write {what + ' ' if what else ''}{str(path)!r}: {e.strerror or e}; free space or choose another folder") from None
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
+
+
+def write_json(path, data, what: str = "", indent: int = 1) -> Path:
+    return write_atomic(path, json.dumps(data, indent=indent, default=float) + "\n", what)
+
+
+def exists(path) -> bool:
+    """Whether ``path`` exists; a name the OS cannot even look up (too long, invalid) does not."""
+    try:
+        return Path(path).exists()
+    except (OSError, ValueError):
+        return False
+
+
+def _one_line(e: Exception) -> str:
+    return " ".join(str(getattr(e, "msg", None) or e).split())[:160]
+
+
+def read_json(path, what: str):
+    """The JSON value in ``path``; a missing, unreadable or malformed file is one line naming it."""
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError(f"{what} {str(path)!r} does not exist")
+    try:
+        return json.loads(p.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise ConfigError(f"{str(path)!r} is damaged or not a {what} (not JSON: {_one_line(e)})") from None
+
+
+def read_jsonl(path, what: str) -> list:
+    """The JSON values of the non-blank lines of ``path`` (none if it does not exist); a bad line is
+    one line naming the file and the line number."""
+    p = Path(path)
+    if not p.is_file():
+        return []
+    try:
+        lines = p.read_text().splitlines()
+    except (OSError, UnicodeDecodeError) as e:
+        raise ConfigError(f"{what} {str(path)!r} is damaged ({_one_line(e)})") from None
+    out = []
+    for n, line in enumerate(lines, start=1):
+        if not line.strip():
+            continue
+        try:
+            out.append(json.loads(line))
+        except json.JSONDecodeError as e:
+            raise ConfigError(f"{what} {str(path)!r} is damaged (line {n} is not JSON: {_one_line(e)})") from None
+    return out
+
+
+class Fields:
+    """Typed access to one JSON object of a file: ``need(key, kind)`` raises one line naming the file,
+    the key and what it should be."""
+
+    def __init__(self, data, where: str):
+        self.where = where
+        if not isinstance(data, dict):
+            self.fail(f"not a JSON object but {type(data).__name__}")
+        self.data = data
+
+    def fail(self, msg: str):
+        raise ConfigError(f"{self.where} is damaged ({msg}); restore it or produce it again")
+
+    def need(self, key: str, kind, optional: bool = False):
+        if key not in self.data:
+            if optional:
+                return None
+            self.fail(f"no {key!r}")
+        v = self.data[key]
+        kinds = kind if isinstance(kind, tuple) else (kind,)
+        if isinstance(v, bool) and bool not in kinds or not isinstance(v, kinds):
+            self.fail(f"{key!r} is {type(v).__name__}, not {' or '.join(k.__name__ for k in kinds)}")
+        return v
+
+    def counts(self, key: str, shape: tuple) -> list:
+        """A nested list of non-negative integers of exactly ``shape`` (no ragged rows)."""
+        v = self.need(key, list)
+        self._counts(v, shape, key)
+        return v
+
+    def _counts(self, v, shape, where):
+        if not shape:
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v != int(v) or v < 0:
+                self.fail(f"{where} is {v!r}, not a non-negative integer count")
+            return
+        if not isinstance(v, list) or len(v) != shape[0]:
+            self.fail(f"{where} should be a list of {shape[0]} entries, got {len(v) if isinstance(v, list) else type(v).__name__}")
+        for i, x in enumerate(v):
+            self._counts(x, shape[1:], f"{where}[{i}]")
+
+    def mixture(self, key: str, n: int) -> list[float]:
+        """``n`` non-negative finite weights summing to 1 (to 1e-6)."""
+        v = self.need(key, list)
+        if len(v) != n:
+            self.fail(f"{key!r} has {len(v)} weights for {n} members")
+        for i, w in enumerate(v):
+            if isinstance(w, bool) or not isinstance(w, (int, float)) or not math.isfinite(w) or w < 0:
+                self.fail(f"{key}[{i}] is {w!r}, not a weight >= 0")
+        if abs(sum(v) - 1.0) > 1e-6:
+            self.fail(f"{key!r} sums to {sum(v):.6g}, not 1")
+        return [float(w) for w in v]
+
+
+__all__ = ["Fields", "exists", "read_json", "read_jsonl", "write_atomic", "write_json"]
