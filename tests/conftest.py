@@ -61,6 +61,16 @@ def snapshot(root: Path) -> dict:
     return {str(p): (p.stat().st_mtime_ns, p.stat().st_size) for p in root.rglob("*")} if root.exists() else {}
 
 
+def one_line_exit_2(res, *words) -> str:
+    """A CLI refusal as the README promises it: exit code 2 and one ``error:`` line naming ``words``."""
+    err = res.stderr.strip()
+    assert res.exit_code == 2, (res.exit_code, res.output)
+    assert len(err.splitlines()) == 1 and err.startswith("error: "), err
+    for w in words:
+        assert w in err, (w, err)
+    return err
+
+
 def pytest_collection_modifyitems(items):
     """A learning test trains to a floor: it is slow by nature, so ``-m "not slow"`` leaves it out too."""
     for item in items:

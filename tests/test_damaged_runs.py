@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import torch
 import yaml
+from conftest import one_line_exit_2
 from typer.testing import CliRunner
 
 from volleybots.cli import app
@@ -21,15 +22,6 @@ from volleybots.population.payoffs import PayoffTable
 from volleybots.runs import RunDir, read_population
 
 runner = CliRunner()
-
-
-def one_line_exit_2(res, *words) -> str:
-    err = res.stderr.strip()
-    assert res.exit_code == 2, (res.exit_code, res.output)
-    assert len(err.splitlines()) == 1 and err.startswith("error: "), err
-    for w in words:
-        assert w in err, (w, err)
-    return err
 
 
 def snapshot(root: Path) -> dict:

@@ -12,21 +12,13 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import one_line_exit_2
 from typer.testing import CliRunner
 
 from volleybots.cli import app
 
 runner = CliRunner()
 MATCH = ["random", "scripted", "task=1v1", "task.episode_len=20"]
-
-
-def one_line_exit_2(res, *words) -> str:
-    err = res.stderr.strip()
-    assert res.exit_code == 2, (res.exit_code, res.output)
-    assert len(err.splitlines()) == 1 and err.startswith("error: "), err
-    for w in words:
-        assert w in err, (w, err)
-    return err
 
 
 @pytest.fixture
