@@ -73,10 +73,10 @@ def finals(sweep_dir: Path) -> dict[int, dict]:
 
 @pytest.mark.parametrize("launcher", list(LAUNCHERS))
 def test_a_two_job_sweep_writes_two_complete_runs(sweeps, launcher):
-    runs = sorted(p for p in sweeps[launcher].iterdir() if p.is_dir() and not p.name.startswith(".") and p.name != "report")
+    runs = sorted(p for p in sweeps[launcher].iterdir() if p.is_dir() and not p.name.startswith("."))
     assert [p.name for p in runs] == ["0", "1"]
-    # the sweep's report is written when it ends, over both seeds
-    report = json.loads((sweeps[launcher] / "report" / "report.json").read_text())
+    # the sweep's report is written beside its jobs when it ends, over both seeds
+    report = json.loads((sweeps[launcher] / "report.json").read_text())
     assert [c["seeds"] for c in report["cells"]] == [[0, 1]]
     for seed, run in enumerate(runs):
         summary = json.loads((run / "summary.json").read_text())

@@ -194,15 +194,16 @@ def train(
 
 
 def _sweep_report(sweep_dir) -> None:
-    """When a sweep ends, its report (``volleybots report``) is written to ``<sweep dir>/report``."""
+    """When a sweep ends, its report (``volleybots report``) is written beside its jobs: ``report.md``,
+    ``report.json`` and ``curves_<task>.png`` in the sweep directory (files, so no job folder is added)."""
     from pathlib import Path
 
     from volleybots.report import build_report, write_report
 
-    out = Path(sweep_dir) / "report"
-    if out.exists():  # never overwritten: a second sweep into the same folder keeps the first report
+    sweep = Path(sweep_dir)
+    if (sweep / "report.md").exists():  # never overwritten: a second sweep into the same folder keeps the first report
         return
-    files = write_report(build_report([Path(sweep_dir)]), out)
+    files = write_report(build_report([sweep]), sweep)
     typer.echo(f"sweep report: {files[0]}")
 
 
@@ -211,6 +212,8 @@ def _single_run(overrides: list[str]) -> None:
     validated once, every file it names is checked, and only then is the directory claimed and
     written. Hydra's launcher machinery is for sweeps; a single run records its overrides in
     ``.hydra/`` as Hydra would."""
+    from pathlib import Path
+
     from volleybots.config import compose, validate
     from volleybots.population.run import start
     from volleybots.runs import claim_run_dir, unlock
@@ -227,7 +230,7 @@ def _single_run(overrides: list[str]) -> None:
     cfg = validate(OmegaConf.masked_copy(full, [k for k in full if k != "hydra"]))
     preflight(cfg)
     explicit = any(o.partition("=")[0].lstrip("+") == key for o in overrides)
-    run_dir = claim_run_dir(path, unique=not explicit)
+    run_dir = claim_run_dir(Path(path).absolute(), unique=not explicit)  # absolute, as Hydra's output_dir is
     try:
         _write_hydra_record(run_dir, full, overrides)
         summary = start(cfg, run_dir, checked=True)
