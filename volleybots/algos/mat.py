@@ -27,9 +27,8 @@ from tensordict.nn import TensorDictModule
 from torch import nn
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-from volleybots.algos.ppo import ACTION, LOG_PROB, VALUE, MAPPO, MAPPOConfig, make_actor
-from volleybots.errors import ConfigError
-from volleybots.errors import ranged
+from volleybots.algos.ppo import ACTION, LOG_PROB, MAPPO, VALUE, MAPPOConfig, make_actor
+from volleybots.errors import ConfigError, ranged
 
 
 @dataclass

@@ -21,8 +21,8 @@ from __future__ import annotations
 import math
 import warnings
 from abc import abstractmethod
-from typing import ClassVar
 from dataclasses import dataclass
+from typing import ClassVar
 
 import torch
 from tensordict import TensorDict, TensorDictBase

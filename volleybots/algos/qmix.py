@@ -28,8 +28,7 @@ from torchrl.objectives.multiagent import QMixerLoss
 
 from volleybots.algos.dqn import DQN, DQNConfig
 from volleybots.algos.offpolicy import ACTION, OBS, joint_transitions, net
-from volleybots.errors import ConfigError
-from volleybots.errors import ranged
+from volleybots.errors import ConfigError, ranged
 
 ACTION_VALUE = ("agents", "action_value")
 CHOSEN = ("agents", "chosen_action_value")

@@ -18,7 +18,16 @@ from volleybots.config.compose import algo_action_space, apply_overrides, compos
 from volleybots.config.envs import build_env, make_env, task_kwargs
 from volleybots.config.resources import BenchOptions, available_memory, check_bench_options, check_fits, check_memory
 from volleybots.config.schema import (
-    MAX_SEED, MAX_THREADS, Config, EnvConfig, check_env_args, check_range, check_values, group_options, task_schema, to_dict,
+    MAX_SEED,
+    MAX_THREADS,
+    Config,
+    EnvConfig,
+    check_env_args,
+    check_range,
+    check_values,
+    group_options,
+    task_schema,
+    to_dict,
 )
 from volleybots.config.validate import OPPONENT_LEARNERS, validate
 from volleybots.errors import ConfigError

@@ -13,7 +13,7 @@ import importlib.util
 
 from omegaconf import DictConfig, OmegaConf
 
-from volleybots.config.schema import Config, LOGGERS, WANDB_MODES, _typed, check_values, group_options, task_schema
+from volleybots.config.schema import LOGGERS, WANDB_MODES, Config, _typed, check_values, group_options, task_schema
 from volleybots.errors import ConfigError, check_device
 
 

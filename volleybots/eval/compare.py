@@ -20,9 +20,8 @@ import torch
 from scipy import stats
 
 from volleybots.errors import ConfigError
-from volleybots.files import exists
-
 from volleybots.eval import play
+from volleybots.files import exists
 from volleybots.policies import BUILTIN as POLICY_NAMES
 from volleybots.policies import resolve_target
 

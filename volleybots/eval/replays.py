@@ -9,7 +9,6 @@ from volleybots.config.args import split_args
 from volleybots.errors import ConfigError
 from volleybots.eval.crossplay import setup
 
-
 REPLAY_OPTIONS = {"seed": int, "scenario": str, "deterministic": bool}
 
 

@@ -7,8 +7,16 @@ Floor: above ``algos`` and ``runs`` (it builds learners from checkpoints), below
 
 from volleybots.policies.builtin import BUILTIN, PLAYERS, Player, hierarchical_policy, random_policy, read_drills_file, scripted_policy
 from volleybots.policies.competitors import (
-    Competitor, Member, MixturePolicy, builtin_member, checkpoint_member, hierarchical_member, member_path, population_members,
-    read_meta, resolve_competitor,
+    Competitor,
+    Member,
+    MixturePolicy,
+    builtin_member,
+    checkpoint_member,
+    hierarchical_member,
+    member_path,
+    population_members,
+    read_meta,
+    resolve_competitor,
 )
 from volleybots.policies.store import load_learner, load_policy, parse_spec, sha256
 from volleybots.policies.targets import EVAL_KEYS, Target, check_references, policy_checkpoint, resolve_target

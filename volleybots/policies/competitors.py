@@ -30,7 +30,14 @@ from volleybots.errors import ConfigError
 from volleybots.policies.builtin import BUILTIN, HIERARCHICAL_TASK, PLAYERS, acted, hierarchical_policy, read_drills_file
 from volleybots.policies.store import load_learner, parse_spec, saved_config, sha256
 from volleybots.runs import (
-    META_FILE, POPULATION_DIR, is_population_run, member_path, population_members, read_checkpoint, read_metas, read_population,
+    META_FILE,
+    POPULATION_DIR,
+    is_population_run,
+    member_path,
+    population_members,
+    read_checkpoint,
+    read_metas,
+    read_population,
     run_policy_checkpoint,
 )
 

@@ -37,9 +37,9 @@ import torch
 from volleybots.algos.ppo import MAPPO
 from volleybots.config import to_dict, validate
 from volleybots.errors import ConfigError
+from volleybots.files import write_atomic
 from volleybots.play.pool import head_to_heads
 from volleybots.play.seats import SelfPlay, Versus
-from volleybots.files import write_atomic
 from volleybots.policies import BUILTIN, Competitor, checkpoint_member, member_path, population_members, resolve_competitor
 from volleybots.population.clone import CLONE, clone_member, make_clone, needs_clone
 from volleybots.population.final import evaluate_mixture, log_final_eval
@@ -49,8 +49,8 @@ from volleybots.replay import write_curves
 from volleybots.runs import CKPT_FORMAT, POPULATION_DIR, RunDir, check_writable, locked, read_checkpoint, read_metas, read_population
 from volleybots.train import RESUME_KEYS as TRAIN_RESUME_KEYS
 from volleybots.train import Trainer, resume_config
-from volleybots.train.wandb import WandbLogger
 from volleybots.train.progress import hms
+from volleybots.train.wandb import WandbLogger
 from volleybots.version import __version__
 
 ITERATION_SEED = 1_000  # iteration i runs with seed + i * ITERATION_SEED

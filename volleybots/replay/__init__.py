@@ -15,8 +15,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from volleybots.replay.curves import write_curves
-from volleybots.replay.sink import has_display, recording
 from volleybots.replay.recorder import TEAM_COLOURS, Episode, EpisodeRecorder, MatchLog
+from volleybots.replay.sink import has_display, recording
 
 
 def _title(env, ep: Episode, labels=None) -> str:

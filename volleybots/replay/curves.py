@@ -28,8 +28,8 @@ def write_curves(metrics_csv, out_path) -> None:
     Rebuilt whole, so it is always complete and a resumed run needs no merge."""
     import rerun as rr
 
-    from volleybots.replay.sink import recording
     from volleybots.replay.layout import curves_blueprint
+    from volleybots.replay.sink import recording
     from volleybots.runs import read_metrics
 
     columns = curve_columns(read_metrics(metrics_csv))

@@ -21,15 +21,39 @@ policies and population, checked against what the run says it holds), ``metrics`
 ``locks`` (the directory lock, writable paths, out-of-memory as one line).
 """
 
+from volleybots.runs.contents import (
+    META_FILE,
+    Population,
+    is_population_run,
+    member_path,
+    population_members,
+    read_metas,
+    read_population,
+    run_policy_checkpoint,
+)
 from volleybots.runs.locks import (
-    LOCK_NAME, InUseError, check_writable, lock, locked, make_dir, memory_errors_as, note, output_dir, reserve_file, unlock,
+    LOCK_NAME,
+    InUseError,
+    check_writable,
+    lock,
+    locked,
+    make_dir,
+    memory_errors_as,
+    note,
+    output_dir,
+    reserve_file,
+    unlock,
 )
 from volleybots.runs.metrics import MetricsLog, read_metrics
 from volleybots.runs.rundir import (
-    CKPT_FORMAT, POPULATION_DIR, RunDir, claim_run_dir, config_problem, load_algo_state, read_checkpoint, refuse_interpolation,
-)
-from volleybots.runs.contents import (
-    META_FILE, Population, is_population_run, member_path, population_members, read_metas, read_population, run_policy_checkpoint,
+    CKPT_FORMAT,
+    POPULATION_DIR,
+    RunDir,
+    claim_run_dir,
+    config_problem,
+    load_algo_state,
+    read_checkpoint,
+    refuse_interpolation,
 )
 
 __all__ = [

@@ -10,8 +10,8 @@ import math
 import torch
 
 from volleybots.physics.math import euler_to_quat, quat_axes
-from volleybots.rules import COURTS, RefereeConfig
 from volleybots.physics.torch_backend import masked_select
+from volleybots.rules import COURTS, RefereeConfig
 from volleybots.tasks.base import PARKED_BALL, StepResult, VolleyEnv
 
 ANCHOR = (4.5, 0.0, 2.0)

@@ -58,7 +58,8 @@ class Progress:
 
     def __enter__(self):
         if self.enabled and not self.plain:
-            from rich.progress import BarColumn, MofNCompleteColumn, Progress as Bar, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+            from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+            from rich.progress import Progress as Bar
 
             self.bar = Bar(
                 TextColumn(f"[bold]{self.label}"), BarColumn(), MofNCompleteColumn(), TextColumn("frames"),
