@@ -22,7 +22,7 @@ import yaml
 from volleybots.config import make_env, to_dict
 from volleybots.eval.crossplay import crossplay, match_config, resolve_all
 from volleybots.policies.store import load_learner
-from volleybots.runs import RunDir, read_checkpoint
+from volleybots.runs import RunDir, read_checkpoint, run_policy_checkpoint
 from volleybots.zoo import PREFIX, ZOO_DIR
 
 
@@ -36,6 +36,9 @@ def slim_checkpoint(src: Path) -> dict:
     algo.pop("anchor", None)
     if "optim" in algo:  # the moments are training state: an empty state with the same parameter groups loads as fresh
         algo["optim"] = {"state": {}, "param_groups": algo["optim"]["param_groups"]}
+    if "data" in algo:  # a clone's imitation dataset is what it learned from, not what it acts with
+        algo["data"] = {k: v[:0].clone() for k, v in algo["data"].items()}
+        algo["counters"] = torch.tensor([int(algo["counters"][0]), 0, 0])
     keep = ("format", "version", "config", "task", "action_space", "obs_dim", "n_agents", "frames", "iteration", "wall_time", "label")
     return {**{k: state[k] for k in keep if k in state}, "algo": algo}
 
@@ -55,7 +58,7 @@ def main(argv=None) -> int:
     p.add_argument("--command", default="", help="the command that trained the run, for the card")
     a = p.parse_args(argv)
     run = RunDir(a.run)
-    ckpt = run.policy_checkpoint(f"run {str(a.run)!r}")
+    ckpt = run_policy_checkpoint(run.path, f"run {str(a.run)!r}")
     summary = json.loads(run.summary_path.read_text()) if run.summary_path.is_file() else {}
     slim = slim_checkpoint(ckpt)
     task = slim["task"]
