@@ -10,6 +10,7 @@ from pathlib import Path
 
 import torch
 
+from volleybots import zoo
 from volleybots.algos.base import AgentSpec
 from volleybots.config import make_env
 from volleybots.errors import ConfigError
@@ -20,9 +21,9 @@ from volleybots.runs import read_checkpoint
 
 
 def init_checkpoint(spec: str) -> Path:
-    """The checkpoint ``init=`` names: a checkpoint file, or a run dir's final (else latest) one."""
+    """The checkpoint ``init=`` names: a checkpoint file, a run dir's final (else latest) one, or a zoo entry."""
     path = Path(spec)
-    if not path.exists():
+    if not path.exists() and not str(spec).startswith(zoo.PREFIX):
         raise ConfigError(f"init={spec!r} is neither a run directory (with config.yaml) nor a checkpoint file")
     return policy_checkpoint(spec, "init=")
 
