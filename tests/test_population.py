@@ -124,8 +124,9 @@ def test_fsp_learner_starts_from_the_previous_one(tmp_path, monkeypatch):
     orig = PopulationLoop._oracle
 
     def spy(self, i, k, frames, updates, wall):
-        orig(self, i, k, frames, updates, wall)
+        out = orig(self, i, k, frames, updates, wall)
         seen.append(torch.load(self.run.path / "population" / f"member_{k:03d}.pt", weights_only=True)["algo"]["actor"])
+        return out
 
     monkeypatch.setattr(PopulationLoop, "_oracle", spy)
     start(cfg, tmp_path / "fsp")

@@ -31,6 +31,7 @@ def wilson_interval(wins, games, confidence: float = 0.95):
     (integral floats such as 12.0 are counts too): a fraction or a negative is a damaged count, and
     rounding it would give an interval for games that were never played, so ``ConfigError`` (a
     ``ValueError``) is raised instead.
+
     Args:
         wins: wins (decisive games won), a count or an array of counts.
         games: games counted (decisive games), broadcast against ``wins``.
