@@ -21,7 +21,7 @@ import yaml
 
 from volleybots.config import make_env, to_dict
 from volleybots.eval.crossplay import crossplay, match_config, resolve_all
-from volleybots.policies.store import load_learner
+from volleybots.policies.store import load_learner, saved_config
 from volleybots.runs import RunDir, read_checkpoint, run_policy_checkpoint
 from volleybots.zoo import PREFIX, ZOO_DIR
 
@@ -29,8 +29,7 @@ from volleybots.zoo import PREFIX, ZOO_DIR
 def slim_checkpoint(src: Path) -> dict:
     """The checkpoint ``src`` with a fresh optimiser and no training-only state (rng, evals, anchor)."""
     state = read_checkpoint(src)
-    cfg = RunDir(src.parent.parent).load_config() if (src.parent.parent / "config.yaml").is_file() else None
-    env = make_env(cfg if cfg is not None else _cfg_of(state), num_envs=1)
+    env = make_env(saved_config(state, f"checkpoint {str(src)!r}"), num_envs=1)
     learner, _ = load_learner(src, env, int(state["n_agents"]))
     algo = learner.state_dict()
     algo.pop("anchor", None)
@@ -41,12 +40,6 @@ def slim_checkpoint(src: Path) -> dict:
         algo["counters"] = torch.tensor([int(algo["counters"][0]), 0, 0])
     keep = ("format", "version", "config", "task", "action_space", "obs_dim", "n_agents", "frames", "iteration", "wall_time", "label")
     return {**{k: state[k] for k in keep if k in state}, "algo": algo}
-
-
-def _cfg_of(state: dict):
-    from volleybots.config import validate
-
-    return validate(state["config"])
 
 
 def main(argv=None) -> int:

@@ -70,7 +70,7 @@ class Algorithm(ABC):
             )
         n_drones = class_attr(task_cls, "n_drones")
         if n_drones > 1 and not cls.multi_agent:
-            multi = sorted({a.name for a in _subclasses(Algorithm) if a.multi_agent and not getattr(a, "population", False)})
+            multi = sorted({a.name for a in _subclasses(Algorithm) if a.multi_agent})
             raise ConfigError(f"algo {cls.name!r} trains one drone but task {task_cls.name!r} has {n_drones}; use one of: {', '.join(multi)}")
         kind, kinds = task_kind(task_cls), cls.supported_kinds()
         if kind not in kinds:

@@ -85,11 +85,12 @@ OPPONENT_LEARNERS = ("mappo", "bc")  # learners that can play one team (MAPPO ov
 def _check_opponent(cfg, task_cls, algo_cls) -> None:
     """``opponent=``: a match and a learner that plays one team (whether the competitor it names
     exists and fits is ``volleybots.policies.check_references``'s: this opens no file)."""
+    from volleybots.algos import PRESETS
     from volleybots.algos.base import class_attr
 
     if not class_attr(task_cls, "competitive"):
         raise ConfigError(f"opponent={cfg.opponent!r} is for matches (1v1, 3v3, 6v6), not task {task_cls.name!r}")
-    if getattr(algo_cls, "population", False):
+    if algo_cls.name in PRESETS:
         raise ConfigError(f"algo {algo_cls.name!r} chooses its own opponents; give it algo.seed_members=[...] instead of opponent=")
     if algo_cls.name not in OPPONENT_LEARNERS:
         raise ConfigError(f"algo {algo_cls.name!r} cannot learn one team against opponent=; allowed: {', '.join(OPPONENT_LEARNERS)}")

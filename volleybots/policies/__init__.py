@@ -18,8 +18,8 @@ from volleybots.policies.competitors import (
     read_meta,
     resolve_competitor,
 )
-from volleybots.policies.store import load_learner, load_policy, parse_spec, sha256
-from volleybots.policies.targets import EVAL_KEYS, Target, check_references, policy_checkpoint, resolve_target
+from volleybots.policies.store import load_learner, load_policy, parse_spec, policy_checkpoint, sha256
+from volleybots.policies.targets import EVAL_KEYS, Target, check_references, resolve_target
 
 __all__ = [
     "BUILTIN", "EVAL_KEYS", "PLAYERS", "Competitor", "Member", "MixturePolicy", "Player", "Target", "builtin_member", "check_references",

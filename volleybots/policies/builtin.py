@@ -16,7 +16,7 @@ import torch
 from tensordict import TensorDictBase
 
 from volleybots.errors import ConfigError
-from volleybots.runs import read_checkpoint, run_policy_checkpoint
+from volleybots.runs import read_checkpoint
 
 HIERARCHICAL_TASK = "3v3"
 
@@ -63,12 +63,9 @@ def learned_drill(name: str, spec, env, deterministic: bool = True):
     """A trained drill policy (checkpoint file or run dir ``spec``) for the hierarchical team of ``env``,
     checked against the drill it claims to play."""
     from volleybots.config import build_env
-    from volleybots.policies.store import load_learner, parse_spec
+    from volleybots.policies.store import load_learner, policy_checkpoint
 
-    s = parse_spec(str(spec), builtins=(), what=f"drill {name!r}")
-    if s.kind not in ("checkpoint", "run"):
-        raise ConfigError(f"drill {name!r}: {str(spec)!r} is not a trained policy; name a checkpoint file or a run directory")
-    path = s.path if s.kind == "checkpoint" else run_policy_checkpoint(s.path, f"drill {name!r}: run {s.target!r}")
+    path = policy_checkpoint(str(spec), f"drill {name!r}:", builtins=())
     state = read_checkpoint(path)
     if "algo" not in state:
         raise ConfigError(f"drill {name!r}: {str(path)!r} is a built-in player, not a trained drill")

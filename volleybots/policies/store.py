@@ -144,9 +144,15 @@ def load_policy(path, env, deterministic: bool = True, n_agents: int | None = No
     return algo.policy(deterministic=deterministic)
 
 
-def run_checkpoint(run_path, what: str) -> Path:
-    """The checkpoint that stands for a run's policy: final.pt, else the latest."""
-    return run_policy_checkpoint(run_path, what)
+def policy_checkpoint(spec: str, what: str, builtins=("scripted", "random", "hierarchical")) -> Path:
+    """The checkpoint a single-policy name stands for: the file, a zoo entry, or a run's final (else
+    latest) one, checked against what the run holds; anything else is one ``ConfigError`` line."""
+    s = parse_spec(spec, builtins, what=what)
+    if s.kind == "checkpoint":
+        return s.path
+    if s.kind == "run":
+        return run_policy_checkpoint(s.path, f"{what} {s.target!r}")
+    raise ConfigError(f"{what} {spec!r} is not a trained policy; expected a run directory or a checkpoint file")
 
 
-__all__ = ["KINDS", "Spec", "build_learner", "learner_class", "load_learner", "load_policy", "parse_spec", "run_checkpoint", "saved_config", "sha256"]
+__all__ = ["KINDS", "Spec", "build_learner", "learner_class", "load_learner", "load_policy", "parse_spec", "policy_checkpoint", "saved_config", "sha256"]

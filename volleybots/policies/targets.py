@@ -14,8 +14,8 @@ from typing import Callable
 from volleybots.algos.population import CLONE
 from volleybots.errors import ConfigError
 from volleybots.policies.builtin import BUILTIN, PLAYERS
-from volleybots.policies.store import load_learner, parse_spec
-from volleybots.runs import read_checkpoint, refuse_interpolation, run_policy_checkpoint
+from volleybots.policies.store import load_learner, parse_spec, policy_checkpoint
+from volleybots.runs import read_checkpoint, refuse_interpolation
 
 # keys of a checkpoint's config that evaluation may change; the rest fix what the policy was trained on.
 # The episode limit and Solo Bump's start curriculum are in no observation, so a run trained on short
@@ -30,16 +30,6 @@ class Target:
     cfg: object  # the validated config of the env it plays in
     checkpoint: Path | None  # the checkpoint file, for trained policies
     make_policy: Callable  # env -> (td -> td)
-
-
-def policy_checkpoint(spec: str, what: str) -> Path:
-    """The checkpoint a single-policy name stands for: the file, or a run's final (else latest) one."""
-    s = parse_spec(spec, what=what)
-    if s.kind == "checkpoint":
-        return s.path
-    if s.kind == "run":
-        return run_policy_checkpoint(s.path, f"{what} {s.target!r}")
-    raise ConfigError(f"{what} {spec!r} is not a trained policy; expected a run directory or a checkpoint file")
 
 
 def resolve_target(target: str, overrides=()) -> Target:
@@ -105,4 +95,4 @@ def check_references(cfg) -> None:
         comp.check_fits(task_cls.name, cfg.env.action_space, obs_dim)
 
 
-__all__ = ["BUILTIN", "EVAL_KEYS", "Target", "check_references", "policy_checkpoint", "resolve_target"]
+__all__ = ["BUILTIN", "EVAL_KEYS", "Target", "check_references", "resolve_target"]

@@ -3,12 +3,12 @@ loop over the trainer; any other algorithm the trainer alone."""
 
 from __future__ import annotations
 
-from volleybots.algos import ALGOS
+from volleybots.algos import PRESETS
 from volleybots.runs import RunDir
 
 
 def is_population(cfg) -> bool:
-    return bool(getattr(ALGOS[cfg.algo.name], "population", False))
+    return cfg.algo.name in PRESETS
 
 
 def start(cfg, run_dir, checked: bool = False) -> dict:

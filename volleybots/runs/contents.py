@@ -42,7 +42,7 @@ def population_members(run_path) -> list[Path]:
 
 def is_population_run(run_path) -> bool:
     """Whether the run's config names a population preset (``sp``, ``fsp``, ``psro_*``) or it holds a population."""
-    from volleybots.algos import ALGOS
+    from volleybots.algos.population import PRESETS
 
     path = Path(run_path)
     if (path / POPULATION_DIR).is_dir():
@@ -52,7 +52,7 @@ def is_population_run(run_path) -> bool:
     except (OSError, yaml.YAMLError, AttributeError):
         return False
     name = algo.get("name") if isinstance(algo, dict) else None
-    return bool(getattr(ALGOS.get(name), "population", False)) if isinstance(name, str) else False
+    return isinstance(name, str) and name in PRESETS
 
 
 def read_metas(run_path) -> list[dict]:

@@ -15,8 +15,7 @@ from volleybots.algos.base import AgentSpec
 from volleybots.config import make_env
 from volleybots.errors import ConfigError
 from volleybots.play.seats import SelfPlay, default_seat
-from volleybots.policies.store import build_learner, learner_class, saved_config, sha256
-from volleybots.policies.targets import policy_checkpoint
+from volleybots.policies.store import build_learner, learner_class, policy_checkpoint, saved_config, sha256
 from volleybots.runs import read_checkpoint
 
 
@@ -98,9 +97,9 @@ def _init_info(path: Path, state: dict, src, loaded: list[str], skipped: list[st
 
 def learner_spec(cfg, env) -> AgentSpec:
     """What the learner of ``cfg`` is built for (a population method's learner plays one team)."""
-    from volleybots.algos import ALGOS
+    from volleybots.algos import PRESETS
 
-    if getattr(ALGOS[cfg.algo.name], "population", False):
+    if cfg.algo.name in PRESETS:
         return SelfPlay().spec(env)
     return default_seat(cfg).spec(env)
 
