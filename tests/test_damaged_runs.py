@@ -204,11 +204,15 @@ def test_an_intact_crossplay_file_rates(tmp_path):
 
 def test_a_damaged_payoff_table_is_one_line(tmp_path):
     path = tmp_path / "payoffs.json"
-    PayoffTable(["a", "b"], {"wins": [[0, 1], [2, 0]], "draws": [[0, 0], [0, 0]], "losses": [[0, 2], [1, 0]]}).save(path)
-    assert PayoffTable.load(path).wins.tolist() == [[0, 1], [2, 0]]
+    PayoffTable(["a", "b"], [[[0, 0, 0], [1, 0, 2]], [[2, 0, 1], [0, 0, 0]]]).save(path)
+    assert PayoffTable.load(path).wdl[..., 0].tolist() == [[0, 1], [2, 0]]
     data = json.loads(path.read_text())
-    data["losses"] = [[0, 2]]
+    data["wdl"] = [data["wdl"][0]]
     path.write_text(json.dumps(data))
+    with pytest.raises(ConfigError, match="wdl should be a list of 2 entries"):
+        PayoffTable.load(path)
+    # the layout before one wdl: three matrices, damaged the same way
+    path.write_text(json.dumps({"members": ["a", "b"], "wins": [[0, 1], [2, 0]], "draws": [[0, 0], [0, 0]], "losses": [[0, 2]]}))
     with pytest.raises(ConfigError, match="losses should be a list of 2 entries"):
         PayoffTable.load(path)
     path.write_text("[1, 2")

@@ -179,10 +179,28 @@ def test_killed_mid_iteration_resumes_to_the_same_population(tmp_path, monkeypat
 def test_payoff_table_adds_rows_antisymmetric():
     t = PayoffTable()
     t.add_member("a", [])
-    t.add_member("b", [{"wins": 6, "draws": 2, "losses": 2}])
+    t.add_member("b", [[6, 2, 2]])
     assert t.matrix()[1, 0] == pytest.approx(0.4) and t.matrix()[0, 1] == pytest.approx(-0.4)
     with pytest.raises(ValueError):
-        t.add_member("c", [{"wins": 1, "draws": 0, "losses": 0}])
+        t.add_member("c", [[1, 0, 0]])
+
+
+def test_a_payoff_table_of_the_three_matrix_layout_loads_and_grows_in_the_wdl_layout(tmp_path):
+    """payoffs.json once held wins, draws and losses as three [n][n] matrices: a run written then
+    resumes, its table read as one wdl and written back in that layout."""
+    path = tmp_path / "payoffs.json"
+    old = {"members": ["a", "b"], "wins": [[0, 6], [2, 0]], "draws": [[0, 2], [2, 0]], "losses": [[0, 2], [6, 0]],
+           "games": [[0, 10], [10, 0]], "payoff": [[0.0, 0.4], [-0.4, 0.0]]}
+    path.write_text(json.dumps(old))
+    t = PayoffTable.load(path)
+    assert t.labels == ["a", "b"] and t.wdl.tolist() == [[[0, 0, 0], [6, 2, 2]], [[2, 2, 6], [0, 0, 0]]]
+    assert t.matrix()[0, 1] == pytest.approx(0.4) and t.games.tolist() == old["games"]
+    t.add_member("c", [[1, 0, 3], [0, 4, 0]])
+    t.save(path)
+    new = json.loads(path.read_text())
+    assert not {"wins", "draws", "losses"} & set(new)
+    assert new["wdl"][2] == [[1, 0, 3], [0, 4, 0], [0, 0, 0]] and new["wdl"][0][2] == [3, 0, 1]
+    assert PayoffTable.load(path).wdl.tolist() == t.wdl.tolist()
 
 
 def test_bad_seed_members_are_refused_before_anything_is_written(tmp_path):

@@ -11,10 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-
-def _flip(wdl: list[int]) -> list[int]:
-    """W/D/L seen from the other competitor."""
-    return [wdl[2], wdl[1], wdl[0]]
+from volleybots.ratings import record
 
 
 def pair_view(content: dict, me_first: bool) -> dict:
@@ -24,7 +21,7 @@ def pair_view(content: dict, me_first: bool) -> dict:
     own, opp = (t[0], t[1]) if me_first else (t[1], t[0])
     serve, receive = content["serve_wdl"], content["receive_wdl"]
     if not me_first:  # B served exactly when A received
-        serve, receive = _flip(receive), _flip(serve)
+        serve, receive = record.flip(receive).tolist(), record.flip(serve).tolist()
     faults = content["faults"]["A" if me_first else "B"]
     return {"games": content["games"], "touches": own, "opponent_touches": opp, "rally_steps": content["rally_steps"],
             "rally_touches": content["rally_touches"], "serve_wdl": serve, "receive_wdl": receive, "faults": faults}

@@ -27,7 +27,7 @@ from volleybots.config.resources import check_play
 from volleybots.errors import ConfigError
 from volleybots.files import Fields, read_json, write_atomic, write_json
 from volleybots.play.games import DEFAULT_BATCH, check_scenario, play_games
-from volleybots.ratings import wilson_interval
+from volleybots.ratings import record
 
 FORMAT = "volleybots.crossplay/1"
 
@@ -46,17 +46,15 @@ class CrossPlay:
         return len(self.labels)
 
     def decisive(self) -> np.ndarray:
-        return self.wdl[..., 0] + self.wdl[..., 2]
+        return record.decisive(self.wdl)
 
     def win_rate(self) -> np.ndarray:
         """[n, n] wins / decisive games of the row against the column (nan where none)."""
-        dec = self.decisive()
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return np.where(dec > 0, self.wdl[..., 0] / np.maximum(dec, 1), np.nan)
+        return record.win_rate(self.wdl)
 
     def interval(self, confidence: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
         """Wilson intervals [n, n] of ``win_rate``."""
-        return wilson_interval(self.wdl[..., 0], self.decisive(), confidence)
+        return record.win_rate_interval(self.wdl, confidence)
 
     def average_win_rate(self) -> np.ndarray:
         """[n]: each competitor's mean win rate against the others (pairs without a decisive game left out)."""
@@ -68,8 +66,7 @@ class CrossPlay:
     def payoffs(self) -> np.ndarray:
         """[n, n] the zero-sum payoff (wins - losses) / games of the row (docs/competitive.md); the
         diagonal is 0, a competitor's value against itself in a symmetric game."""
-        games = self.wdl.sum(-1)
-        return np.divide(self.wdl[..., 0] - self.wdl[..., 2], games, out=np.zeros(games.shape), where=games > 0)
+        return record.payoff(self.wdl)
 
     # ------------------------------------------------------------------ files
     def to_dict(self) -> dict:
@@ -107,11 +104,11 @@ class CrossPlay:
         outcomes = f.need("outcomes", dict)
         for key, seq in outcomes.items():
             i, _, j = str(key).partition(",")
-            if not (i.isdigit() and j.isdigit() and int(i) < int(j) < n) or not isinstance(seq, str) or set(seq) - set("WDL"):
+            if not (i.isdigit() and j.isdigit() and int(i) < int(j) < n) or not isinstance(seq, str) or set(seq) - set(record.OUTCOMES):
                 f.fail(f"outcomes[{key!r}] is not a pair 'i,j' of competitors with a string of W, D and L")
-            w, d, l_ = (seq.count(c) for c in "WDL")
-            if [w, d, l_] != wdl[int(i), int(j)].astype(int).tolist():
-                f.fail(f"outcomes[{key!r}] holds {w}/{d}/{l_} games, wdl says {'/'.join(map(str, wdl[int(i), int(j)].astype(int)))}")
+            counted = record.tally(seq).tolist()
+            if counted != wdl[int(i), int(j)].astype(int).tolist():
+                f.fail(f"outcomes[{key!r}] holds {'/'.join(map(str, counted))} games, wdl says {'/'.join(map(str, wdl[int(i), int(j)].astype(int)))}")
         side_wdl = f.need("side_wdl", dict)
         for key in side_wdl:
             Fields(side_wdl, f.where).counts(key, (2, 3))
@@ -220,7 +217,7 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
     outcomes, sides, served, content = {}, {}, {}, {}
     for i, j in combinations(range(n), 2):
         g = play_games(cfg, competitors[i], competitors[j], games, seed=seed, batch=batch, scenario=scenario, deterministic=deterministic)
-        wdl[i, j], wdl[j, i] = g.total, g.total[::-1]
+        record.put(wdl, i, j, g.total)
         outcomes[f"{i},{j}"] = g.outcomes
         sides[f"{i},{j}"] = g.wdl.tolist()
         served[f"{i},{j}"] = g.served

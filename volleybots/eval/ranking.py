@@ -27,9 +27,9 @@ from volleybots.eval.content import by_competitor
 from volleybots.eval.crossplay import CrossPlay, _nan_to_none
 from volleybots.files import write_atomic, write_json
 from volleybots.population.solvers import exploitability, member_exploitability, nash
-from volleybots.ratings import ELO_K, ELO_START, bradley_terry_intervals, elo_history, round_robin, sample_round_robin
+from volleybots.ratings import ELO_K, ELO_START, bradley_terry_intervals, elo_history, record, round_robin, sample_round_robin
 
-SCORE = {"W": 1.0, "D": 0.5, "L": 0.0}
+SCORE = dict(zip(record.OUTCOMES, record.SCORES))  # a game's score by its letter
 K_RANGE = Range(low=0.0, low_open=True)  # Elo's K: a finite step > 0 (nan or inf would make every rating nan)
 
 

@@ -32,11 +32,11 @@ from omegaconf import OmegaConf
 from volleybots.config import make_env, to_dict
 from volleybots.errors import ConfigError
 from volleybots.play.episodes import run_episodes
+from volleybots.ratings.record import OUTCOMES
 from volleybots.rules import Referee
 from volleybots.tasks.multi import TeamPolicies
 
 SCENARIOS = ("any", "serve", "receive")
-OUTCOMES = "WDL"  # win, draw, loss: the letters of a game's result from A's side
 DEFAULT_BATCH = 256  # worlds per batch: bounded so memory stays small while the batch amortises stepping
 
 
@@ -167,11 +167,10 @@ def play_games(cfg, a, b, games: int, seed: int = 0, batch: int = DEFAULT_BATCH,
                  np.array(touches, dtype=int).reshape(-1, 2), np.array(steps, dtype=int))
 
 
-def head_to_head(cfg, a, b, games: int, seed: int, deterministic: bool = False) -> dict[str, int]:
-    """W/D/L counts from ``a``'s side of ``games`` games, each side played half the time (the payoff
-    table of a population run uses these)."""
-    w, d, l_ = play_games(cfg, a, b, games, seed, deterministic=deterministic).total.tolist()
-    return {"wins": int(w), "draws": int(d), "losses": int(l_)}
+def head_to_head(cfg, a, b, games: int, seed: int, deterministic: bool = False) -> np.ndarray:
+    """[3] wins, draws, losses from ``a``'s side of ``games`` games, each side played half the time
+    (the payoff table of a population run uses these)."""
+    return play_games(cfg, a, b, games, seed, deterministic=deterministic).total
 
 
 class _Side:

@@ -28,8 +28,9 @@ def check_pool(pool: str, key: str) -> None:
         raise ConfigError(f"{key}=ray needs the ray package: pip install 'volleybots[{EXTRA}]' (or use {key}=serial)")
 
 
-def head_to_heads(cfg, matches: list[tuple], pool: str = "serial") -> list[dict[str, int]]:
-    """``head_to_head(cfg, a, b, games, seed)`` for each ``(a, b, games, seed)`` of ``matches``, in order."""
+def head_to_heads(cfg, matches: list[tuple], pool: str = "serial") -> list:
+    """``head_to_head(cfg, a, b, games, seed)`` for each ``(a, b, games, seed)`` of ``matches``, in
+    order: one [3] record of wins, draws and losses each."""
     if pool == "serial" or not matches:
         return [head_to_head(cfg, *m) for m in matches]
     check_pool(pool, "pool")
@@ -42,7 +43,7 @@ def head_to_heads(cfg, matches: list[tuple], pool: str = "serial") -> list[dict[
     return ray.get([task.remote(data, *m) for m in matches])
 
 
-def _match(cfg: dict, a, b, games: int, seed: int) -> dict[str, int]:
+def _match(cfg: dict, a, b, games: int, seed: int):
     """One match in a Ray worker (one torch thread, as Ray's workers run with OMP_NUM_THREADS=1)."""
     import torch
 

@@ -1,8 +1,9 @@
 """The empirical payoff table of a population: W/D/L counts per ordered pair of members.
 
-Counts of ``(i, j)`` are from member ``i``'s side; ``(j, i)`` holds the mirror image, so the zero-sum
-payoff matrix ``(wins - losses) / games`` is antisymmetric. A member against itself has payoff 0 by
-the symmetry of the court and is not played. Entries are added as members join, never recomputed.
+The counts are one record ``wdl`` [n, n, 3] (``volleybots.ratings.record``): those of ``(i, j)`` are
+from member ``i``'s side and ``(j, i)`` holds the mirror image, so the zero-sum payoff matrix
+``(wins - losses) / games`` is antisymmetric. A member against itself has payoff 0 by the symmetry of
+the court and is not played. Entries are added as members join, never recomputed.
 
 Every entry carries its uncertainty, from the counts alone (so a saved table's can be recomputed):
 
@@ -15,6 +16,10 @@ Every entry carries its uncertainty, from the counts alone (so a saved table's c
 With 60 games an entry the payoff's interval is about +-0.2 to +-0.25 wide on each side, so a
 meta-solver fitted to such a table fits noise of that size; more ``payoff_games`` narrow it as
 1 / sqrt(games).
+
+``payoffs.json`` holds the counts under ``wdl`` ([n][n][3], as ``crossplay.json`` does). A table
+written before that held three [n][n] matrices ``wins``, ``draws`` and ``losses``; it still loads, so
+that a population run resumes across the upgrade.
 """
 
 from __future__ import annotations
@@ -25,49 +30,43 @@ from pathlib import Path
 import numpy as np
 
 from volleybots.files import Fields, read_json, write_atomic
-from volleybots.ratings import wilson_interval  # a leaf too: numpy / scipy only
+from volleybots.ratings import record  # a leaf too: numpy / scipy only
 
 Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile: two-sided 95 % intervals
 
 class PayoffTable:
-    def __init__(self, labels: list[str] | None = None, counts: dict | None = None):
+    def __init__(self, labels: list[str] | None = None, wdl=None):
         self.labels = list(labels or [])
         n = len(self.labels)
-        c = counts or {}
-        self.wins = np.array(c.get("wins", np.zeros((n, n))), dtype=np.int64).reshape(n, n)
-        self.draws = np.array(c.get("draws", np.zeros((n, n))), dtype=np.int64).reshape(n, n)
-        self.losses = np.array(c.get("losses", np.zeros((n, n))), dtype=np.int64).reshape(n, n)
+        self.wdl = np.array(np.zeros((n, n, 3)) if wdl is None else wdl, dtype=np.int64).reshape(n, n, 3)
 
     def __len__(self) -> int:
         return len(self.labels)
 
-    def add_member(self, label: str, results: list[dict[str, int]]) -> None:
-        """A new row and column: ``results[j]`` holds the new member's W/D/L against member ``j``."""
+    def add_member(self, label: str, results) -> None:
+        """A new row and column: ``results[j]`` holds the new member's [3] W/D/L against member ``j``."""
         n = len(self)
         if len(results) != n:
             raise ValueError(f"a new member needs results against all {n} members, got {len(results)}")
-        grow = lambda a: np.pad(a, ((0, 1), (0, 1)))  # noqa: E731
-        self.wins, self.draws, self.losses = grow(self.wins), grow(self.draws), grow(self.losses)
+        self.wdl = np.pad(self.wdl, ((0, 1), (0, 1), (0, 0)))
         for j, r in enumerate(results):
-            self.wins[n, j], self.draws[n, j], self.losses[n, j] = r["wins"], r["draws"], r["losses"]
-            self.wins[j, n], self.draws[j, n], self.losses[j, n] = r["losses"], r["draws"], r["wins"]
+            record.put(self.wdl, n, j, np.asarray(r, dtype=np.int64))
         self.labels.append(label)
 
     @property
     def games(self) -> np.ndarray:
-        return self.wins + self.draws + self.losses
+        return record.games(self.wdl)
 
     def matrix(self) -> np.ndarray:
         """The zero-sum payoff of the row member, (wins - losses) / games (0 where none were played)."""
-        g = self.games
-        return np.where(g > 0, (self.wins - self.losses) / np.maximum(g, 1), 0.0)
+        return record.payoff(self.wdl)
 
     def payoff_interval(self) -> np.ndarray:
         """[n, n, 2]: the normal 95 % interval of each entry's mean game score (nan where none were played)."""
         g = self.games.astype(float)
         mean = self.matrix()
         with np.errstate(invalid="ignore", divide="ignore"):
-            second = (self.wins + self.losses) / g  # E[score^2]: wins and losses score +-1, draws 0
+            second = record.decisive(self.wdl) / g  # E[score^2]: wins and losses score +-1, draws 0
             half = Z95 * np.sqrt(np.clip(second - mean**2, 0.0, None) / g)
         lo = np.where(g > 0, np.clip(mean - half, -1.0, 1.0), np.nan)
         hi = np.where(g > 0, np.clip(mean + half, -1.0, 1.0), np.nan)
@@ -75,19 +74,14 @@ class PayoffTable:
 
     def win_rate(self) -> tuple[np.ndarray, np.ndarray]:
         """The row's share of decisive games [n, n] and its Wilson 95 % interval [n, n, 2] (nan: none decisive)."""
-        decisive = self.wins + self.losses
-        with np.errstate(invalid="ignore", divide="ignore"):
-            rate = np.where(decisive > 0, self.wins / np.maximum(decisive, 1), np.nan)
-        lo, hi = wilson_interval(self.wins, decisive)
-        return rate, np.stack([np.asarray(lo, float), np.asarray(hi, float)], -1)
+        lo, hi = record.win_rate_interval(self.wdl)
+        return record.win_rate(self.wdl), np.stack([np.asarray(lo, float), np.asarray(hi, float)], -1)
 
     def to_json(self) -> dict:
         rate, rate_ci = self.win_rate()
         return {
             "members": self.labels,
-            "wins": self.wins.tolist(),
-            "draws": self.draws.tolist(),
-            "losses": self.losses.tolist(),
+            "wdl": self.wdl.tolist(),  # [i][j] = [wins, draws, losses] of i against j
             "games": self.games.tolist(),
             "payoff": self.matrix().tolist(),
             "payoff_interval": _json(self.payoff_interval()),  # [i][j] = [low, high]
@@ -100,14 +94,18 @@ class PayoffTable:
 
     @classmethod
     def load(cls, path: Path) -> "PayoffTable":
-        """The table saved at ``path`` (empty if there is none); a damaged file is one line naming it."""
+        """The table saved at ``path`` (empty if there is none), in either layout (module docstring); a
+        damaged file is one line naming it."""
         path = Path(path)
         if not path.is_file():
             return cls()
-        f = Fields(read_json(path, "payoff table"), f"payoff table {str(path)!r}")
+        data = read_json(path, "payoff table")
+        f = Fields(data, f"payoff table {str(path)!r}")
         labels = f.need("members", list)
         n = len(labels)
-        return cls(labels, {k: f.counts(k, (n, n)) for k in ("wins", "draws", "losses")})
+        if "wdl" in data or not any(k in data for k in record.KEYS):
+            return cls(labels, f.counts("wdl", (n, n, 3)))
+        return cls(labels, record.from_dict({k: f.counts(k, (n, n)) for k in record.KEYS}))
 
 
 def _json(a: np.ndarray) -> list:

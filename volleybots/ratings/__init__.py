@@ -2,15 +2,19 @@
 
 Small pure functions over numpy arrays, usable without the CLI or the env:
 
+* ``record``: the one layout of game results and its arithmetic (decisive games, win rates,
+  zero-sum payoffs, the other side's view);
 * ``wilson_interval``: a 95 % interval for a win rate (``intervals``);
 * ``elo`` and its round-robin game schedules: the paper's sequential Elo (``elo``);
 * ``bradley_terry`` and ``bradley_terry_intervals``: Firth-penalised maximum-likelihood strengths
   with penalised profile-likelihood intervals, honest on unbeaten records (``bradley_terry``).
 
-Game results come in one layout everywhere: ``wdl`` [n, n, 3], the wins, draws and losses of the
-row competitor against the column one (so ``wdl[j, i] == wdl[i, j, ::-1]``).
+Game results come in one layout everywhere (``record``): a count array whose last axis is the wins,
+draws and losses, ``wdl`` [n, n, 3] for the row competitor against the column one (so
+``wdl[j, i] == record.flip(wdl[i, j])``).
 """
 
+from volleybots.ratings import record
 from volleybots.ratings.bradley_terry import bradley_terry, bradley_terry_intervals, half_win_matrix
 from volleybots.ratings.elo import ELO_K, ELO_START, elo, elo_history, expected_score, round_robin, sample_round_robin
 from volleybots.ratings.intervals import wilson_interval
@@ -24,6 +28,7 @@ __all__ = [
     "elo_history",
     "expected_score",
     "half_win_matrix",
+    "record",
     "round_robin",
     "sample_round_robin",
     "wilson_interval",

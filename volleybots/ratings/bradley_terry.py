@@ -31,6 +31,8 @@ from scipy.sparse.csgraph import connected_components
 from scipy.special import expit, log_expit
 from scipy.stats import chi2
 
+from volleybots.ratings.record import points
+
 ELO_SCALE = 400.0 / math.log(10.0)
 PRIOR_SD = 10.0
 _MAX_LOGITS = 200.0  # an interval end beyond this (35,000 Elo points) is reported as that: only the prior bounds it
@@ -38,8 +40,7 @@ _MAX_LOGITS = 200.0  # an interval end beyond this (35,000 Elo points) is report
 
 def half_win_matrix(wdl) -> np.ndarray:
     """[n, n] wins of the row over the column, a draw counting half."""
-    wdl = np.asarray(wdl, float)
-    return wdl[..., 0] + 0.5 * wdl[..., 1]
+    return points(wdl)
 
 
 class _Objective:

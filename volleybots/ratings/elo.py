@@ -13,6 +13,8 @@ from typing import Callable, Iterable
 
 import numpy as np
 
+from volleybots.ratings.record import SCORES
+
 ELO_START = 1000.0
 ELO_K = 168.0  # the paper's K for its 4 policies; a parameter everywhere
 
@@ -111,7 +113,7 @@ def sample_round_robin(wdl, rounds: int, rng: np.random.Generator) -> np.ndarray
     for a, b in combinations(range(n), 2):
         if wdl[a, b].sum() <= 0:
             raise ValueError(f"competitors {a} and {b} have played no games; cannot sample their results")
-    scores = np.array([1.0, 0.5, 0.0])
+    scores = np.array(SCORES)
 
     def play(a, b, r):
         p = wdl[a, b] / wdl[a, b].sum()
