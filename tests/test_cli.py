@@ -224,6 +224,7 @@ def _bad_cases(run_dir: Path, tmp: Path):
         (["eval", "compare", str(run_dir), str(mismatched), "episodes=2"], ["one task", "hover", "solo_bump"]),
         (["eval", "compare", str(run_dir), str(tmp / "fixed_target.pt"), "episodes=2"], ["fixed_target.pt", "did not play the episodes"]),
         (["eval", "compare", "scripted", str(run_dir), "--out", "x"], ["--out", "--json"]),
+        (["eval", "compare", "scripted", str(run_dir), "sed=3"], ["sed=3", "no option 'sed'", "seed"]),
         (["replay", "random", "--out", str(run_dir / "curves.rrd")], ["curves.rrd", "exists"]),
         (["replay", "random", "--out", str(tmp / "x.txt")], ["x.txt", ".rrd"]),
         (["bench", "speed=3"], ["speed", "num_envs"]),

@@ -40,15 +40,16 @@ def typed_option(key: str, value: str, kind: type):
     return v
 
 
-def split_args(args, options: dict) -> tuple[list[str], dict, list[str]]:
+def split_args(args, options: dict, override_keys=OVERRIDE_KEYS) -> tuple[list[str], dict, list[str]]:
     """A command line's names of what plays, its ``options`` (typed: key -> type) and its config
-    overrides. Anything that is neither option nor override is a name, ``name=PATH`` included."""
+    overrides (``override_keys``, ``task.KEY=`` and ``env.KEY=``). Anything that is neither option nor
+    override is a name, ``name=PATH`` included."""
     specs, opts, overrides = [], {}, []
     for arg in args:
         key, eq, value = arg.partition("=")
         if eq and key in options:
             opts[key] = typed_option(key, value, options[key])
-        elif eq and (key in OVERRIDE_KEYS or key.startswith(OVERRIDE_PREFIXES)):
+        elif eq and (key in override_keys or key.startswith(OVERRIDE_PREFIXES)):
             overrides.append(arg)
         else:
             specs.append(arg)
@@ -66,4 +67,4 @@ def parse_options(args, allowed, what: str) -> dict:
     return out
 
 
-__all__ = ["OPTION_RANGES", "OPTION_SEED_MAX", "parse_options", "split_args", "typed_option"]
+__all__ = ["OVERRIDE_KEYS", "OPTION_RANGES", "OPTION_SEED_MAX", "parse_options", "split_args", "typed_option"]

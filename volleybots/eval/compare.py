@@ -19,11 +19,12 @@ import numpy as np
 import torch
 from scipy import stats
 
+from volleybots.config.args import OVERRIDE_KEYS, split_args
 from volleybots.errors import ConfigError
 from volleybots.eval import play
 from volleybots.files import exists
 from volleybots.policies import BUILTIN as POLICY_NAMES
-from volleybots.policies import resolve_target
+from volleybots.policies import EVAL_KEYS, resolve_target
 
 
 @dataclass
@@ -87,11 +88,21 @@ def check_finite(metric: np.ndarray, who: str, name: str = "metric") -> None:
                           "a nan episode cannot be paired, so nothing is compared")
 
 
+# compare's key=value words are config overrides of every target: what an evaluation may change
+# (EVAL_KEYS), and for built-in players the task and env they play (task=, task.KEY=, env.KEY=)
+OVERRIDES = tuple(dict.fromkeys((*EVAL_KEYS, *OVERRIDE_KEYS)))
+
+
 def split(args) -> tuple[list[str], list[str]]:
-    """Targets (no ``=``) and overrides (``key=value``) of a command line, in order."""
-    # a path whose name holds '=' (an existing run dir or checkpoint) is a target, not an override
-    targets = [a for a in args if "=" not in a or exists(a)]
-    overrides = [a for a in args if a not in targets]
+    """Targets and overrides (``key=value``) of a command line, in order, read by the verbs' one
+    grammar (``volleybots.config.args``)."""
+    targets, _, overrides = split_args(args, {}, OVERRIDES)
+    for t in targets:
+        key, eq, _ = t.partition("=")
+        # a path whose name holds '=' (an existing run dir or checkpoint) is a target; any other key=value is a typo
+        if eq and not exists(t):
+            raise ConfigError(f"{t!r}: eval compare has no option {key!r} (and no run or checkpoint has that name); "
+                              "options: " + ", ".join(k for k in OVERRIDES if "." not in k) + ", task.KEY=, env.KEY=")
     if len(targets) < 2:
         raise ConfigError(f"eval compare needs a baseline and at least one target to compare with it, got {targets or 'none'}")
     return targets, overrides
