@@ -16,7 +16,8 @@ from tensordict.nn import TensorDictModule
 from torch import nn
 
 from volleybots.algos.base import mlp
-from volleybots.algos.ppo import OBS, OBS_NORM, ObsNorm, make_actor
+from volleybots.algos.ppo import ObsNorm, make_actor
+from volleybots.keys import OBS, OBS_NORM
 
 # the algorithms whose actor is PPO's Gaussian over PPO's MLP (bc's is PPO's by construction)
 GUIDE_SOURCES = ("bc", "ppo", "mappo")

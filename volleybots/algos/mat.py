@@ -27,8 +27,9 @@ from tensordict.nn import TensorDictModule
 from torch import nn
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-from volleybots.algos.ppo import ACTION, LOG_PROB, MAPPO, VALUE, MAPPOConfig, make_actor
+from volleybots.algos.ppo import MAPPO, MAPPOConfig, make_actor
 from volleybots.errors import ConfigError, ranged
+from volleybots.keys import ACTION, LOG_PROB, VALUE
 
 
 @dataclass

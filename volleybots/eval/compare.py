@@ -22,6 +22,7 @@ from scipy import stats
 from volleybots.errors import ConfigError
 from volleybots.eval import play
 from volleybots.files import exists
+from volleybots.keys import OBS
 from volleybots.policies import BUILTIN as POLICY_NAMES
 from volleybots.policies import resolve_target
 
@@ -115,7 +116,7 @@ def _play(target, episodes: int | None):
 
     def watch(env, td, next_td):
         if not first:
-            first.append(td["agents", "observation"].clone())
+            first.append(td[OBS].clone())
 
     with torch.no_grad():
         env, res = play(target, episodes, on_step=watch)

@@ -26,6 +26,7 @@ from volleybots.config.args import split_args
 from volleybots.config.resources import check_play
 from volleybots.errors import ConfigError
 from volleybots.files import Fields, read_json, write_atomic, write_json
+from volleybots.keys import OBS
 from volleybots.play.games import DEFAULT_BATCH, check_scenario, play_games
 from volleybots.ratings import wilson_interval
 
@@ -182,7 +183,7 @@ def match_config(competitors, overrides=()):
     cfg = load([*extra, *overrides])
     check_scenario("any", cfg)
     env = make_env(cfg, num_envs=1, seed=0)
-    obs_dim = env.observation_spec["agents", "observation"].shape[-1]
+    obs_dim = env.observation_spec[OBS].shape[-1]
     for c in competitors:
         c.check_fits(cfg.task.name, cfg.env.action_space, obs_dim)
         c.team_policy(env)

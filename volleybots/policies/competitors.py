@@ -27,6 +27,7 @@ import torch
 from tensordict import TensorDictBase
 
 from volleybots.errors import ConfigError
+from volleybots.keys import ACTION, AGENTS
 from volleybots.policies.builtin import BUILTIN, HIERARCHICAL_TASK, PLAYERS, acted, hierarchical_policy, read_drills_file
 from volleybots.policies.store import load_learner, parse_spec, saved_config, sha256
 from volleybots.runs import (
@@ -106,10 +107,10 @@ class MixturePolicy:
             return acted(self.policies[0], td)
         action = None
         for k, policy in enumerate(self.policies):
-            a = acted(policy, td.clone(recurse=False).set("agents", td.get("agents").clone(recurse=False))).get(("agents", "action"))
+            a = acted(policy, td.clone(recurse=False).set(AGENTS, td.get(AGENTS).clone(recurse=False))).get(ACTION)
             pick = (self.choice == k).reshape(-1, *([1] * (a.dim() - 1)))
             action = a if action is None else torch.where(pick, a, action)
-        td.set(("agents", "action"), action)
+        td.set(ACTION, action)
         return td
 
 

@@ -15,6 +15,7 @@ import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 
+from volleybots.keys import ACTION, OBS
 from volleybots.physics.params import WorldParams
 from volleybots.scripted.ballistics import launch_for_apex, time_to_height
 from volleybots.scripted.control import DroneController, DroneObs, Gains
@@ -31,8 +32,8 @@ class ScriptedPolicy(TensorDictModuleBase):
 
     def __init__(self, action_space: str = "prt", params: WorldParams | None = None, gains: Gains | None = None):
         super().__init__()
-        self.in_keys = [("agents", "observation")]
-        self.out_keys = [("agents", "action")]
+        self.in_keys = [OBS]
+        self.out_keys = [ACTION]
         self.params = params or WorldParams()
         self.action_space = action_space
         self.ctrl = DroneController(self.params, action_space, gains)
@@ -54,7 +55,7 @@ class ScriptedPolicy(TensorDictModuleBase):
         return DroneObs.from_root(root_layout(self.action_space == "prt").split(parts["root"])), parts
 
     def forward(self, td: TensorDictBase) -> TensorDictBase:
-        td.set(("agents", "action"), self.act(*self.parts(td.get(("agents", "observation")))))
+        td.set(ACTION, self.act(*self.parts(td.get(OBS))))
         return td
 
     def replan_every(self, steps: int) -> "ScriptedPolicy":
