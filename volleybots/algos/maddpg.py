@@ -51,7 +51,9 @@ class MADDPG(DDPG):
 
     def build(self) -> None:
         cfg, dev, a = self.cfg, self.device, self.n_agents
-        policy = MultiAgentMLP(self.obs_dim, self.action_dim, a, centralized=False, share_params=cfg.share_actor, device=dev, **net_kwargs(cfg))
+        policy = MultiAgentMLP(
+            self.obs_dim, self.action_dim, a, centralized=False, share_params=cfg.share_actor, device=dev, **net_kwargs(cfg)
+        )
         self.actor_net = nn.Sequential(policy, nn.Tanh())
         actor = TensorDictModule(self.actor_net, [OBS], [ACTION])
         critic = TensorDictModule(CentralisedQ(self.obs_dim, self.action_dim, a, cfg, dev), [OBS, ACTION], [Q_VALUE])

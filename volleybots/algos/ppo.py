@@ -28,6 +28,9 @@ from volleybots.algos.base import Algorithm, mlp
 from volleybots.errors import ConfigError, ranged
 from volleybots.keys import ACTION, AGENTS, DONE, LOG_PROB, NEXT, OBS, OBS_NORM, REWARD, STATS, TERMINATED, VALUE, leaf, nxt
 
+# what a minibatch's loss output adds to the logs (when the loss computed it)
+LOSS_LOGS = ("loss_objective", "loss_critic", "loss_entropy", "entropy", "kl_approx", "clip_fraction", "explained_variance")
+
 
 @dataclass
 class PPONetConfig:
@@ -136,7 +139,12 @@ def make_actor(net: nn.Module, in_keys, action_dim: int, cfg, continuous: bool, 
         head = TensorDictModule(net, in_keys, [key("logits")])
         dist_keys, dist_cls = [key("logits")], torch.distributions.Categorical
     actor = ProbabilisticActor(
-        head, in_keys=dist_keys, out_keys=[key(leaf(ACTION))], distribution_class=dist_cls, return_log_prob=True, log_prob_key=key(leaf(LOG_PROB))
+        head,
+        in_keys=dist_keys,
+        out_keys=[key(leaf(ACTION))],
+        distribution_class=dist_cls,
+        return_log_prob=True,
+        log_prob_key=key(leaf(LOG_PROB)),
     )
     return actor, std
 
@@ -160,7 +168,8 @@ class PPO(Algorithm):
         frames = env_cfg.num_envs * cfg.steps_per_batch
         if frames < cfg.minibatches:
             raise ConfigError(
-                f"a batch of {frames} frames (env.num_envs x algo.steps_per_batch) cannot make algo.minibatches={cfg.minibatches} minibatches"
+                f"a batch of {frames} frames (env.num_envs x algo.steps_per_batch) cannot make "
+                f"algo.minibatches={cfg.minibatches} minibatches"
             )
 
     def __init__(self, cfg, env, seed: int = 0):
@@ -279,7 +288,7 @@ class PPO(Algorithm):
                 loss = loss + anchor * kl
                 logs["anchor_kl"] = kl.detach()
             gn_a, gn_c = self.step(loss, groups)
-            logs.update({k: out[k] for k in ("loss_objective", "loss_critic", "loss_entropy", "entropy", "kl_approx", "clip_fraction", "explained_variance") if k in out.keys()})
+            logs.update({k: out[k] for k in LOSS_LOGS if k in out.keys()})
             logs.update(grad_norm_actor=gn_a, grad_norm_critic=gn_c)
             add_logs(sums, logs)
         self.updates += 1

@@ -195,7 +195,8 @@ def provenance(competitor, spec: str) -> dict:
     return {"label": competitor.label, "spec": spec, "members": competitor.sources, "mixture": [float(x) for x in competitor.mixture]}
 
 
-def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_BATCH, scenario: str = "any", deterministic: bool = False, specs=None, progress=None) -> CrossPlay:
+def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_BATCH, scenario: str = "any",
+              deterministic: bool = False, specs=None, progress=None) -> CrossPlay:
     """Play ``games`` games for every pair of ``competitors`` on the match task of ``cfg``.
 
     Args:
@@ -264,7 +265,8 @@ def heatmap(result: CrossPlay, path: Path, title: str | None = None) -> None:
             w, d, l_ = result.wdl[i, j].astype(int)
             if np.isfinite(wr[i, j]):
                 colour = "white" if abs(wr[i, j] - 0.5) > 0.3 else "black"
-                ax.text(j, i, f"{wr[i, j]:.2f}\n[{lo[i, j]:.2f}, {hi[i, j]:.2f}]\n{w}/{d}/{l_}{touches[i][j]}", ha="center", va="center", fontsize=8, color=colour)
+                cell = f"{wr[i, j]:.2f}\n[{lo[i, j]:.2f}, {hi[i, j]:.2f}]\n{w}/{d}/{l_}{touches[i][j]}"
+                ax.text(j, i, cell, ha="center", va="center", fontsize=8, color=colour)
             elif i != j:
                 ax.text(j, i, f"no decisive\ngame{touches[i][j]}", ha="center", va="center", fontsize=7, color="grey")
     avg = result.average_win_rate()
@@ -272,7 +274,8 @@ def heatmap(result: CrossPlay, path: Path, title: str | None = None) -> None:
     ax.set_yticks(range(n), [f"{lab}  (avg {a:.2f})" for lab, a in zip(result.labels, avg)])
     ax.set_xlabel("opponent (column); cells: win rate [Wilson 95 %], W/D/L" + (", touches per game row/column" if result.content else ""))
     m = result.meta
-    ax.set_title(title or f"{m.get('task')} cross-play: win rate of row over decisive games\n{m.get('games_per_pair')} games per pair, seed {m.get('seed')}, scenario {m.get('scenario')}", fontsize=9)
+    ax.set_title(title or f"{m.get('task')} cross-play: win rate of row over decisive games\n"
+                 f"{m.get('games_per_pair')} games per pair, seed {m.get('seed')}, scenario {m.get('scenario')}", fontsize=9)
     fig.colorbar(im, ax=ax, fraction=0.046)
     fig.tight_layout()
     try:
@@ -299,7 +302,10 @@ def format_table(result: CrossPlay):
     wr = result.win_rate()
     lo, hi = result.interval()
     m = result.meta
-    table = Table(title=f"cross-play on {m.get('task')} ({m.get('games_per_pair')} games per pair, seed {m.get('seed')}): row's win rate over decisive games")
+    table = Table(
+        title=f"cross-play on {m.get('task')} ({m.get('games_per_pair')} games per pair, seed {m.get('seed')}): "
+        "row's win rate over decisive games"
+    )
     table.add_column("")
     for lab in result.labels:
         table.add_column(lab, justify="right")

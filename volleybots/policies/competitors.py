@@ -149,7 +149,8 @@ def checkpoint_member(path, label: str | None = None) -> Member:
         return load_learner(path, env, n_agents)[0].policy(deterministic=deterministic)
 
     source = {"kind": "checkpoint", "path": str(path), "sha256": sha256(path), "frames": int(state["frames"]), "algo": cfg.algo.name}
-    return Member(label or f"{cfg.algo.name}@{int(state['frames'])}", make, source, cfg.task.name, cfg.env.action_space, int(state["obs_dim"]))
+    label = label or f"{cfg.algo.name}@{int(state['frames'])}"
+    return Member(label, make, source, cfg.task.name, cfg.env.action_space, int(state["obs_dim"]))
 
 
 def read_meta(run_path: Path) -> list[list[float]]:
@@ -180,6 +181,6 @@ def resolve_competitor(spec: str) -> Competitor:
 
 
 __all__ = [
-    "META_FILE", "POPULATION_DIR", "Competitor", "Member", "MixturePolicy", "builtin_member", "checkpoint_member", "hierarchical_member", "member_path",
-    "population_members", "read_meta", "resolve_competitor",
+    "META_FILE", "POPULATION_DIR", "Competitor", "Member", "MixturePolicy", "builtin_member", "checkpoint_member", "hierarchical_member",
+    "member_path", "population_members", "read_meta", "resolve_competitor",
 ]

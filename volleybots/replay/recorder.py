@@ -208,7 +208,8 @@ class EpisodeRecorder:
             self._send(f"drill/drone_{k}", [s for s, _ in pairs], rr.Scalars.columns(scalars=[c for _, c in pairs]))
         for path, lines in self.texts.items():
             if lines:
-                self._send(path, [s for s, _, _ in lines], rr.TextLog.columns(text=[t for _, t, _ in lines], level=[lv for _, _, lv in lines]))
+                columns = rr.TextLog.columns(text=[t for _, t, _ in lines], level=[lv for _, _, lv in lines])
+                self._send(path, [s for s, _, _ in lines], columns)
         two_teams = len(set(self.teams)) > 1
         if two_teams:
             self._score(steps)
@@ -294,5 +295,8 @@ class MatchLog:
             if winner < 0:
                 msg = "no point: a draw (crash, teammates too close, a double fault or the time limit)"
             else:
-                msg = f"point to {self.names[winner]}: {self.labels[1 - winner]} faulted ({Referee.FAULTS[reason]}); score {self.labels[0]} {int(winner == 0)} - {int(winner == 1)} {self.labels[1]}"
+                msg = (
+                    f"point to {self.names[winner]}: {self.labels[1 - winner]} faulted ({Referee.FAULTS[reason]}); "
+                    f"score {self.labels[0]} {int(winner == 0)} - {int(winner == 1)} {self.labels[1]}"
+                )
             self.rec.log("match", rr.TextLog(msg, level="WARN" if winner < 0 else "INFO"))

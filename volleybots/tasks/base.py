@@ -145,8 +145,9 @@ class VolleyEnv(EnvBase):
         # it also keeps team 0's: what a learner on team 0 (a Versus or self-play seat) is paid
         self._team0 = torch.tensor([i for i, t in enumerate(self.teams) if t == 0], device=self.device) if self.competitive else None
         team0 = ("return_team0", *(f"r_{k}_team0" for k in self.reward_terms)) if self.competitive else ()
+        terms = (f"r_{k}" for k in self.reward_terms)
         # nonfinite_action stays last: the step reads it as the stats tensor's last column
-        self._stats_keys = ("return", "episode_len", self.metric, *self.extra_stats, *(f"r_{k}" for k in self.reward_terms), *team0, "nonfinite_action")
+        self._stats_keys = ("return", "episode_len", self.metric, *self.extra_stats, *terms, *team0, "nonfinite_action")
         self._stats = {k: torch.zeros(num_envs, device=self.device) for k in self._stats_keys}
         self._warned_nonfinite = False
         self._make_specs()
