@@ -124,8 +124,8 @@ def _time_env(env, num_envs: int, device: str, repeats: int, steps: int, warmup:
 
 
 def measure_training(
-    task: str, algo: str, num_envs: int, device: str = "cpu", compile: bool = False, batches: int = 3, backend: str = "torch", seed: int = 0,
-    seat: str | None = None, overrides: Sequence[str] = (),
+    task: str, algo: str, num_envs: int, device: str = "cpu", compile: bool = False, batches: int = 3, backend: str = "torch",
+    seed: int = 0, seat: str | None = None, overrides: Sequence[str] = (),
 ) -> dict:
     """End-to-end training frames/s of ``algo`` on ``task``: collection (policy + env steps) and the
     algorithm's update, as ``volleybots train`` runs them, over ``batches`` batches after a first one
@@ -335,14 +335,19 @@ def format_table(rows: Sequence[dict]) -> str:
     training rows (``kind`` "train ALGO") give frames/s, collection and updates together."""
     ratios = speed_ratios(rows)
     lines = [
-        "| task | measures | drones | backend | device | compile | threads | envs | env-steps/s | per CPU-s | ms / step | torch / MuJoCo, seat / mappo |",
+        "| task | measures | drones | backend | device | compile | threads | envs | env-steps/s | per CPU-s | ms / step "
+        "| torch / MuJoCo, seat / mappo |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         kind = r.get("kind", "env")
-        ratio = ratios.get((r["task"], r["num_envs"], r["device"], r["compile"])) if r["backend"] == "torch" and kind == "env" else r.get("vs_mappo")
+        if r["backend"] == "torch" and kind == "env":
+            ratio = ratios.get((r["task"], r["num_envs"], r["device"], r["compile"]))
+        else:
+            ratio = r.get("vs_mappo")
         lines.append(
-            f"| {r['task']} | {kind} | {r['n_drones']} | {r['backend']} | {r['device']} | {'yes' if r['compile'] else 'no'} | {r['threads']} "
+            f"| {r['task']} | {kind} | {r['n_drones']} | {r['backend']} | {r['device']} "
+            f"| {'yes' if r['compile'] else 'no'} | {r['threads']} "
             f"| {r['num_envs']} | {_rate(r['env_steps_per_s'])} | {_rate(r['env_steps_per_cpu_s'])} | {r['step_ms']:.2f} "
             f"| {'' if ratio is None else f'{ratio:.2f}x' if 'vs_mappo' in r else f'{ratio:.1f}x'} |"
         )

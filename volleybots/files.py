@@ -45,7 +45,9 @@ def write_atomic(path, data: Data, what: str = "") -> Path:
         os.replace(tmp, path)
     except OSError as e:
         tmp.unlink(missing_ok=True)
-        raise ConfigError(f"cannot write {what + ' ' if what else ''}{str(path)!r}: {e.strerror or e}; free space or choose another folder") from None
+        raise ConfigError(
+            f"cannot write {what + ' ' if what else ''}{str(path)!r}: {e.strerror or e}; free space or choose another folder"
+        ) from None
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

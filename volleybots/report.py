@@ -82,7 +82,8 @@ def find_runs(paths, stale_after: float = STALE_AFTER_S, now: float | None = Non
         for d in _run_dirs(p):
             found.setdefault(d.resolve(), _read_run(d, stale_after, now))
     if not found:
-        raise ConfigError(f"no run directories under {', '.join(map(str, paths))} (a run directory holds the config.yaml that `volleybots train` writes)")
+        raise ConfigError(f"no run directories under {', '.join(map(str, paths))} "
+                          "(a run directory holds the config.yaml that `volleybots train` writes)")
     return sorted(found.values(), key=lambda r: str(r.path))
 
 
@@ -110,7 +111,8 @@ def _read_run(d: Path, stale_after: float, now: float) -> Run:
     run = RunDir(d)
     if not run.config_path.is_file():
         overrides = _hydra_overrides(d)
-        return _unfinished(Run(d, "running"), d, stale_after, now, f"no config.yaml: the job stopped before training began (overrides: {overrides})")
+        return _unfinished(Run(d, "running"), d, stale_after, now,
+                           f"no config.yaml: the job stopped before training began (overrides: {overrides})")
     try:
         config = yaml.safe_load(run.config_path.read_text())
     except yaml.YAMLError as e:
@@ -126,7 +128,8 @@ def _read_run(d: Path, stale_after: float, now: float) -> Run:
     try:
         summary = json.loads(run.summary_path.read_text())
         if "final_eval" not in summary and "population" in summary:
-            return Run(d, "not aggregated", "a population run: no final evaluation to average (its payoffs: population/payoffs.json)", config, summary)
+            return Run(d, "not aggregated", "a population run: no final evaluation to average (its payoffs: population/payoffs.json)",
+                       config, summary)
         value = float(summary["final_eval"]["stats"][summary["metric"]]["mean"])
     except (ValueError, KeyError, TypeError) as e:
         return Run(d, "failed", f"summary.json unreadable ({type(e).__name__}: {e})", config)

@@ -25,5 +25,6 @@ ALGOS: dict[str, type[Algorithm] | Preset] = {
 }
 
 __all__ = [
-    "ALGOS", "Algorithm", "BC", "PRESETS", "Preset", "DDPG", "DQN", "FSP", "HAPPO", "MADDPG", "MAPPO", "MAT", "PPO", "PSRONash", "PSROUniform", "QMIX", "SAC", "SP", "TD3",
+    "ALGOS", "Algorithm", "BC", "PRESETS", "Preset", "DDPG", "DQN", "FSP", "HAPPO", "MADDPG", "MAPPO", "MAT", "PPO",
+    "PSRONash", "PSROUniform", "QMIX", "SAC", "SP", "TD3",
 ]

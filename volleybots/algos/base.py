@@ -71,13 +71,18 @@ class Algorithm(ABC):
         n_drones = class_attr(task_cls, "n_drones")
         if n_drones > 1 and not cls.multi_agent:
             multi = sorted({a.name for a in _subclasses(Algorithm) if a.multi_agent})
-            raise ConfigError(f"algo {cls.name!r} trains one drone but task {task_cls.name!r} has {n_drones}; use one of: {', '.join(multi)}")
+            raise ConfigError(
+                f"algo {cls.name!r} trains one drone but task {task_cls.name!r} has {n_drones}; use one of: {', '.join(multi)}"
+            )
         kind, kinds = task_kind(task_cls), cls.supported_kinds()
         if kind not in kinds:
             from volleybots.tasks import TASKS
 
             allowed = [n for n, t in TASKS.items() if task_kind(t) in kinds]
-            raise ConfigError(f"algo {cls.name!r} trains {' or '.join(kinds)} tasks but task {task_cls.name!r} is {kind}; allowed tasks: {', '.join(allowed)}")
+            raise ConfigError(
+                f"algo {cls.name!r} trains {' or '.join(kinds)} tasks but task {task_cls.name!r} is {kind}; "
+                f"allowed tasks: {', '.join(allowed)}"
+            )
 
     @classmethod
     def supported_kinds(cls) -> tuple[str, ...]:

@@ -32,10 +32,9 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 from torch import nn
 
-from volleybots.algos.ppo import ACTION, OBS, PPO, PPOConfig, PPONetConfig
+from volleybots.algos.ppo import PPO, PPOConfig, PPONetConfig
 from volleybots.errors import ConfigError, ranged
-
-TEACHER = ("agents", "teacher_action")  # the scripted player's action, next to the executed one
+from volleybots.keys import ACTION, AGENTS, NEXT, OBS, STATS, TEACHER, leaf, nxt
 
 
 @dataclass
@@ -144,7 +143,7 @@ class BC(PPO):
 
     def update(self, batch: TensorDictBase) -> dict[str, float]:
         cfg = self.cfg
-        batch = batch.exclude("stats", ("next", "stats"))
+        batch = batch.exclude(STATS, nxt(STATS))
         if TEACHER not in batch.keys(True):
             raise RuntimeError("bc learns from batches its own collection policy labelled (attach the env first)")
         self.store(batch.get(OBS).reshape(-1, self.obs_dim), batch.get(TEACHER).reshape(-1, self.action_dim))
@@ -153,7 +152,7 @@ class BC(PPO):
             if self.obs_norm is not None:  # the teacher's collection did not run it
                 self.obs_norm.module.stats.update(batch.get(OBS))
                 self.obs_norm(batch)
-                self.obs_norm(batch["next"])
+                self.obs_norm(batch[NEXT])
             self.loss.value_estimator(batch)
         flat = batch.select(self._obs_in, "value_target").reshape(-1)
         steps = max(1, round(cfg.replay_ratio * batch.numel() * self.n_agents / cfg.batch_size))
@@ -181,7 +180,7 @@ class BC(PPO):
         sample, plus the critic's loss on a sample of the batch's steps."""
         cfg = self.cfg
         idx = torch.randint(self.size, (min(cfg.batch_size, self.size),), generator=self.gen, device=self.gen.device).to(self.device)
-        td = TensorDict({"agents": TensorDict({"observation": self.data_obs[idx]}, batch_size=[len(idx)])}, batch_size=[len(idx)])
+        td = TensorDict({AGENTS: TensorDict({leaf(OBS): self.data_obs[idx]}, batch_size=[len(idx)])}, batch_size=[len(idx)])
         if self.obs_norm is not None:
             self.obs_norm(td)
         target = self.data_act[idx]
@@ -224,4 +223,4 @@ class BC(PPO):
 
 def _view(td: TensorDictBase) -> TensorDictBase:
     """A shallow copy whose ``agents`` entries a policy may write without touching ``td``'s."""
-    return td.clone(recurse=False).set("agents", td.get("agents").clone(recurse=False))
+    return td.clone(recurse=False).set(AGENTS, td.get(AGENTS).clone(recurse=False))

@@ -35,7 +35,9 @@ class DQN(OffPolicy):
     def build(self) -> None:
         self.qnet = net(self.obs_dim, self.action_dim, self.cfg).to(self.device)
         actor = QValueActor(self.qnet, in_keys=["observation"], action_space="categorical")
-        self.loss = DQNLoss(actor, loss_function=self.cfg.critic_loss, delay_value=True, double_dqn=self.cfg.double_q, action_space="categorical")
+        self.loss = DQNLoss(
+            actor, loss_function=self.cfg.critic_loss, delay_value=True, double_dqn=self.cfg.double_q, action_space="categorical"
+        )
         self.optims = {"q": self.adam(self.loss.value_network_params.values(True, True))}
 
     @property

@@ -16,7 +16,8 @@ from tensordict.nn import TensorDictModule
 from torch import nn
 
 from volleybots.algos.base import mlp
-from volleybots.algos.ppo import OBS, OBS_NORM, ObsNorm, make_actor
+from volleybots.algos.ppo import ObsNorm, make_actor
+from volleybots.keys import OBS, OBS_NORM
 
 # the algorithms whose actor is PPO's Gaussian over PPO's MLP (bc's is PPO's by construction)
 GUIDE_SOURCES = ("bc", "ppo", "mappo")
@@ -40,7 +41,8 @@ class Guide(nn.Module):
         # the random initial weights are overwritten at once: they must not move the run's random stream
         with torch.random.fork_rng(devices=[]):
             body = mlp(obs_dim, action_dim, self.net_keys["hidden"], self.net_keys["activation"], out_gain=0.01)
-            self.actor, _ = make_actor(body, [OBS_NORM if self.net_keys["obs_norm"] else OBS], action_dim, SimpleNamespace(init_log_std=0.0), True)
+            obs_in = OBS_NORM if self.net_keys["obs_norm"] else OBS
+            self.actor, _ = make_actor(body, [obs_in], action_dim, SimpleNamespace(init_log_std=0.0), True)
         self.obs_norm = TensorDictModule(ObsNorm(obs_dim), [OBS], [OBS_NORM]) if self.net_keys["obs_norm"] else None
         self.requires_grad_(False)
 

@@ -23,7 +23,8 @@ from torch import nn
 from torchrl.objectives import ClipPPOLoss
 
 from volleybots.algos.base import mlp
-from volleybots.algos.ppo import ACTION, LOG_PROB, MAPPO, MAPPOConfig, add_logs, make_actor
+from volleybots.algos.ppo import MAPPO, MAPPOConfig, add_logs, make_actor
+from volleybots.keys import ACTION, AGENTS, LOG_PROB, leaf
 
 ACTOR_LOGS = ("loss_objective", "loss_entropy", "entropy", "kl_approx", "clip_fraction")
 
@@ -44,7 +45,7 @@ class PerAgentActors(TensorDictModuleBase):
         self.obs_key = obs_key
         self.leaf = obs_key[-1]
         self.in_keys = [obs_key]
-        self.out_keys = [("agents", k) for k in actors[0].out_keys]
+        self.out_keys = [(AGENTS, k) for k in actors[0].out_keys]
 
     def agent(self, td: TensorDictBase, a: int) -> TensorDict:
         """Drone ``a``'s observations as the root-level input of its actor."""
@@ -52,7 +53,7 @@ class PerAgentActors(TensorDictModuleBase):
 
     def forward(self, td: TensorDictBase) -> TensorDictBase:
         outs = [actor(self.agent(td, a)).exclude(self.leaf) for a, actor in enumerate(self.actors)]
-        td.get("agents").update(torch.stack(outs, dim=1))
+        td.get(AGENTS).update(torch.stack(outs, dim=1))
         return td
 
 
@@ -72,7 +73,7 @@ class HAPPO(MAPPO):
         self.agent_losses = []
         for actor in actors:
             loss = ClipPPOLoss(actor, None, clip_epsilon=cfg.clip_epsilon, entropy_coeff=cfg.entropy_coeff, functional=False)
-            loss.set_keys(action="action", sample_log_prob="action_log_prob", advantage="advantage")
+            loss.set_keys(action=leaf(ACTION), sample_log_prob=leaf(LOG_PROB), advantage="advantage")
             self.agent_losses.append(loss)
         self._stds = stds
         return PerAgentActors(actors, obs_in), None
@@ -80,7 +81,14 @@ class HAPPO(MAPPO):
     def agent_batch(self, flat: TensorDictBase, a: int, advantage: torch.Tensor, factor: torch.Tensor) -> TensorDict:
         """Drone ``a``'s samples [B] for its surrogate: the advantage is weighted by ``factor``."""
         td = self.actor.agent(flat, a)
-        td.update({"action": flat.get(ACTION)[:, a], "action_log_prob": flat.get(LOG_PROB)[:, a], "factor": factor, "advantage": (factor * advantage).unsqueeze(-1)})
+        td.update(
+            {
+                leaf(ACTION): flat.get(ACTION)[:, a],
+                leaf(LOG_PROB): flat.get(LOG_PROB)[:, a],
+                "factor": factor,
+                "advantage": (factor * advantage).unsqueeze(-1),
+            }
+        )
         return td
 
     def train_agent(self, a: int, td: TensorDictBase) -> dict[str, float]:
@@ -97,7 +105,7 @@ class HAPPO(MAPPO):
         """pi_new / pi_old of drone ``a``'s actions [B]."""
         with torch.no_grad():
             dist = self.actor.actors[a].get_dist(td)
-            return (dist.log_prob(td["action"]) - td["action_log_prob"]).exp()
+            return (dist.log_prob(td[leaf(ACTION)]) - td[leaf(LOG_PROB)]).exp()
 
     def update(self, batch: TensorDictBase) -> dict[str, float]:
         cfg = self.cfg

@@ -21,9 +21,8 @@ from torchrl.modules.models.multiagent import MultiAgentMLP
 from torchrl.objectives import DDPGLoss
 
 from volleybots.algos.ddpg import DDPG, DDPGConfig
-from volleybots.algos.offpolicy import ACTION, OBS, QNet, joint_transitions, net_kwargs
-
-Q_VALUE = ("agents", "state_action_value")
+from volleybots.algos.offpolicy import QNet, joint_transitions, net_kwargs
+from volleybots.keys import ACTION, AGENT_DONE, AGENT_TERMINATED, OBS, Q_VALUE, REWARD, nxt
 
 
 @dataclass
@@ -48,16 +47,18 @@ class MADDPG(DDPG):
     config_cls = MADDPGConfig
     multi_agent = True
     task_kinds = ("cooperative",)
-    reward_key = ("next", "agents", "reward")
+    reward_key = nxt(REWARD)
 
     def build(self) -> None:
         cfg, dev, a = self.cfg, self.device, self.n_agents
-        policy = MultiAgentMLP(self.obs_dim, self.action_dim, a, centralized=False, share_params=cfg.share_actor, device=dev, **net_kwargs(cfg))
+        policy = MultiAgentMLP(
+            self.obs_dim, self.action_dim, a, centralized=False, share_params=cfg.share_actor, device=dev, **net_kwargs(cfg)
+        )
         self.actor_net = nn.Sequential(policy, nn.Tanh())
         actor = TensorDictModule(self.actor_net, [OBS], [ACTION])
         critic = TensorDictModule(CentralisedQ(self.obs_dim, self.action_dim, a, cfg, dev), [OBS, ACTION], [Q_VALUE])
         self.loss = DDPGLoss(actor, critic, loss_function=cfg.critic_loss, delay_actor=True, delay_value=True)
-        self.loss.set_keys(state_action_value=Q_VALUE, reward=("agents", "reward"), done=("agents", "done"), terminated=("agents", "terminated"))
+        self.loss.set_keys(state_action_value=Q_VALUE, reward=REWARD, done=AGENT_DONE, terminated=AGENT_TERMINATED)
         self.optims = {
             "actor": self.adam(self.loss.actor_network_params.values(True, True)),
             "critic": self.adam(self.critic_params()),

@@ -27,8 +27,9 @@ from tensordict.nn import TensorDictModule
 from torch import nn
 from torchrl.envs.utils import ExplorationType, set_exploration_type
 
-from volleybots.algos.ppo import ACTION, LOG_PROB, MAPPO, VALUE, MAPPOConfig, make_actor
+from volleybots.algos.ppo import MAPPO, MAPPOConfig, make_actor
 from volleybots.errors import ConfigError, ranged
+from volleybots.keys import ACTION, LOG_PROB, VALUE
 
 
 @dataclass
@@ -173,7 +174,10 @@ class MAT(MAPPO):
         later drones' placeholder actions are invisible to it: the decoder is causal)."""
         obs = td.get(self._obs_in)
         shape = obs.shape[:-1]
-        action = torch.zeros(*shape, self.action_dim, device=obs.device) if self.continuous else torch.zeros(shape, dtype=torch.long, device=obs.device)
+        if self.continuous:
+            action = torch.zeros(*shape, self.action_dim, device=obs.device)
+        else:
+            action = torch.zeros(shape, dtype=torch.long, device=obs.device)
         log_prob = torch.zeros(shape, device=obs.device)
         work = td.select(self._obs_in)
         for i in range(self.n_agents):

@@ -33,10 +33,8 @@ from torchrl.objectives import LossModule, SoftUpdate
 
 from volleybots.algos.base import ACTIVATIONS, Algorithm
 from volleybots.errors import ConfigError, check_device, ranged
+from volleybots.keys import ACTION, AGENT_DONE, AGENT_TERMINATED, AGENTS, DONE, NEXT, OBS, REWARD, TERMINATED, leaf, nxt
 
-OBS = ("agents", "observation")
-ACTION = ("agents", "action")
-REWARD = ("agents", "reward")
 CRITIC_LOSSES = ("smooth_l1", "l2", "l1")  # TorchRL's distance losses; smooth_l1 is Huber with delta 1
 
 
@@ -98,17 +96,17 @@ def transitions(batch: TensorDictBase) -> TensorDict:
     shape = obs.shape[:-1]  # N, T, A
 
     def per_agent(key):
-        return batch.get(("next", key)).unsqueeze(-2).expand(*shape, 1)
+        return batch.get(nxt(key)).unsqueeze(-2).expand(*shape, 1)
 
     return TensorDict(
         {
             "observation": obs,
             "action": batch.get(ACTION),
-            "next": {
-                "observation": batch.get(("next", *OBS)),
-                "reward": batch.get(("next", *REWARD)),
-                "done": per_agent("done"),
-                "terminated": per_agent("terminated"),
+            NEXT: {
+                "observation": batch.get(nxt(OBS)),
+                "reward": batch.get(nxt(REWARD)),
+                "done": per_agent(DONE),
+                "terminated": per_agent(TERMINATED),
             },
         },
         batch_size=shape,
@@ -123,24 +121,24 @@ def joint_transitions(batch: TensorDictBase) -> TensorDict:
     shape = obs.shape[:-1]  # N, T, A
 
     def per_agent(key):
-        return batch.get(("next", key)).unsqueeze(-2).expand(*shape, 1)
+        return batch.get(nxt(key)).unsqueeze(-2).expand(*shape, 1)
 
-    nxt = batch.get("next")
+    after = batch.get(NEXT)
     return TensorDict(
         {
-            "agents": TensorDict({"observation": obs, "action": batch.get(ACTION)}, batch_size=shape),
-            "next": {
-                "agents": TensorDict(
+            AGENTS: TensorDict({leaf(OBS): obs, leaf(ACTION): batch.get(ACTION)}, batch_size=shape),
+            NEXT: {
+                AGENTS: TensorDict(
                     {
-                        "observation": batch.get(("next", *OBS)),
-                        "reward": batch.get(("next", *REWARD)),
-                        "done": per_agent("done"),
-                        "terminated": per_agent("terminated"),
+                        leaf(OBS): batch.get(nxt(OBS)),
+                        leaf(REWARD): batch.get(nxt(REWARD)),
+                        leaf(AGENT_DONE): per_agent(DONE),
+                        leaf(AGENT_TERMINATED): per_agent(TERMINATED),
                     },
                     batch_size=shape,
                 ),
-                "done": nxt.get("done"),
-                "terminated": nxt.get("terminated"),
+                DONE: after.get(DONE),
+                TERMINATED: after.get(TERMINATED),
             },
         },
         batch_size=shape[:-1],
@@ -156,7 +154,7 @@ class OffPolicy(Algorithm):
     optims: dict[str, tuple[torch.optim.Optimizer, list[nn.Parameter]]]
     info_keys: tuple[str, ...] = ()  # the diagnostics ``losses`` returns besides the losses
     actor_attr: ClassVar[str]  # the attribute holding the network that acts (init= loads it as the actor)
-    reward_key: ClassVar[tuple[str, ...]] = ("next", "reward")  # the reward of a replay item (``reward_scale``)
+    reward_key: ClassVar[tuple[str, ...]] = (NEXT, "reward")  # the reward of a replay item (``reward_scale``)
 
 
     @classmethod

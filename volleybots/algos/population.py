@@ -97,7 +97,10 @@ class Preset:
             matches = [n for n, t in TASKS.items() if class_attr(t, "competitive")]
             raise ConfigError(f"algo {self.name!r} trains for matches, not task {task_cls.name!r}; allowed tasks: {', '.join(matches)}")
         if env_cfg.action_space not in self.action_spaces:
-            raise ConfigError(f"algo {self.name!r} does not support env.action_space={env_cfg.action_space!r}; allowed: {', '.join(self.action_spaces)}")
+            raise ConfigError(
+                f"algo {self.name!r} does not support env.action_space={env_cfg.action_space!r}; "
+                f"allowed: {', '.join(self.action_spaces)}"
+            )
         self.learner_cls.check(cfg, task_cls, env_cfg)
         for value, allowed, key in ((cfg.solver, SOLVERS, "algo.solver"), (cfg.learner_init, INITS, "algo.learner_init"),
                                     (cfg.payoff_pool, POOLS, "algo.payoff_pool")):

@@ -26,12 +26,10 @@ from torchrl.objectives.utils import ValueEstimators
 
 from volleybots.algos.base import Algorithm, mlp
 from volleybots.errors import ConfigError, ranged
+from volleybots.keys import ACTION, AGENTS, DONE, LOG_PROB, NEXT, OBS, OBS_NORM, REWARD, STATS, TERMINATED, VALUE, leaf, nxt
 
-OBS = ("agents", "observation")
-OBS_NORM = ("agents", "observation_norm")
-ACTION = ("agents", "action")
-LOG_PROB = ("agents", "action_log_prob")
-VALUE = ("agents", "state_value")
+# what a minibatch's loss output adds to the logs (when the loss computed it)
+LOSS_LOGS = ("loss_objective", "loss_critic", "loss_entropy", "entropy", "kl_approx", "clip_fraction", "explained_variance")
 
 
 @dataclass
@@ -124,7 +122,7 @@ class Scaled(nn.Sequential):
         return self[1](self[0](*inputs))
 
 
-def make_actor(net: nn.Module, in_keys, action_dim: int, cfg, continuous: bool, group: tuple[str, ...] = ("agents",)):
+def make_actor(net: nn.Module, in_keys, action_dim: int, cfg, continuous: bool, group: tuple[str, ...] = (AGENTS,)):
     """The policy over ``net``'s output (reading ``in_keys``): a Gaussian with a state-independent
     standard deviation (continuous) or a Categorical over logits (discrete). Writes the action and
     its log-probability under ``group``. Returns the actor and the scale module (None if discrete)."""
@@ -141,7 +139,12 @@ def make_actor(net: nn.Module, in_keys, action_dim: int, cfg, continuous: bool, 
         head = TensorDictModule(net, in_keys, [key("logits")])
         dist_keys, dist_cls = [key("logits")], torch.distributions.Categorical
     actor = ProbabilisticActor(
-        head, in_keys=dist_keys, out_keys=[key("action")], distribution_class=dist_cls, return_log_prob=True, log_prob_key=key("action_log_prob")
+        head,
+        in_keys=dist_keys,
+        out_keys=[key(leaf(ACTION))],
+        distribution_class=dist_cls,
+        return_log_prob=True,
+        log_prob_key=key(leaf(LOG_PROB)),
     )
     return actor, std
 
@@ -165,7 +168,8 @@ class PPO(Algorithm):
         frames = env_cfg.num_envs * cfg.steps_per_batch
         if frames < cfg.minibatches:
             raise ConfigError(
-                f"a batch of {frames} frames (env.num_envs x algo.steps_per_batch) cannot make algo.minibatches={cfg.minibatches} minibatches"
+                f"a batch of {frames} frames (env.num_envs x algo.steps_per_batch) cannot make "
+                f"algo.minibatches={cfg.minibatches} minibatches"
             )
 
     def __init__(self, cfg, env, seed: int = 0):
@@ -189,7 +193,7 @@ class PPO(Algorithm):
             **self.loss_options,
         )
         self.loss.set_keys(
-            action=ACTION, sample_log_prob=LOG_PROB, value=VALUE, reward=("agents", "reward"), done="done", terminated="terminated"
+            action=ACTION, sample_log_prob=LOG_PROB, value=VALUE, reward=REWARD, done=DONE, terminated=TERMINATED
         )
         self.loss.make_value_estimator(ValueEstimators.MAGAE, gamma=cfg.gamma, lmbda=cfg.gae_lambda, **self.value_options)
         self.optim = torch.optim.Adam(self.param_groups())
@@ -231,10 +235,10 @@ class PPO(Algorithm):
     def prepare(self, batch: TensorDictBase) -> TensorDictBase:
         """GAE advantages and value targets of a collected batch [N, T], flattened to [N * T] with
         only what the losses read (so that minibatch indexing copies no more than it must)."""
-        batch = batch.exclude("stats", ("next", "stats"))
+        batch = batch.exclude(STATS, nxt(STATS))
         with torch.no_grad():
             if self.obs_norm is not None:
-                self.obs_norm(batch["next"])  # the same statistics the rollout used
+                self.obs_norm(batch[NEXT])  # the same statistics the rollout used
             self.loss.value_estimator(batch)
         return batch.select(self._obs_in, ACTION, LOG_PROB, VALUE, "advantage", "value_target").reshape(-1)
 
@@ -258,7 +262,7 @@ class PPO(Algorithm):
     def finish_update(self, batch: TensorDictBase, sums: dict[str, float], steps: int) -> dict[str, float]:
         """Update the observation statistics after learning; the mean of the summed logs."""
         if self.obs_norm is not None:
-            self.obs_norm.module.stats.update(batch["next"][OBS])
+            self.obs_norm.module.stats.update(batch[NEXT][OBS])
         logs = {k: v / steps for k, v in sums.items()}
         if self._std is not None:
             logs["action_std"] = float(self._std.state_independent_scale.detach().exp().mean())
@@ -284,7 +288,7 @@ class PPO(Algorithm):
                 loss = loss + anchor * kl
                 logs["anchor_kl"] = kl.detach()
             gn_a, gn_c = self.step(loss, groups)
-            logs.update({k: out[k] for k in ("loss_objective", "loss_critic", "loss_entropy", "entropy", "kl_approx", "clip_fraction", "explained_variance") if k in out.keys()})
+            logs.update({k: out[k] for k in LOSS_LOGS if k in out.keys()})
             logs.update(grad_norm_actor=gn_a, grad_norm_critic=gn_c)
             add_logs(sums, logs)
         self.updates += 1

@@ -27,11 +27,9 @@ from torchrl.modules.models.multiagent import QMixer
 from torchrl.objectives.multiagent import QMixerLoss
 
 from volleybots.algos.dqn import DQN, DQNConfig
-from volleybots.algos.offpolicy import ACTION, OBS, joint_transitions, net
+from volleybots.algos.offpolicy import joint_transitions, net
 from volleybots.errors import ConfigError, ranged
-
-ACTION_VALUE = ("agents", "action_value")
-CHOSEN = ("agents", "chosen_action_value")
+from volleybots.keys import ACTION, ACTION_VALUE, CHOSEN_VALUE, NEXT, OBS, REWARD, nxt
 
 
 @dataclass
@@ -76,10 +74,11 @@ class QMIX(DQN):
         self.qnet = net(self.obs_dim, self.action_dim, cfg).to(dev)
         local = TensorDictSequential(
             TensorDictModule(self.qnet, [OBS], [ACTION_VALUE]),
-            QValueModule(action_value_key=ACTION_VALUE, out_keys=[ACTION, ACTION_VALUE, CHOSEN], action_space="categorical"),
+            QValueModule(action_value_key=ACTION_VALUE, out_keys=[ACTION, ACTION_VALUE, CHOSEN_VALUE], action_space="categorical"),
         )
         self.mixer = StateMixer(self.obs_dim, self.n_agents, cfg, dev)
-        mixer = TensorDictModule(self.mixer, [CHOSEN, OBS], ["chosen_action_value"])
+        # the team's value and reward sit at the root under QMixerLoss's default names
+        mixer = TensorDictModule(self.mixer, [CHOSEN_VALUE, OBS], ["chosen_action_value"])
         self.loss = QMixerLoss(local, mixer, loss_function=cfg.critic_loss, delay_value=True, action_space="categorical")
         params = [*self.loss.local_value_network_params.values(True, True), *self.loss.mixer_network_params.values(True, True)]
         self.optims = {"q": self.adam(params)}
@@ -87,7 +86,7 @@ class QMIX(DQN):
     def replay_items(self, batch: TensorDictBase):
         """Chunks [N] of [T] joint steps, with the team reward (the drones' rewards summed)."""
         data = joint_transitions(batch)
-        data["next", "reward"] = data["next", "agents", "reward"].sum(-2)
+        data[NEXT, "reward"] = data[nxt(REWARD)].sum(-2)
         return data
 
     def losses(self, td):

@@ -39,7 +39,9 @@ _COMPETITORS = "Competitors (a run dir, a checkpoint, a population run, scripted
 @_user_errors
 def eval_cmd(
     target: str = typer.Argument(..., help="A run directory, a checkpoint file, 'scripted' or 'random'."),
-    overrides: Optional[List[str]] = typer.Argument(None, help="episodes=100 deterministic=true seed=0; for scripted/random also task=NAME env.action_space=ctbr."),
+    overrides: Optional[List[str]] = typer.Argument(
+        None, help="episodes=100 deterministic=true seed=0; for scripted/random also task=NAME env.action_space=ctbr."
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print the result as JSON instead of a table."),
 ) -> None:
     """Play N episodes (episodes=100) and report the task metric's mean / std and every per-term return."""
@@ -58,10 +60,15 @@ def eval_cmd(
 @eval_app.command("compare", context_settings=_PASS_THROUGH)
 @_user_errors
 def compare_cmd(
-    args: Optional[List[str]] = typer.Argument(None, help="BASELINE TARGET [TARGET ...] (run dirs, checkpoints, scripted, random), then episodes=100 seed=0 deterministic=true task.episode_len=... (scripted/random play the first run's task unless task= is given)."),
+    args: Optional[List[str]] = typer.Argument(
+        None,
+        help="BASELINE TARGET [TARGET ...] (run dirs, checkpoints, scripted, random), then episodes=100 seed=0 "
+        "deterministic=true task.episode_len=... (scripted/random play the first run's task unless task= is given).",
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print the result, per-episode metrics included, as JSON instead of a table."),
 ) -> None:
-    """Play every target on the same episodes and compare each with the first, episode by episode: mean improvement with its 95 % interval, W/T/L, Wilcoxon test."""
+    """Play every target on the same episodes and compare each with the first, episode by episode:
+    mean improvement with its 95 % interval, W/T/L, Wilcoxon test."""
     from volleybots.eval.compare import compare, format_table
 
     args = list(args or [])
@@ -78,7 +85,11 @@ def compare_cmd(
 def _pair_progress(i: int, j: int, games) -> None:
     c = games.content()
     t = c["touches"]
-    typer.echo(f"  pair {i},{j}: W/D/L {'/'.join(map(str, games.total.tolist()))}, touches/game {t[0]:.2f}/{t[1]:.2f}, rally {c['rally_steps']:.0f} steps", err=True)
+    typer.echo(
+        f"  pair {i},{j}: W/D/L {'/'.join(map(str, games.total.tolist()))}, touches/game {t[0]:.2f}/{t[1]:.2f}, "
+        f"rally {c['rally_steps']:.0f} steps",
+        err=True,
+    )
 
 
 def _show(data: dict, table, as_json: bool, files: list[Path]) -> None:
@@ -95,9 +106,15 @@ def _show(data: dict, table, as_json: bool, files: list[Path]) -> None:
 @eval_app.command("crossplay", context_settings=_PASS_THROUGH)
 @_user_errors
 def crossplay_cmd(
-    args: Optional[List[str]] = typer.Argument(None, help=f"{_COMPETITORS}, then games=1000 seed=0 batch=256 scenario=any|serve|receive deterministic=false task=1v1 env.action_space=prt."),
+    args: Optional[List[str]] = typer.Argument(
+        None,
+        help=f"{_COMPETITORS}, then games=1000 seed=0 batch=256 scenario=any|serve|receive deterministic=false "
+        "task=1v1 env.action_space=prt.",
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of the table."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Folder for crossplay.json and crossplay.png (new or empty; default outputs/crossplay/<time>_<task>)."),
+    out: Optional[Path] = typer.Option(
+        None, "--out", help="Folder for crossplay.json and crossplay.png (new or empty; default outputs/crossplay/<time>_<task>)."
+    ),
 ) -> None:
     """Every pair plays N games, each side half of them: W/D/L, win rates with Wilson intervals, average win rate, heatmap."""
     from rich.console import Group
@@ -113,9 +130,15 @@ def crossplay_cmd(
 @eval_app.command("exploitability", context_settings=_PASS_THROUGH)
 @_user_errors
 def exploitability_cmd(
-    args: Optional[List[str]] = typer.Argument(None, help="TARGET (a competitor), then budget=1000000 games=1000 seed=0 scenario=any|serve|receive init=RUN num_envs=N batch=256 task=1v1 env.action_space=prt."),
+    args: Optional[List[str]] = typer.Argument(
+        None,
+        help="TARGET (a competitor), then budget=1000000 games=1000 seed=0 scenario=any|serve|receive init=RUN num_envs=N "
+        "batch=256 task=1v1 env.action_space=prt.",
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of a line."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Folder for the best response's run dir (br/) and exploitability.json (new or empty)."),
+    out: Optional[Path] = typer.Option(
+        None, "--out", help="Folder for the best response's run dir (br/) and exploitability.json (new or empty)."
+    ),
 ) -> None:
     """Train a best response with (MA)PPO against TARGET for a budget of frames, play it: 100 x (BR win rate - 0.5)."""
     from volleybots.eval.exploitability import RESULTS, format_line, run_exploitability
@@ -134,7 +157,9 @@ def exploitability_cmd(
 @eval_app.command("elo", context_settings=_PASS_THROUGH)
 @_user_errors
 def elo_cmd(
-    args: Optional[List[str]] = typer.Argument(None, help=f"{_COMPETITORS}, or from=CROSSPLAY_JSON; then rounds=2000 k=168 seed=0 and cross-play's options."),
+    args: Optional[List[str]] = typer.Argument(
+        None, help=f"{_COMPETITORS}, or from=CROSSPLAY_JSON; then rounds=2000 k=168 seed=0 and cross-play's options."
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print the ratings JSON instead of the table."),
     out: Optional[Path] = typer.Option(None, "--out", help="Folder for ratings.json, ratings.png (and the games played); new or empty."),
 ) -> None:
@@ -148,10 +173,17 @@ def elo_cmd(
 @app.command(context_settings=_PASS_THROUGH)
 @_user_errors
 def replay(
-    args: List[str] = typer.Argument(..., help="TARGET [overrides]: a run dir, a checkpoint, 'scripted' or 'random' with seed=0 deterministic=true (for scripted/random also task=NAME env.action_space=ctbr); or A B [task=3v3 seed=0 scenario=any|serve|receive]: a match between two competitors (name=PATH labels one)."),
+    args: List[str] = typer.Argument(
+        ...,
+        help="TARGET [overrides]: a run dir, a checkpoint, 'scripted' or 'random' with seed=0 deterministic=true "
+        "(for scripted/random also task=NAME env.action_space=ctbr); or A B [task=3v3 seed=0 scenario=any|serve|receive]: "
+        "a match between two competitors (name=PATH labels one).",
+    ),
     out: Optional[Path] = typer.Option(None, "--out", help="The .rrd file to write (never overwritten)."),
     no_viewer: bool = typer.Option(False, "--no-viewer", help="Do not open the rerun viewer even when a display exists."),
-    still: Optional[Path] = typer.Option(None, "--still", help="Also draw the episode to this .png (court, drones, ball flight; needs the 'plot' extra; never overwritten)."),
+    still: Optional[Path] = typer.Option(
+        None, "--still", help="Also draw the episode to this .png (court, drones, ball flight; needs the 'plot' extra; never overwritten)."
+    ),
 ) -> None:
     """Record one episode to a rerun file: court, net, drones, ball trail, hits / violations, rewards; for two
     competitors, one match with each team's colour, the touches and the fault that ended the rally."""
@@ -204,6 +236,9 @@ def _replay_one(target: str, overrides: list[str], out: Path | None, viewer: boo
         raise
     where = str(out) if out is not None else "the viewer"
     where += f" and {still}" if still is not None else ""
-    typer.echo(f"recorded one episode of {t.label} on {t.cfg.task.name} to {where}: {env.metric} {stats[env.metric]:.4g}, return {stats['return']:.4g}")
+    typer.echo(
+        f"recorded one episode of {t.label} on {t.cfg.task.name} to {where}: "
+        f"{env.metric} {stats[env.metric]:.4g}, return {stats['return']:.4g}"
+    )
 
 

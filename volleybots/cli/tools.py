@@ -91,8 +91,16 @@ def bench(
     kwargs = {"compile": True} if compile else {}
     kwargs.update(parse_options(options or [], allowed, "bench"))
     kwargs = check_bench_options(kwargs)
+
+    def measured(row: dict) -> None:
+        typer.echo(
+            f"  measured {row.get('task')} {row.get('kind', 'env')} {row.get('backend')} x{row.get('num_envs')}: "
+            f"{row.get('env_steps_per_s', 0):,.0f}/s",
+            err=True,
+        )
+
     try:
-        rows = run_bench(**kwargs, progress=lambda row: typer.echo(f"  measured {row.get('task')} {row.get('kind', 'env')} {row.get('backend')} x{row.get('num_envs')}: {row.get('env_steps_per_s', 0):,.0f}/s", err=True))
+        rows = run_bench(**kwargs, progress=measured)
     except ValueError as e:
         raise ConfigError(str(e).splitlines()[0]) from None
     typer.echo(json.dumps(rows, indent=1) if as_json else format_table(rows))
@@ -102,10 +110,18 @@ def bench(
 @app.command()
 @_user_errors
 def report(
-    dirs: List[Path] = typer.Argument(..., help="Run directories, or folders that hold them (a sweep's multirun/<date>/<time>_<task>_<algo>)."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Also write report.md, report.json and curves_<task>.png to this folder (never overwritten)."),
+    dirs: List[Path] = typer.Argument(
+        ..., help="Run directories, or folders that hold them (a sweep's multirun/<date>/<time>_<task>_<algo>)."
+    ),
+    out: Optional[Path] = typer.Option(
+        None, "--out", help="Also write report.md, report.json and curves_<task>.png to this folder (never overwritten)."
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print the report as JSON instead of Markdown."),
-    stale_after: float = typer.Option(1800.0, "--stale-after", help="Seconds without a write after which a run with no summary.json counts as failed, not running."),
+    stale_after: float = typer.Option(
+        1800.0,
+        "--stale-after",
+        help="Seconds without a write after which a run with no summary.json counts as failed, not running.",
+    ),
 ) -> None:
     """Aggregate runs across seeds: per task x algorithm the final metric's mean, IQM and 95% bootstrap intervals, learning curves."""
     from volleybots.report import build_report, format_markdown, write_report
@@ -126,6 +142,8 @@ def check_out(out: Path) -> None:
     if out.exists() and not out.is_dir():
         raise ConfigError(f"--out {str(out)!r} is a file; give a folder")
     check_writable(out, "--out")
-    taken = [p.name for p in out.glob("*") if p.name in OUTPUT_FILES or (p.name.startswith("curves_") and p.suffix == ".png")] if out.is_dir() else []
+    taken = []
+    if out.is_dir():
+        taken = [p.name for p in out.glob("*") if p.name in OUTPUT_FILES or (p.name.startswith("curves_") and p.suffix == ".png")]
     if taken:
         raise ConfigError(f"--out {str(out)!r} already holds a report ({', '.join(sorted(taken))}); choose another folder")

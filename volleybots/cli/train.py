@@ -23,7 +23,10 @@ def _jobs(overrides: list[str], multirun: bool) -> list[list[str]]:
         raise ConfigError(f"bad override: {' '.join(str(e).split())}{_quote_hint(overrides)}") from None
     sweeps = [o for o in parsed if o.is_sweep_override()]
     if sweeps and not multirun:
-        raise ConfigError(f"override {sweeps[0].input_line!r} sweeps several values; add -m to run one job per value{_quote_hint([sweeps[0].input_line])}")
+        raise ConfigError(
+            f"override {sweeps[0].input_line!r} sweeps several values; add -m to run one job per value"
+            f"{_quote_hint([sweeps[0].input_line])}"
+        )
     choices = [
         [f"{o.get_key_element()}={v}" for v in o.sweep_string_iterator()] if o.is_sweep_override() else [o.input_line]
         for o in parsed
@@ -137,7 +140,11 @@ def _echo_summary(summary: dict, run_dir) -> None:
 @app.command(context_settings=_PASS_THROUGH)
 @_user_errors
 def train(
-    overrides: Optional[List[str]] = typer.Argument(None, help="Hydra overrides: task=solo_bump algo=ppo env.num_envs=256 env.action_space=ctbr seed=3 total_frames=2e6 hydra.run.dir=DIR, or resume=RUN_DIR [total_frames=N]."),
+    overrides: Optional[List[str]] = typer.Argument(
+        None,
+        help="Hydra overrides: task=solo_bump algo=ppo env.num_envs=256 env.action_space=ctbr seed=3 total_frames=2e6 "
+        "hydra.run.dir=DIR, or resume=RUN_DIR [total_frames=N].",
+    ),
     multirun: bool = typer.Option(False, "-m", "--multirun", help="Sweep: one job per combination of comma-separated values (seed=0,1,2)."),
     show: Optional[str] = typer.Option(None, "--cfg", "-c", help="Print the composed config (job, hydra or all) instead of training."),
 ) -> None:

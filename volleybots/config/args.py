@@ -33,7 +33,8 @@ def typed_option(key: str, value: str, kind: type):
     if kind is float and isinstance(v, int) and not isinstance(v, bool):
         v = float(v)
     if not isinstance(v, kind) or (kind is int and isinstance(v, bool)):
-        raise ConfigError(f"{key}={value!r} must be {'an integer' if kind is int else 'true or false' if kind is bool else 'a ' + kind.__name__}")
+        what = "an integer" if kind is int else "true or false" if kind is bool else "a " + kind.__name__
+        raise ConfigError(f"{key}={value!r} must be {what}")
     rng = OPTION_RANGES.get(key)
     if rng is not None and kind in (int, float) and v not in rng:
         raise ConfigError(f"{key}={value} is out of range: it must be {'an integer' if kind is int else 'a number'} {rng}")

@@ -5,7 +5,9 @@ from __future__ import annotations
 from volleybots.config.schema import check_env_args, to_dict
 
 
-def build_env(task: str, num_envs: int = 1, action_space: str = "prt", physics: str = "torch", device="cpu", seed: int = 0, **task_overrides):
+def build_env(
+    task: str, num_envs: int = 1, action_space: str = "prt", physics: str = "torch", device="cpu", seed: int = 0, **task_overrides
+):
     """Build the TorchRL env of ``task`` with ``num_envs`` worlds batched together.
 
     Args:

@@ -29,11 +29,14 @@ def check_memory(cfg, worlds: int | None = None) -> None:
             (cfg.env.num_envs * a.steps_per_batch * step_bytes,
              f"env.num_envs={cfg.env.num_envs} x algo.steps_per_batch={a.steps_per_batch} ({step_bytes} bytes per world and step)",
              "env.num_envs or algo.steps_per_batch", cfg.env.device),
-            (cfg.evaluation.episodes * step_bytes, f"evaluation.episodes={cfg.evaluation.episodes} ({step_bytes} bytes per world)", "evaluation.episodes", cfg.env.device),
+            (cfg.evaluation.episodes * step_bytes,
+             f"evaluation.episodes={cfg.evaluation.episodes} ({step_bytes} bytes per world)",
+             "evaluation.episodes", cfg.env.device),
         ]
         if "buffer_size" in a:  # flat per-drone transitions: observation, next observation, action, reward, flags
             per = 4 * (2 * obs_dim + max(1, probe.actions.dim if probe.actions.continuous else 1) + 3)
-            needs.append((a.buffer_size * per, f"algo.buffer_size={a.buffer_size} ({per} bytes per transition)", "algo.buffer_size", a.get("buffer_device") or cfg.env.device))
+            needs.append((a.buffer_size * per, f"algo.buffer_size={a.buffer_size} ({per} bytes per transition)",
+                          "algo.buffer_size", a.get("buffer_device") or cfg.env.device))
     check_fits(needs)
 
 
@@ -152,8 +155,11 @@ def check_bench_options(options: dict) -> dict:
     n = max(out.get("num_envs") or [1])
     for task in out.get("tasks") or ["solo_bump"]:
         step_bytes = _step_bytes(build_env(task, num_envs=1, action_space=out.get("action_space", "prt")))
-        check_fits([(n * step_bytes, f"num_envs={n} ({task}, {step_bytes} bytes per world)", "num_envs", d) for d in out.get("devices") or ["cpu"]])
+        what = f"num_envs={n} ({task}, {step_bytes} bytes per world)"
+        check_fits([(n * step_bytes, what, "num_envs", d) for d in out.get("devices") or ["cpu"]])
     return out
 
 
-__all__ = ["BenchOptions", "GAME_BYTES", "available_memory", "check_bench_options", "check_fits", "check_memory", "check_play", "check_rounds"]
+__all__ = [
+    "BenchOptions", "GAME_BYTES", "available_memory", "check_bench_options", "check_fits", "check_memory", "check_play", "check_rounds",
+]

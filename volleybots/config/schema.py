@@ -21,7 +21,9 @@ GROUPS = ("task", "algo", "env")  # config groups selected by `group=option`
 LOGGERS = ("csv", "wandb")
 WANDB_MODES = ("offline", "online", "disabled")
 # constructor arguments of a task that come from the env config (or the run), not the task's YAML
-ENV_ARGS = ("num_envs", "action_space", "physics", "device", "seed", "substeps", "drone", "ball_drag", "downwash", "compile", "compile_physics")
+ENV_ARGS = (
+    "num_envs", "action_space", "physics", "device", "seed", "substeps", "drone", "ball_drag", "downwash", "compile", "compile_physics",
+)
 MAX_SEED = 2**63 - 1  # torch generators take 64-bit seeds; evaluation adds an offset to the run's
 MAX_THREADS = 1024  # more torch CPU threads than this is never useful, and a typo of it hangs the machine
 

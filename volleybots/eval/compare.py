@@ -23,6 +23,7 @@ from volleybots.config.args import OVERRIDE_KEYS, split_args
 from volleybots.errors import ConfigError
 from volleybots.eval import play
 from volleybots.files import exists
+from volleybots.keys import OBS
 from volleybots.policies import BUILTIN as POLICY_NAMES
 from volleybots.policies import EVAL_KEYS, resolve_target
 
@@ -126,7 +127,7 @@ def _play(target, episodes: int | None):
 
     def watch(env, td, next_td):
         if not first:
-            first.append(td["agents", "observation"].clone())
+            first.append(td[OBS].clone())
 
     with torch.no_grad():
         env, res = play(target, episodes, on_step=watch)
@@ -153,12 +154,15 @@ def compare(args, episodes: int | None = None) -> dict:
     targets = _resolve(names, overrides)
     tasks = {t.cfg.task.name for t in targets}
     if len(tasks) > 1:
-        raise ConfigError(f"eval compare plays one task, but the targets are of {sorted(tasks)}: " + ", ".join(f"{n} ({t.cfg.task.name})" for n, t in zip(names, targets)))
+        each = ", ".join(f"{n} ({t.cfg.task.name})" for n, t in zip(names, targets))
+        raise ConfigError(f"eval compare plays one task, but the targets are of {sorted(tasks)}: {each}")
     for name, t in zip(names, targets):
         n = int(episodes or t.cfg.episodes)
         if n < 2:
             # before any episode is played: the t-interval of the mean difference needs two of them
-            raise ConfigError(f"episodes={n} for {name!r}: eval compare needs episodes >= 2 (the 95 % interval of a paired difference needs two episodes)")
+            raise ConfigError(
+                f"episodes={n} for {name!r}: eval compare needs episodes >= 2 (the 95 % interval of a paired difference needs two episodes)"
+            )
     rows, base, base_obs = [], None, None
     for name, t in zip(names, targets):
         env, res, obs = _play(t, episodes)
@@ -184,8 +188,11 @@ def format_table(result: dict):
     from rich.table import Table
 
     way = "higher" if result["higher_is_better"] else "lower"
-    table = Table(caption="better by: mean paired improvement +- its standard error; W/T/L: episodes better, level, worse; p: Wilcoxon signed-rank",
-                  title=f"{result['task']}: {result['metric']} ({way} is better), {result['episodes']} paired episodes, seed {result['seed']}")
+    table = Table(
+        caption="better by: mean paired improvement +- its standard error; W/T/L: episodes better, level, worse; "
+        "p: Wilcoxon signed-rank",
+        title=f"{result['task']}: {result['metric']} ({way} is better), {result['episodes']} paired episodes, seed {result['seed']}",
+    )
     for col in ("target", "mean", "std", "better by", "95% CI", "W/T/L", "p", "verdict"):
         table.add_column(col, justify="left" if col in ("target", "verdict") else "right")
     for row in result["targets"]:

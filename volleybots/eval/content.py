@@ -69,7 +69,8 @@ def format_content(labels: list[str], content: dict[str, dict], title: str = "ga
     from rich.table import Table
 
     table = Table(title=f"{title}: per game, from the first competitor's side (A vs B)")
-    for col in ("A vs B", "touches A/B", "rally steps", "rally touches (max)", "3+ touches", "faults of A", "faults of B", "A serving W/D/L", "A receiving W/D/L"):
+    for col in ("A vs B", "touches A/B", "rally steps", "rally touches (max)", "3+ touches", "faults of A", "faults of B",
+                "A serving W/D/L", "A receiving W/D/L"):
         table.add_column(col, justify="left" if col in ("A vs B", "faults of A", "faults of B") else "right")
     for key, c in sorted(content.items(), key=lambda kv: tuple(map(int, kv[0].split(",")))):
         i, j = map(int, key.split(","))

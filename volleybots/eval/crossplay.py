@@ -26,6 +26,7 @@ from volleybots.config.args import split_args
 from volleybots.config.resources import check_play
 from volleybots.errors import ConfigError
 from volleybots.files import Fields, read_json, write_atomic, write_json
+from volleybots.keys import OBS
 from volleybots.play.games import DEFAULT_BATCH, check_scenario, play_games
 from volleybots.ratings import record
 
@@ -108,7 +109,8 @@ class CrossPlay:
                 f.fail(f"outcomes[{key!r}] is not a pair 'i,j' of competitors with a string of W, D and L")
             counted = record.tally(seq).tolist()
             if counted != wdl[int(i), int(j)].astype(int).tolist():
-                f.fail(f"outcomes[{key!r}] holds {'/'.join(map(str, counted))} games, wdl says {'/'.join(map(str, wdl[int(i), int(j)].astype(int)))}")
+                said = "/".join(map(str, wdl[int(i), int(j)].astype(int)))
+                f.fail(f"outcomes[{key!r}] holds {'/'.join(map(str, counted))} games, wdl says {said}")
         side_wdl = f.need("side_wdl", dict)
         for key in side_wdl:
             Fields(side_wdl, f.where).counts(key, (2, 3))
@@ -179,7 +181,7 @@ def match_config(competitors, overrides=()):
     cfg = load([*extra, *overrides])
     check_scenario("any", cfg)
     env = make_env(cfg, num_envs=1, seed=0)
-    obs_dim = env.observation_spec["agents", "observation"].shape[-1]
+    obs_dim = env.observation_spec[OBS].shape[-1]
     for c in competitors:
         c.check_fits(cfg.task.name, cfg.env.action_space, obs_dim)
         c.team_policy(env)
@@ -191,7 +193,8 @@ def provenance(competitor, spec: str) -> dict:
     return {"label": competitor.label, "spec": spec, "members": competitor.sources, "mixture": [float(x) for x in competitor.mixture]}
 
 
-def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_BATCH, scenario: str = "any", deterministic: bool = False, specs=None, progress=None) -> CrossPlay:
+def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_BATCH, scenario: str = "any",
+              deterministic: bool = False, specs=None, progress=None) -> CrossPlay:
     """Play ``games`` games for every pair of ``competitors`` on the match task of ``cfg``.
 
     Args:
@@ -260,7 +263,8 @@ def heatmap(result: CrossPlay, path: Path, title: str | None = None) -> None:
             w, d, l_ = result.wdl[i, j].astype(int)
             if np.isfinite(wr[i, j]):
                 colour = "white" if abs(wr[i, j] - 0.5) > 0.3 else "black"
-                ax.text(j, i, f"{wr[i, j]:.2f}\n[{lo[i, j]:.2f}, {hi[i, j]:.2f}]\n{w}/{d}/{l_}{touches[i][j]}", ha="center", va="center", fontsize=8, color=colour)
+                cell = f"{wr[i, j]:.2f}\n[{lo[i, j]:.2f}, {hi[i, j]:.2f}]\n{w}/{d}/{l_}{touches[i][j]}"
+                ax.text(j, i, cell, ha="center", va="center", fontsize=8, color=colour)
             elif i != j:
                 ax.text(j, i, f"no decisive\ngame{touches[i][j]}", ha="center", va="center", fontsize=7, color="grey")
     avg = result.average_win_rate()
@@ -268,7 +272,8 @@ def heatmap(result: CrossPlay, path: Path, title: str | None = None) -> None:
     ax.set_yticks(range(n), [f"{lab}  (avg {a:.2f})" for lab, a in zip(result.labels, avg)])
     ax.set_xlabel("opponent (column); cells: win rate [Wilson 95 %], W/D/L" + (", touches per game row/column" if result.content else ""))
     m = result.meta
-    ax.set_title(title or f"{m.get('task')} cross-play: win rate of row over decisive games\n{m.get('games_per_pair')} games per pair, seed {m.get('seed')}, scenario {m.get('scenario')}", fontsize=9)
+    ax.set_title(title or f"{m.get('task')} cross-play: win rate of row over decisive games\n"
+                 f"{m.get('games_per_pair')} games per pair, seed {m.get('seed')}, scenario {m.get('scenario')}", fontsize=9)
     fig.colorbar(im, ax=ax, fraction=0.046)
     fig.tight_layout()
     try:
@@ -295,7 +300,10 @@ def format_table(result: CrossPlay):
     wr = result.win_rate()
     lo, hi = result.interval()
     m = result.meta
-    table = Table(title=f"cross-play on {m.get('task')} ({m.get('games_per_pair')} games per pair, seed {m.get('seed')}): row's win rate over decisive games")
+    table = Table(
+        title=f"cross-play on {m.get('task')} ({m.get('games_per_pair')} games per pair, seed {m.get('seed')}): "
+        "row's win rate over decisive games"
+    )
     table.add_column("")
     for lab in result.labels:
         table.add_column(lab, justify="right")

@@ -125,7 +125,10 @@ def format_table(report: dict):
     from rich.table import Table
 
     e, bt = report["elo"], report["bradley_terry"]
-    table = Table(title=f"ratings on {report['crossplay']['task']}: Elo K={e['k']:g} over {e['rounds']} rounds ({e['games']} games); BT with 95 % profile-likelihood intervals")
+    table = Table(
+        title=f"ratings on {report['crossplay']['task']}: Elo K={e['k']:g} over {e['rounds']} rounds ({e['games']} games); "
+        "BT with 95 % profile-likelihood intervals"
+    )
     cols = ("competitor", "Elo", "Bradley-Terry [95 %]", "avg win rate", "Nash weight", "exploitability in population (pp)",
             "touches/game (opp.)", "rally steps", "serving W/D/L", "receiving W/D/L")
     for col in cols:
@@ -174,7 +177,10 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
     from volleybots.runs import output_dir
 
     if any(a.partition("=")[0] == "bootstrap" for a in args):
-        raise ConfigError("bootstrap= is no longer an option of eval elo: Bradley-Terry's intervals are profile-likelihood intervals, which draw no resamples; leave it out")
+        raise ConfigError(
+            "bootstrap= is no longer an option of eval elo: Bradley-Terry's intervals are profile-likelihood intervals, "
+            "which draw no resamples; leave it out"
+        )
     options = {**{k: v for k, v in OPTIONS.items() if k != "games"}, **ELO_OPTIONS}
     specs, opts, _ = split_args(args, options)
     rounds = opts.get("rounds", 2000)
@@ -214,4 +220,7 @@ def _check_same_competitors(result: CrossPlay, competitors, source) -> None:
     mine = [(c.label, [m.get("sha256") for m in c.sources]) for c in competitors]
     theirs = [(p["label"], [m.get("sha256") for m in p["members"]]) for p in result.meta.get("competitors", [])]
     if mine != theirs:
-        raise ConfigError(f"{str(source)!r} holds games of {[t[0] for t in theirs]}, not of the competitors named {[m[0] for m in mine]} (or their files changed)")
+        raise ConfigError(
+            f"{str(source)!r} holds games of {[t[0] for t in theirs]}, not of the competitors named {[m[0] for m in mine]} "
+            "(or their files changed)"
+        )

@@ -36,6 +36,7 @@ from volleybots.integrations.spaces import (
     episode_stats,
     to_numpy,
 )
+from volleybots.keys import ACTION, DONE, NEXT, OBS, REWARD, TERMINATED, TRUNCATED
 from volleybots.tasks import TASKS
 
 NAMESPACE = "volleybots"
@@ -87,26 +88,26 @@ class VolleyVectorEnv(VectorEnv):
         if seed is not None:
             self.env.set_seed(int(seed))
         self._td = self.env.reset()
-        return to_numpy(self._td.get(("agents", "observation"))[:, 0]), {}
+        return to_numpy(self._td.get(OBS)[:, 0]), {}
 
     def step(self, actions):
         if self._td is None:
             raise RuntimeError("call reset() before step()")
-        self._td.set(("agents", "action"), action_tensor(self.env, actions, (self.num_envs, 1)))
+        self._td.set(ACTION, action_tensor(self.env, actions, (self.num_envs, 1)))
         cur, self._td = self.env.step_and_maybe_reset(self._td)
-        nxt = cur.get("next")
-        done = to_numpy(nxt.get("done").reshape(-1))
+        nxt = cur.get(NEXT)
+        done = to_numpy(nxt.get(DONE).reshape(-1))
         info: dict[str, Any] = {}
         if done.any():
-            info["final_obs"] = to_numpy(nxt.get(("agents", "observation"))[:, 0])
+            info["final_obs"] = to_numpy(nxt.get(OBS)[:, 0])
             info["_final_obs"] = done
             info["episode"] = episode_stats(self.env, nxt)
             info["_episode"] = done.copy()
         return (
-            to_numpy(self._td.get(("agents", "observation"))[:, 0]),
-            to_numpy(nxt.get(("agents", "reward"))[:, 0, 0]).astype(np.float64),
-            to_numpy(nxt.get("terminated").reshape(-1)),
-            to_numpy(nxt.get("truncated").reshape(-1)),
+            to_numpy(self._td.get(OBS)[:, 0]),
+            to_numpy(nxt.get(REWARD)[:, 0, 0]).astype(np.float64),
+            to_numpy(nxt.get(TERMINATED).reshape(-1)),
+            to_numpy(nxt.get(TRUNCATED).reshape(-1)),
             info,
         )
 
@@ -140,17 +141,17 @@ class VolleyGymEnv(gym.Env):
         if seed is not None:
             self.env.set_seed(int(seed))
         self._td = self.env.reset()
-        return to_numpy(self._td.get(("agents", "observation"))[0, 0]), {}
+        return to_numpy(self._td.get(OBS)[0, 0]), {}
 
     def step(self, action):
         if self._td is None:
             raise RuntimeError("call reset() before step()")
-        self._td.set(("agents", "action"), action_tensor(self.env, action, (1, 1)))
-        nxt = self.env.step(self._td).get("next")
+        self._td.set(ACTION, action_tensor(self.env, action, (1, 1)))
+        nxt = self.env.step(self._td).get(NEXT)
         self._td = nxt
-        terminated, truncated = bool(nxt.get("terminated")), bool(nxt.get("truncated"))
+        terminated, truncated = bool(nxt.get(TERMINATED)), bool(nxt.get(TRUNCATED))
         info = {"episode": episode_stats(self.env, nxt, 0)} if terminated or truncated else {}
-        return to_numpy(nxt.get(("agents", "observation"))[0, 0]), float(nxt.get(("agents", "reward"))), terminated, truncated, info
+        return to_numpy(nxt.get(OBS)[0, 0]), float(nxt.get(REWARD)), terminated, truncated, info
 
     def close(self):
         self.env.close(raise_if_closed=False)

@@ -27,6 +27,7 @@ except ImportError:  # the message names the extra: a bare "No module named pett
 from volleybots.config import build_env
 from volleybots.integrations import spaces as sp
 from volleybots.integrations.spaces import action_tensor, episode_stats, to_numpy
+from volleybots.keys import ACTION, AGENTS, NEXT, OBS, REWARD, TERMINATED, TRUNCATED
 
 
 def agent_names(teams: tuple[int, ...], competitive: bool) -> list[str]:
@@ -70,7 +71,7 @@ class VolleyParallelEnv(ParallelEnv):
         if self.env.competitive:
             self.groups = {f"team{t}": [a for a in self.possible_agents if self.team_of[a] == t] for t in sorted(set(teams))}
         else:
-            self.groups = {"agents": list(self.possible_agents)}
+            self.groups = {AGENTS: list(self.possible_agents)}
         # one space object per agent, the same on every call (the API test asks for it; seeding one agent's
         # action space must not seed the others')
         self.observation_spaces = {a: sp.observation_space(self.env) for a in self.possible_agents}
@@ -85,7 +86,7 @@ class VolleyParallelEnv(ParallelEnv):
         return self.action_spaces[agent]
 
     def _obs(self, td) -> dict[str, np.ndarray]:
-        obs = to_numpy(td.get(("agents", "observation"))[0])
+        obs = to_numpy(td.get(OBS)[0])
         return {a: obs[i] for i, a in enumerate(self.possible_agents)}
 
     def reset(self, seed: int | None = None, options: dict | None = None):
@@ -104,11 +105,11 @@ class VolleyParallelEnv(ParallelEnv):
             missing, unknown = sorted(set(self.agents) - set(actions)), sorted(set(actions) - set(self.agents))
             raise ValueError(f"actions must name every agent once: missing {missing}, unknown {unknown}; agents: {self.agents}")
         stacked = np.stack([np.asarray(actions[a]) for a in self.possible_agents])
-        self._td.set(("agents", "action"), action_tensor(self.env, stacked, (1, self.n_agents)))
-        nxt = self.env.step(self._td).get("next")
+        self._td.set(ACTION, action_tensor(self.env, stacked, (1, self.n_agents)))
+        nxt = self.env.step(self._td).get(NEXT)
         self._td = nxt
-        reward = to_numpy(nxt.get(("agents", "reward"))[0, :, 0])
-        terminated, truncated = bool(nxt.get("terminated")), bool(nxt.get("truncated"))
+        reward = to_numpy(nxt.get(REWARD)[0, :, 0])
+        terminated, truncated = bool(nxt.get(TERMINATED)), bool(nxt.get(TRUNCATED))
         agents = self.agents
         info = {"episode": episode_stats(self.env, nxt, 0)} if terminated or truncated else {}
         if terminated or truncated:

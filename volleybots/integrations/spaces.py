@@ -13,6 +13,7 @@ import torch
 from gymnasium import spaces
 from torchrl.data import Bounded, Categorical, Unbounded
 
+from volleybots.keys import ACTION, OBS, STATS, stat
 from volleybots.tasks import TASKS, VolleyEnv
 
 SINGLE_TASKS = tuple(name for name, cls in TASKS.items() if cls.n_drones == 1)  # what the Gymnasium env accepts
@@ -32,17 +33,17 @@ def agent_space(spec) -> spaces.Space:
 
 
 def observation_space(env: VolleyEnv) -> spaces.Space:
-    return agent_space(env.observation_spec["agents", "observation"])
+    return agent_space(env.observation_spec[OBS])
 
 
 def action_space(env: VolleyEnv) -> spaces.Space:
-    return agent_space(env.action_spec["agents", "action"])
+    return agent_space(env.action_spec[ACTION])
 
 
 def action_tensor(env: VolleyEnv, action, shape: tuple[int, ...]) -> torch.Tensor:
     """``action`` (numpy or a sequence) as the env's ``("agents", "action")`` of batch ``shape``
     ([N, A]); a wrong size raises a ``ValueError`` naming the sizes."""
-    spec = env.action_spec["agents", "action"]
+    spec = env.action_spec[ACTION]
     arr = np.asarray(action)
     want = (*shape, *spec.shape[2:])
     if arr.size != int(np.prod(want)):
@@ -58,8 +59,8 @@ def to_numpy(x: torch.Tensor) -> np.ndarray:
 def episode_stats(env: VolleyEnv, td, index: int | slice = slice(None)) -> dict:
     """``("stats", name)`` of ``td`` (an env output) as ``{name: np.ndarray [N]}`` (or floats for one ``index``)."""
     out = {}
-    names = list(env.observation_spec["stats"].keys())
+    names = list(env.observation_spec[STATS].keys())
     for k in names:
-        v = to_numpy(td.get(("stats", k)).reshape(-1))[index]
+        v = to_numpy(td.get(stat(k)).reshape(-1))[index]
         out[k] = float(v) if isinstance(index, int) else v
     return out

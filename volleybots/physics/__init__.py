@@ -24,6 +24,6 @@ def make_physics(name: str, params: WorldParams, num_envs: int, n_drones: int, d
 
 
 __all__ = [
-    "ACTION_SPACE_INFO", "ACTION_SPACES", "BACKEND_INFO", "BACKENDS", "BallParams", "Contacts", "DroneParams", "PhysicsState", "RateController",
-    "TorchPhysics", "WorldParams", "make_action_space", "make_physics",
+    "ACTION_SPACE_INFO", "ACTION_SPACES", "BACKEND_INFO", "BACKENDS", "BallParams", "Contacts", "DroneParams", "PhysicsState",
+    "RateController", "TorchPhysics", "WorldParams", "make_action_space", "make_physics",
 ]

@@ -124,7 +124,9 @@ def control_step_downwash(c: Constants, s: PhysicsState) -> torch.Tensor | None:
     return downwash_force(s.pos, up, rotor_thrusts(s.throttle, c.kf).sum(-1)) / c.mass
 
 
-def substep(c: Constants, s: PhysicsState, cmd: torch.Tensor, wash: torch.Tensor | None = None) -> tuple[PhysicsState, torch.Tensor, torch.Tensor, torch.Tensor]:
+def substep(
+    c: Constants, s: PhysicsState, cmd: torch.Tensor, wash: torch.Tensor | None = None
+) -> tuple[PhysicsState, torch.Tensor, torch.Tensor, torch.Tensor]:
     """Advance the world by one sub-step under rotor commands ``cmd`` [N, D, 4] in [-1, 1].
 
     ``wash`` is the control step's downwash acceleration (``control_step_downwash``), None for none.
@@ -221,7 +223,8 @@ def substep(c: Constants, s: PhysicsState, cmd: torch.Tensor, wash: torch.Tensor
     pos = Vec3(pos.x, pos.y, pos.z.clamp_min(c.drone_ground))
 
     new = PhysicsState(
-        pos=pos.stack(), quat=q1.stack(), vel=vel.stack(), omega=omega.stack(), throttle=throttle, ball_pos=ball_pos.stack(), ball_vel=ball_vel.stack()
+        pos=pos.stack(), quat=q1.stack(), vel=vel.stack(), omega=omega.stack(), throttle=throttle,
+        ball_pos=ball_pos.stack(), ball_vel=ball_vel.stack(),
     )
     return new, racket_hit, body_hit, ground
 

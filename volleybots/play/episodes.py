@@ -11,9 +11,11 @@ import math
 import torch
 from torchrl.envs.utils import step_mdp
 
+from volleybots.keys import DONE, NEXT, STATS, stat
+
 
 def stat_keys(env) -> list[str]:
-    return list(env.observation_spec["stats"].keys())
+    return list(env.observation_spec[STATS].keys())
 
 
 def run_episodes(env, policy, on_step=None) -> dict[str, torch.Tensor]:
@@ -29,12 +31,12 @@ def run_episodes(env, policy, on_step=None) -> dict[str, torch.Tensor]:
     for _ in range(env.episode_len + 1):
         td = policy(td)
         td = env.step(td)
-        nxt = td["next"]
+        nxt = td[NEXT]
         if on_step is not None:
             on_step(env, td, nxt)
-        new = nxt["done"].reshape(n) & ~finished
+        new = nxt[DONE].reshape(n) & ~finished
         for k in keys:
-            out[k] = torch.where(new, nxt["stats", k].reshape(n), out[k])
+            out[k] = torch.where(new, nxt[stat(k)].reshape(n), out[k])
         finished |= new
         if bool(finished.all()):
             break
@@ -67,12 +69,12 @@ def finished_stats(batch, team: int | None = None) -> dict[str, float]:
     ``team=0`` (a seat whose learner plays team 0): ``return`` and ``r_*`` are that team's (a
     competitive task's ``*_team0`` statistics) and the all-drone means move to ``*_all``; on a match
     the all-drone ``r_win_or_lose`` is 0 by construction, since one team's win is the other's loss."""
-    nxt = batch["next"]
-    done = nxt["done"].reshape(-1)
+    nxt = batch[NEXT]
+    done = nxt[DONE].reshape(-1)
     n = int(done.sum())
     out = {"episodes": float(n)}
-    for k in nxt["stats"].keys():
-        v = nxt["stats", k].reshape(-1)[done]
+    for k in nxt[STATS].keys():
+        v = nxt[stat(k)].reshape(-1)[done]
         out[k] = float(v.mean()) if n else math.nan
     suffix = f"_team{team}"
     if team is not None:

@@ -46,7 +46,8 @@ class Games:
 
     wdl: np.ndarray  # [2, 3] int: A on team 0 / on team 1 -> wins, draws, losses
     outcomes: str  # one letter of OUTCOMES per game, in play order
-    faults: np.ndarray = field(default_factory=lambda: np.zeros((2, len(Referee.FAULTS)), dtype=int))  # [A, B] x fault: the faults that lost games
+    # [A, B] x fault: the faults that lost games
+    faults: np.ndarray = field(default_factory=lambda: np.zeros((2, len(Referee.FAULTS)), dtype=int))
     side: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))  # [games] A's team in each game
     a_served: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))  # [games] A served
     touches: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=int))  # [games, 2] touches of A, of B
@@ -135,7 +136,9 @@ def batch_sizes(n: int, batch: int) -> list[int]:
     return [n // k + (i < n % k) for i in range(k)]
 
 
-def play_games(cfg, a, b, games: int, seed: int = 0, batch: int = DEFAULT_BATCH, scenario: str = "any", deterministic: bool = False) -> Games:
+def play_games(
+    cfg, a, b, games: int, seed: int = 0, batch: int = DEFAULT_BATCH, scenario: str = "any", deterministic: bool = False
+) -> Games:
     """Play ``games`` games of competitor A against B on the match task of ``cfg``: half with A on
     team 0 (an odd one more there), in alternating batches per side."""
     if games < 1 or batch < 1:

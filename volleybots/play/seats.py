@@ -13,15 +13,16 @@ from __future__ import annotations
 import torch
 
 from volleybots.algos.base import AgentSpec
+from volleybots.keys import AGENTS, nxt
 from volleybots.policies.competitors import resolve_competitor
 from volleybots.tasks.multi import TeamPolicies
 
 
 def team_slice(batch, idx: torch.Tensor):
     """The ``("agents", ...)`` entries of the agents ``idx`` of a [N, T] batch (``next`` too)."""
-    out = batch.exclude("agents", ("next", "agents"))
-    out.set("agents", batch.get("agents")[:, :, idx])
-    out.set(("next", "agents"), batch.get(("next", "agents"))[:, :, idx])
+    out = batch.exclude(AGENTS, nxt(AGENTS))
+    out.set(AGENTS, batch.get(AGENTS)[:, :, idx])
+    out.set(nxt(AGENTS), batch.get(nxt(AGENTS))[:, :, idx])
     return out
 
 

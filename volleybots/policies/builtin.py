@@ -16,6 +16,7 @@ import torch
 from tensordict import TensorDictBase
 
 from volleybots.errors import ConfigError
+from volleybots.keys import ACTION, AGENTS
 from volleybots.runs import read_checkpoint
 
 HIERARCHICAL_TASK = "3v3"
@@ -26,7 +27,7 @@ def acted(policy, td: TensorDictBase) -> TensorDictBase:
     players may return the action tensor itself)."""
     out = policy(td)
     if isinstance(out, torch.Tensor):
-        td.set(("agents", "action"), out)
+        td.set(ACTION, out)
         return td
     return td if out is None else out
 
@@ -36,12 +37,12 @@ def random_policy(env) -> Callable[[TensorDictBase], TensorDictBase]:
     acts = env.actions
 
     def act(td: TensorDictBase) -> TensorDictBase:
-        n, a = td.get("agents").batch_size
+        n, a = td.get(AGENTS).batch_size
         if acts.continuous:
             action = torch.rand(n, a, acts.dim, device=td.device) * 2 - 1
         else:
             action = torch.randint(0, acts.n, (n, a), device=td.device)
-        td.set(("agents", "action"), action)
+        td.set(ACTION, action)
         return td
 
     return act

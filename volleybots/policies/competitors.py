@@ -27,6 +27,7 @@ import torch
 from tensordict import TensorDictBase
 
 from volleybots.errors import ConfigError
+from volleybots.keys import ACTION, AGENTS
 from volleybots.policies.builtin import BUILTIN, HIERARCHICAL_TASK, PLAYERS, acted, hierarchical_policy, read_drills_file
 from volleybots.policies.store import load_learner, parse_spec, saved_config, sha256
 from volleybots.runs import (
@@ -106,10 +107,10 @@ class MixturePolicy:
             return acted(self.policies[0], td)
         action = None
         for k, policy in enumerate(self.policies):
-            a = acted(policy, td.clone(recurse=False).set("agents", td.get("agents").clone(recurse=False))).get(("agents", "action"))
+            a = acted(policy, td.clone(recurse=False).set(AGENTS, td.get(AGENTS).clone(recurse=False))).get(ACTION)
             pick = (self.choice == k).reshape(-1, *([1] * (a.dim() - 1)))
             action = a if action is None else torch.where(pick, a, action)
-        td.set(("agents", "action"), action)
+        td.set(ACTION, action)
         return td
 
 
@@ -148,7 +149,8 @@ def checkpoint_member(path, label: str | None = None) -> Member:
         return load_learner(path, env, n_agents)[0].policy(deterministic=deterministic)
 
     source = {"kind": "checkpoint", "path": str(path), "sha256": sha256(path), "frames": int(state["frames"]), "algo": cfg.algo.name}
-    return Member(label or f"{cfg.algo.name}@{int(state['frames'])}", make, source, cfg.task.name, cfg.env.action_space, int(state["obs_dim"]))
+    label = label or f"{cfg.algo.name}@{int(state['frames'])}"
+    return Member(label, make, source, cfg.task.name, cfg.env.action_space, int(state["obs_dim"]))
 
 
 def read_meta(run_path: Path) -> list[list[float]]:
@@ -179,6 +181,6 @@ def resolve_competitor(spec: str) -> Competitor:
 
 
 __all__ = [
-    "META_FILE", "POPULATION_DIR", "Competitor", "Member", "MixturePolicy", "builtin_member", "checkpoint_member", "hierarchical_member", "member_path",
-    "population_members", "read_meta", "resolve_competitor",
+    "META_FILE", "POPULATION_DIR", "Competitor", "Member", "MixturePolicy", "builtin_member", "checkpoint_member", "hierarchical_member",
+    "member_path", "population_members", "read_meta", "resolve_competitor",
 ]

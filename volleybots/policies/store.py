@@ -155,4 +155,7 @@ def policy_checkpoint(spec: str, what: str, builtins=("scripted", "random", "hie
     raise ConfigError(f"{what} {spec!r} is not a trained policy; expected a run directory or a checkpoint file")
 
 
-__all__ = ["KINDS", "Spec", "build_learner", "learner_class", "load_learner", "load_policy", "parse_spec", "policy_checkpoint", "saved_config", "sha256"]
+__all__ = [
+    "KINDS", "Spec", "build_learner", "learner_class", "load_learner", "load_policy", "parse_spec", "policy_checkpoint", "saved_config",
+    "sha256",
+]

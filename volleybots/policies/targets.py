@@ -62,8 +62,9 @@ def resolve_target(target: str, overrides=()) -> Target:
 def check_references(cfg) -> None:
     """Open and check the files a config names, before a run starts (``validate`` opens none):
     ``opponent=`` and ``algo.seed_members`` must be competitors made for the run's task, action space
-    and observation (``bc`` in ``seed_members`` names the clone the run makes itself), ``algo.eval_opponent`` a built-in player of the task, and ``algo.payoff_pool=ray``
-    needs ray installed. ``init=`` is checked by ``volleybots.train.check_init``, which builds the networks."""
+    and observation (``bc`` in ``seed_members`` names the clone the run makes itself),
+    ``algo.eval_opponent`` a built-in player of the task, and ``algo.payoff_pool=ray`` needs ray
+    installed. ``init=`` is checked by ``volleybots.train.check_init``, which builds the networks."""
     from volleybots.algos.base import class_attr
     from volleybots.policies.competitors import resolve_competitor
     from volleybots.tasks import TASKS
@@ -85,7 +86,9 @@ def check_references(cfg) -> None:
         import importlib.util
 
         if importlib.util.find_spec("ray") is None:
-            raise ConfigError("algo.payoff_pool=ray needs the ray package: pip install 'volleybots[cluster]' (or use algo.payoff_pool=serial)")
+            raise ConfigError(
+                "algo.payoff_pool=ray needs the ray package: pip install 'volleybots[cluster]' (or use algo.payoff_pool=serial)"
+            )
     for spec in cfg.algo.get("seed_members") or ():
         if str(spec) == CLONE:  # the run's own clone of the scripted team: made by the run, checked by the preset
             continue

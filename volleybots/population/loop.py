@@ -216,7 +216,8 @@ class PopulationLoop:
         for k in range(len(table), len(paths)):
             new = checkpoint_member(paths[k])
             seed = self.cfg.seed + GAMES_SEED + 1000 * k
-            matches = [(Competitor("new", [new]), Competitor("old", [checkpoint_member(paths[j])]), self.m.payoff_games, seed + j) for j in range(k)]
+            matches = [(Competitor("new", [new]), Competitor("old", [checkpoint_member(paths[j])]), self.m.payoff_games, seed + j)
+                       for j in range(k)]
             results = head_to_heads(self.cfg, matches, self.m.payoff_pool)
             table.add_member(self._label(paths[k]), results)
             table.save(self.payoffs_path)

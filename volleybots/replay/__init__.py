@@ -67,4 +67,6 @@ def record_match(env, policy, labels: tuple[str, str], out: Path | None, viewer:
     return stats
 
 
-__all__ = ["TEAM_COLOURS", "Episode", "EpisodeRecorder", "MatchLog", "has_display", "record_episode", "record_match", "recording", "write_curves"]
+__all__ = [
+    "TEAM_COLOURS", "Episode", "EpisodeRecorder", "MatchLog", "has_display", "record_episode", "record_match", "recording", "write_curves",
+]

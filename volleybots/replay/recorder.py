@@ -17,6 +17,7 @@ from collections import deque
 import numpy as np
 import torch
 
+from volleybots.keys import DONE, DRILL, REWARD, STATS, TERMINATED, stat
 from volleybots.replay.style import BALL_COLOUR, FAULT_COLOUR, HIT_COLOUR, TEAM_COLOURS, TEAM_NAMES  # noqa: F401 - re-exported
 
 HIT_EVENTS = ("racket_hit",)
@@ -107,12 +108,12 @@ class EpisodeRecorder:
         self.strips.append(np.stack(self.trail))
         self._events(env, ball)
         self._decisions(td)
-        self.rewards.append(nxt["agents", "reward"][i].reshape(-1).detach().cpu().numpy().astype(np.float64))
-        for key in nxt["stats"].keys():
-            self.stats.setdefault(key, []).append(float(nxt["stats", key][i]))
+        self.rewards.append(nxt[REWARD][i].reshape(-1).detach().cpu().numpy().astype(np.float64))
+        for key in nxt[STATS].keys():
+            self.stats.setdefault(key, []).append(float(nxt[stat(key)][i]))
         self.step += 1
-        if bool(nxt["done"][i]):
-            why = "terminated" if bool(nxt["terminated"][i]) else "truncated"
+        if bool(nxt[DONE][i]):
+            why = "terminated" if bool(nxt[TERMINATED][i]) else "truncated"
             self.texts["events"].append((self.step - 1, f"step {self.step}: episode {why}", "INFO"))
             self.why = why
             self.done = True
@@ -122,11 +123,11 @@ class EpisodeRecorder:
         """A hierarchical team's high level (``("agents", "drill")``, codes of
         ``scripted.hierarchical.DRILL_LABELS``): each drone's drill as a scalar, and a line whenever
         one changes."""
-        if td is None or ("agents", "drill") not in td.keys(include_nested=True):
+        if td is None or DRILL not in td.keys(include_nested=True):
             return
         from volleybots.scripted.hierarchical import DRILL_LABELS
 
-        codes = td.get(("agents", "drill"))[self.i].reshape(-1).tolist()
+        codes = td.get(DRILL)[self.i].reshape(-1).tolist()
         last = self._last_drills
         for k, c in enumerate(codes):
             if c == 0:  # a drone no high level drives
@@ -207,7 +208,8 @@ class EpisodeRecorder:
             self._send(f"drill/drone_{k}", [s for s, _ in pairs], rr.Scalars.columns(scalars=[c for _, c in pairs]))
         for path, lines in self.texts.items():
             if lines:
-                self._send(path, [s for s, _, _ in lines], rr.TextLog.columns(text=[t for _, t, _ in lines], level=[lv for _, _, lv in lines]))
+                columns = rr.TextLog.columns(text=[t for _, t, _ in lines], level=[lv for _, _, lv in lines])
+                self._send(path, [s for s, _, _ in lines], columns)
         two_teams = len(set(self.teams)) > 1
         if two_teams:
             self._score(steps)
@@ -283,15 +285,18 @@ class MatchLog:
         if hasattr(self.rec, "set_time"):
             self.rec.set_time("step", sequence=self.step)
         self.step += 1
-        hits = [int(nxt["stats", f"hits_team{t}"][i]) for t in (0, 1)]
+        hits = [int(nxt[stat(f"hits_team{t}")][i]) for t in (0, 1)]
         if hits != self.hits:
             self.hits = hits
             self.rec.log("match", rr.TextLog(f"touches: {self.labels[0]} {hits[0]}, {self.labels[1]} {hits[1]}", level="INFO"))
-        if bool(nxt["done"][i]):
+        if bool(nxt[DONE][i]):
             self.done = True
-            winner, reason = int(nxt["stats", "winner"][i]), int(nxt["stats", "reason"][i])
+            winner, reason = int(nxt[stat("winner")][i]), int(nxt[stat("reason")][i])
             if winner < 0:
                 msg = "no point: a draw (crash, teammates too close, a double fault or the time limit)"
             else:
-                msg = f"point to {self.names[winner]}: {self.labels[1 - winner]} faulted ({Referee.FAULTS[reason]}); score {self.labels[0]} {int(winner == 0)} - {int(winner == 1)} {self.labels[1]}"
+                msg = (
+                    f"point to {self.names[winner]}: {self.labels[1 - winner]} faulted ({Referee.FAULTS[reason]}); "
+                    f"score {self.labels[0]} {int(winner == 0)} - {int(winner == 1)} {self.labels[1]}"
+                )
             self.rec.log("match", rr.TextLog(msg, level="WARN" if winner < 0 else "INFO"))

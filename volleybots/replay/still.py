@@ -48,7 +48,9 @@ def draw_still(ep: Episode, out: Path, title: str = "") -> Path:
         ax.plot_surface(xs, np.array([[-ly, -ly], [ly, ly]]), np.zeros((2, 2)), color=_rgb(TEAM_COLOURS[team]), alpha=0.08, shade=False)
     ax.plot([-lx, lx, lx, -lx, -lx], [-ly, -ly, ly, ly, -ly], [0] * 5, color="0.45", lw=1.2)
     ax.plot([0, 0], [-ly, ly], [0, 0], color="0.45", lw=1.0)
-    ax.plot_surface(np.zeros((2, 2)), np.array([[-ly, ly], [-ly, ly]]), np.array([[0, 0], [net, net]]), color="0.6", alpha=0.35, shade=False)
+    ax.plot_surface(
+        np.zeros((2, 2)), np.array([[-ly, ly], [-ly, ly]]), np.array([[0, 0], [net, net]]), color="0.6", alpha=0.35, shade=False
+    )
     ax.plot([0, 0], [-ly, ly], [net, net], color="0.3", lw=1.5)
     k = key_step(ep)
     for d, team in enumerate(ep.teams):
@@ -62,7 +64,9 @@ def draw_still(ep: Episode, out: Path, title: str = "") -> Path:
     for steps, colour, label in ((ep.hits, HIT_COLOUR, "touch"), (ep.faults, FAULT_COLOUR, "fault")):
         if steps:
             pts = ball[steps]
-            ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], color=_rgb(colour), s=30, edgecolors="black", linewidths=0.4, depthshade=False, label=label)
+            ax.scatter(
+                pts[:, 0], pts[:, 1], pts[:, 2], color=_rgb(colour), s=30, edgecolors="black", linewidths=0.4, depthshade=False, label=label
+            )
     for t in sorted(set(ep.teams)):
         ax.scatter([], [], [], color=_rgb(TEAM_COLOURS[t]), marker="s", label=f"team {t} ({TEAM_NAMES[t]})")
     ax.plot([], [], color=_rgb(BALL_COLOUR), lw=2.0, label="ball")

@@ -58,6 +58,7 @@ from volleybots.runs.rundir import (
 
 __all__ = [
     "CKPT_FORMAT", "LOCK_NAME", "META_FILE", "POPULATION_DIR", "Population", "is_population_run", "member_path", "population_members",
-    "read_metas", "read_population", "refuse_interpolation", "run_policy_checkpoint", "InUseError", "MetricsLog", "RunDir", "check_writable", "claim_run_dir", "config_problem", "load_algo_state", "lock",
+    "read_metas", "read_population", "refuse_interpolation", "run_policy_checkpoint", "InUseError", "MetricsLog", "RunDir",
+    "check_writable", "claim_run_dir", "config_problem", "load_algo_state", "lock",
     "locked", "make_dir", "memory_errors_as", "note", "output_dir", "reserve_file", "read_checkpoint", "read_metrics", "unlock",
 ]

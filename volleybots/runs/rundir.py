@@ -86,7 +86,8 @@ class RunDir:
         saying so on stderr; Hydra's records and user files stay."""
         rows = max(0, sum(1 for _ in self.metrics_path.open()) - 1) if self.metrics_path.is_file() else 0
         note(f"{self.path} held a run that wrote no checkpoint ({rows} metrics rows): starting it afresh")
-        stale = [self.config_path, self.metrics_path, self.summary_path, self.curves_path, self.path / "payoffs.png", *self.path.glob("eval_*.rrd")]
+        stale = [self.config_path, self.metrics_path, self.summary_path, self.curves_path, self.path / "payoffs.png",
+                 *self.path.glob("eval_*.rrd")]
         stale += list(self.ckpt_dir.glob("*.tmp")) if self.ckpt_dir.is_dir() else []
         pop = self.path / POPULATION_DIR
         if pop.is_dir():
@@ -134,7 +135,8 @@ class RunDir:
         for i, r in enumerate(rows[:-1], start=2):
             if not _is_number(r.get("frames")):
                 raise ConfigError(
-                    f"{self.metrics_path} is damaged (line {i}: frames {r.get('frames')!r} is not a number); move it away to resume without the old rows"
+                    f"{self.metrics_path} is damaged (line {i}: frames {r.get('frames')!r} is not a number); "
+                    "move it away to resume without the old rows"
                 )
 
     # ---------------------------------------------------------------------------- checkpoints

@@ -42,7 +42,8 @@ def launch_for_apex(pos: torch.Tensor, target_xy: torch.Tensor, apex, land_z, g:
     """Velocity that throws a ball from ``pos`` through an apex at height ``apex`` and down through
     height ``land_z`` at ``target_xy``. ``apex`` must be above both heights (clamped to be)."""
     z = pos[..., 2]
-    apex = torch.maximum(torch.as_tensor(apex, dtype=z.dtype, device=z.device), torch.maximum(z, torch.as_tensor(land_z, dtype=z.dtype, device=z.device)))
+    lowest = torch.maximum(z, torch.as_tensor(land_z, dtype=z.dtype, device=z.device))
+    apex = torch.maximum(torch.as_tensor(apex, dtype=z.dtype, device=z.device), lowest)
     vz = torch.sqrt(2.0 * g * (apex - z))
     t = (vz + torch.sqrt(2.0 * g * (apex - land_z))) / g
     vxy = (target_xy - pos[..., :2]) / t.clamp_min(1e-6).unsqueeze(-1)

@@ -28,10 +28,13 @@ FIRST_ANCHOR_XY = (4.5, -2.5)  # the ball is dropped from rest above drone 1's a
 class PassConfig:
     inward: float = 1.75  # the drones play this much closer to each other than their anchors: less tilt
     apex: float = 4.1  # a bump counts when it crosses the midline above 4 m; passes met high peak 0.07 m higher (+- 0.06)
-    first_apex: float = 4.6  # asked of the opening; it peaks ~0.5 m lower (the swing from rest falls short), above 4 m in ~72 % without the lookahead
+    # asked of the opening; it peaks ~0.5 m lower (the swing from rest falls short), above 4 m in ~72 % without the lookahead
+    first_apex: float = 4.6
     first_to: float = 0.6  # |y| where the receiver waits during the drop
     first_aim: float = 0.9  # |y| the opening pass is aimed at: just past the midline (less racket tilt)
-    first_slack: tuple[float, float] = (0.05, 0.1)  # m (x, y) the opener's racket may meet the ball off its centre (radius 0.2): 0.08 or 0.15 gave body hits (the lookahead tries more where the model says it is safe)
+    # m (x, y) the opener's racket may meet the ball off its centre (radius 0.2): 0.08 or 0.15 gave body hits (the
+    # lookahead tries more where the model says it is safe)
+    first_slack: tuple[float, float] = (0.05, 0.1)
     fast: float = 2.0  # m/s: a ball crossing faster than this (the opening; passes cross at ~1.4) is met low, as a low one
     low_apex: float = 4.0  # a ball peaking below this (a weak opening, mostly: met high, it came back wild) ...
     far: float = 0.4  # ... or coming down farther than this from the spot ...
@@ -40,11 +43,15 @@ class PassConfig:
     cross_y: float = 0.1  # m past the midline a ball is met at least, where it comes down that far across above ...
     cross_floor: float = 1.0  # ... this drone height
     idle_z: float = 1.8  # height of the drone waiting for its turn behind a low pass: out of the ball's and the partner's way
-    high_idle_z: float = 2.1  # ... behind a good pass (peaking above low_apex, coming down near the partner's spot): close under its next contact
+    # ... behind a good pass (peaking above low_apex, coming down near the partner's spot): close under its next contact
+    high_idle_z: float = 2.1
     # the lookahead (lookahead.py): the opening, and a pass met low, are chosen among variants tried on the model
     lookahead: bool = True  # off: the plain touches
-    look_time: float = 0.7  # s before the contact the opening's choosing starts: the whole fall (from 0.4 s, the swing's window, a drone starting far off was already too late)
-    look_shift: tuple[tuple[float, ...], tuple[float, ...]] = ((0.0, -0.05, 0.05, -0.1, 0.1), (0.0, 0.05, 0.1))  # m (x, y) the racket-centre variants move (a grid)
+    # s before the contact the opening's choosing starts: the whole fall (from 0.4 s, the swing's window, a drone starting
+    # far off was already too late)
+    look_time: float = 0.7
+    # m (x, y) the racket-centre variants move (a grid)
+    look_shift: tuple[tuple[float, ...], tuple[float, ...]] = ((0.0, -0.05, 0.05, -0.1, 0.1), (0.0, 0.05, 0.1))
     look_aim: tuple[tuple[float, ...], tuple[float, ...]] = ((0.0, -0.3, 0.3), (0.0, 0.3))  # m (x, y) the aim variants move (a grid)
     look_apex: tuple[float, ...] = (0.4,)  # m: the other asked apexes tried, above first_apex
     look_min_apex: float = 4.05  # m: a touch predicted to peak lower than this may not count
@@ -207,14 +214,16 @@ class BumpAndPassPlayer(_Player):
 
     # ------------------------------------------------------------------ the lookahead
     def variants(self, ref: torch.Tensor) -> torch.Tensor:
-        """[K, 6] opening variants (racket shift dx, dy, aim dx, dy, apex asked above first_apex, fast turns or not); the plain one first."""
+        """[K, 6] opening variants (racket shift dx, dy, aim dx, dy, apex asked above first_apex, fast
+        turns or not); the plain one first."""
         c = self.cfg
         kw = {"dtype": ref.dtype, "device": ref.device}
         aim = torch.cartesian_prod(torch.tensor(c.look_aim[0], **kw), torch.tensor(c.look_aim[1], **kw))
         shift = torch.cartesian_prod(torch.tensor(c.look_shift[0], **kw), torch.tensor(c.look_shift[1], **kw))
         apex = torch.tensor((0.0, *c.look_apex), **kw)
         fast = torch.tensor((0.0, 1.0), **kw)
-        grid = torch.cartesian_prod(torch.arange(len(fast)), torch.arange(len(apex)), torch.arange(len(aim)), torch.arange(len(shift))).to(ref.device)
+        grid = torch.cartesian_prod(torch.arange(len(fast)), torch.arange(len(apex)), torch.arange(len(aim)), torch.arange(len(shift)))
+        grid = grid.to(ref.device)
         return torch.cat((shift[grid[:, 3]], aim[grid[:, 2]], apex[grid[:, 1]].unsqueeze(-1), fast[grid[:, 0]].unsqueeze(-1)), -1)
 
     def opening_cost(self, o, *_) -> torch.Tensor:
@@ -270,13 +279,15 @@ class BumpAndPassPlayer(_Player):
         """The pass ``plain``, or in its last ``look_pass_time`` seconds (where ``now``) its best
         variant on the model: a ball met low comes from a bad touch, and its receiver has far to fly."""
         c, t, g = self.cfg, self.touch, self.params.gravity
-        strike = self.planner.plan(ball_p, ball_v, self.contact_height(ball_p, ball_v, torch.zeros_like(now), drone_z), lambda p, v: v, t.max_tilt)
+        contact_z = self.contact_height(ball_p, ball_v, torch.zeros_like(now), drone_z)
+        strike = self.planner.plan(ball_p, ball_v, contact_z, lambda p, v: v, t.max_tilt)
         now = now & strike.valid & (strike.t > 0) & (strike.t < c.look_pass_time)
 
         def fly(d, bp, bv, wait, dz, aim, apex, var):
             def out(p, v):
                 return launch_for_apex(p, aim, apex[..., 0], land_z, g)
-            s = self.planner.plan(bp, bv, self.contact_height(bp, bv, torch.zeros_like(dz[..., 0], dtype=torch.bool), dz[..., 0]), out, t.max_tilt)
+            contact_z = self.contact_height(bp, bv, torch.zeros_like(dz[..., 0], dtype=torch.bool), dz[..., 0])
+            s = self.planner.plan(bp, bv, contact_z, out, t.max_tilt)
             s.drone_pos = s.drone_pos + torch.cat((var[..., :2], torch.zeros_like(var[..., :1])), -1)
             args = (d, s, wait, t.window, t.lock)
             kw = {"early": t.early, "early_feed": t.early_feed}

@@ -175,7 +175,9 @@ class DroneController:
         return torch.cat((h, fz.unsqueeze(-1)), -1)
 
     # ------------------------------------------------------------------ attitude and actuation
-    def body_rates(self, drone: DroneObs, b3_des: torch.Tensor, k_att: float, brake: float, yaw_rate: torch.Tensor | None = None) -> torch.Tensor:
+    def body_rates(
+        self, drone: DroneObs, b3_des: torch.Tensor, k_att: float, brake: float, yaw_rate: torch.Tensor | None = None
+    ) -> torch.Tensor:
         """Reduced-attitude law: rotate the body z axis onto ``b3_des`` at a rate proportional to the
         angle between them (well defined up to 180 degrees, unlike the SO(3) error's sine), and for
         large angles no faster than a braking of ``brake`` rad/s^2 can stop on the target: the

@@ -37,7 +37,8 @@ NET_TOP = 2.43  # m
 @dataclass(frozen=True)
 class DrillConfig:
     apex: float = 4.8  # m: sets peak here (a setter swinging from rest set the Set and Spike balls this high)
-    pass_apex: float = 6.0  # m: passes peak here (higher asks less racket tilt of the passer: 4.8 m made 0.34 of the passes, 6.0 m 0.46-0.56)
+    # m: passes peak here (higher asks less racket tilt of the passer: 4.8 m made 0.34 of the passes, 6.0 m 0.46-0.56)
+    pass_apex: float = 6.0
     # m (x, y): the pass is aimed this far from the setter's anchor (x > 0: away from the net); aimed at
     # the anchor, passes came down 0.65 m short of it toward the net (seeds 0-1, docs/hierarchical.md)
     pass_aim: tuple[float, float] = (0.25, 0.1)
@@ -72,7 +73,8 @@ class _DrillPlayer(_Player):
 
     def to_teammate(self, bp: torch.Tensor, role: int, apex: float, shift=(0.0, 0.0)) -> torch.Tensor:
         """Down through the contact height onto a teammate's anchor (moved by ``shift``, xy), peaking at ``apex``."""
-        target = torch.tensor(TEAM_ANCHORS[role][:2], dtype=bp.dtype, device=bp.device) + torch.tensor(shift, dtype=bp.dtype, device=bp.device)
+        kw = {"dtype": bp.dtype, "device": bp.device}
+        target = torch.tensor(TEAM_ANCHORS[role][:2], **kw) + torch.tensor(shift, **kw)
         return launch_for_apex(bp, target, torch.maximum(torch.as_tensor(apex), bp[..., 2] + 0.5), CONTACT_Z, self.params.gravity)
 
     def act(self, drone, obs):

@@ -40,6 +40,7 @@ from __future__ import annotations
 import torch
 from tensordict import TensorDict, TensorDictBase
 
+from volleybots.keys import ACTION, AGENTS, DRILL, OBS, leaf
 from volleybots.scripted.ballistics import crossing
 from volleybots.tasks import TASKS
 from volleybots.tasks.drills import BACK, CONTACT_Z, FRONT_LEFT, FRONT_RIGHT
@@ -192,7 +193,7 @@ class HierarchicalPolicy:
         return torch.cat((push, torch.zeros_like(push[..., :1])), -1)
 
     def __call__(self, td: TensorDictBase) -> TensorDictBase:
-        obs = td.get(("agents", "observation"))
+        obs = td.get(OBS)
         parts = self.match_layout.split(obs)
         order = parts["id"].argmax(-1)  # role of each agent
         by_role = {k: torch.gather(v, 1, order.argsort(1).unsqueeze(-1).expand_as(v)) for k, v in parts.items()}
@@ -211,18 +212,18 @@ class HierarchicalPolicy:
             if action is None:
                 action = torch.zeros(*drill.shape, a.shape[-1], dtype=a.dtype, device=a.device)
             action[sel] = a
-        td.set(("agents", "action"), action)
-        td.set(("agents", "drill"), drill_code(self.high.drill, self.high.side).gather(1, order))
+        td.set(ACTION, action)
+        td.set(DRILL, drill_code(self.high.drill, self.high.side).gather(1, order))
         return td
 
 
 def _act(policy, obs: torch.Tensor) -> torch.Tensor:
     """A drill policy's actions [M, 4] for observations [M, obs] (as M envs of one drone)."""
     m = obs.shape[0]
-    td = TensorDict({"agents": TensorDict({"observation": obs.unsqueeze(1)}, batch_size=(m, 1))}, batch_size=(m,))
+    td = TensorDict({AGENTS: TensorDict({leaf(OBS): obs.unsqueeze(1)}, batch_size=(m, 1))}, batch_size=(m,))
     out = policy(td)
     out = td if out is None else out
-    action = out if isinstance(out, torch.Tensor) else out.get(("agents", "action"))
+    action = out if isinstance(out, torch.Tensor) else out.get(ACTION)
     return action.reshape(m, -1)
 
 

@@ -179,7 +179,9 @@ class Lookahead:
             return None if x is None else x.reshape(-1, x.shape[-1])[idx]
 
         def drone_of(idx):
-            return DroneObs(pick(drone.pos, idx), pick(drone.quat, idx), pick(drone.vel, idx), pick(drone.omega_world, idx), pick(drone.throttle, idx))
+            return DroneObs(
+                pick(drone.pos, idx), pick(drone.quat, idx), pick(drone.vel, idx), pick(drone.omega_world, idx), pick(drone.throttle, idx)
+            )
 
         # drones that keep their variant fly it from where they are now: no search
         held = (flat_now & keep["valid"]).nonzero().squeeze(-1)
@@ -191,7 +193,8 @@ class Lookahead:
             ctx = tuple(pick(x, idx).repeat_interleave(k, 0) for x in context)
             steps = math.ceil(float(flat_t[idx].clamp_min(0.0).max()) / self.params.dt) + margin
             out[idx], _, best = self._search(drone_of(idx), pick(ball_p, idx), pick(ball_v, idx), variants,
-                                             lambda dd, p, v, var: fly(dd, p, v, *ctx, var), lambda o: cost(o, *ctx), steps, after, after_steps)
+                                             lambda dd, p, v, var: fly(dd, p, v, *ctx, var), lambda o: cost(o, *ctx),
+                                             steps, after, after_steps)
             if self.every > 1:
                 keep["best"][idx], keep["age"][idx], keep["t"][idx] = best, 0, flat_t[idx]
         return out.view_as(plain)

@@ -17,7 +17,8 @@ from volleybots.tasks.match import OneVsOne, SixVsSix, ThreeVsThree
 @dataclass(frozen=True)
 class MatchConfig:
     net_clear: float = 1.5  # m the ball's apex must be above the net top
-    depth: float = 0.3  # attacks land at this fraction of the opponent's half length from the net (teams: aim at the opponent nearest that point)
+    # attacks land at this fraction of the opponent's half length from the net (teams: aim at the opponent nearest that point)
+    depth: float = 0.3
     guard_x: float = 0.6  # a drone closer than this to the net drops everything and backs off (crossing loses the rally)
     reach_margin: float = 0.3  # ... and does not go for balls coming down closer than guard_x + this
     side_cost: float = 0.1  # m of depth one metre sideways counts for when choosing whom to pass to

@@ -39,7 +39,8 @@ def quintic(p0, v0, a0, p1, v1, a1, duration: torch.Tensor, t: torch.Tensor):
     return pos, vel, acc
 
 
-def goto_accel(pos, vel, target, accel: float, speed: float, k_v: float = 6.0, k_p: float = 2.5, brake: float | None = None, stop_at: float = 0.0, lead: float = 0.0) -> torch.Tensor:
+def goto_accel(pos, vel, target, accel: float, speed: float, k_v: float = 6.0, k_p: float = 2.5, brake: float | None = None,
+               stop_at: float = 0.0, lead: float = 0.0) -> torch.Tensor:
     """Near minimum-time guidance to ``target`` [..., 3]: fly at the speed from which a braking of
     ``brake`` (default ``accel``) stops ``stop_at`` metres short of the target, capped at ``speed``
     and, close in, at ``k_p`` times the distance (a plain P law there, no chatter); the speed is
@@ -96,7 +97,8 @@ class StrikePlanner:
         self.e = self.params.ball.restitution
         self.contact_thrust = contact_thrust
 
-    def plan(self, ball_pos, ball_vel, contact_z, want_out: Callable[[torch.Tensor, torch.Tensor], torch.Tensor], max_tilt: float | None = None) -> Strike:
+    def plan(self, ball_pos, ball_vel, contact_z, want_out: Callable[[torch.Tensor, torch.Tensor], torch.Tensor],
+             max_tilt: float | None = None) -> Strike:
         t = time_to_height(ball_pos[..., 2], ball_vel[..., 2], contact_z, self.g)
         t0 = torch.where(torch.isfinite(t), t, torch.zeros_like(t))
         bp, bv = ball_at(ball_pos, ball_vel, t0, self.g)

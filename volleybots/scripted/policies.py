@@ -15,6 +15,7 @@ import torch
 from tensordict import TensorDictBase
 from tensordict.nn import TensorDictModuleBase
 
+from volleybots.keys import ACTION, OBS
 from volleybots.physics.params import WorldParams
 from volleybots.scripted.ballistics import launch_for_apex, time_to_height
 from volleybots.scripted.control import DroneController, DroneObs, Gains
@@ -31,8 +32,8 @@ class ScriptedPolicy(TensorDictModuleBase):
 
     def __init__(self, action_space: str = "prt", params: WorldParams | None = None, gains: Gains | None = None):
         super().__init__()
-        self.in_keys = [("agents", "observation")]
-        self.out_keys = [("agents", "action")]
+        self.in_keys = [OBS]
+        self.out_keys = [ACTION]
         self.params = params or WorldParams()
         self.action_space = action_space
         self.ctrl = DroneController(self.params, action_space, gains)
@@ -54,7 +55,7 @@ class ScriptedPolicy(TensorDictModuleBase):
         return DroneObs.from_root(root_layout(self.action_space == "prt").split(parts["root"])), parts
 
     def forward(self, td: TensorDictBase) -> TensorDictBase:
-        td.set(("agents", "action"), self.act(*self.parts(td.get(("agents", "observation")))))
+        td.set(ACTION, self.act(*self.parts(td.get(OBS))))
         return td
 
     def replan_every(self, steps: int) -> "ScriptedPolicy":
@@ -116,8 +117,14 @@ class BackAndForthPolicy(HoverPolicy):
     # the legs are bang-bang: full thrust and steep tilts (PRT also inverts the rotor lag fully;
     # CTBR turns at most 144 deg/s, so it tilts less)
     defaults = {
-        "prt": (Gains(max_tilt=math.radians(50.0), thrust_margin=1.0, lag_comp=1.0, thrust_keep=0.8), GotoConfig(accel=13.0, brake=8.5, lead=0.2, stop_at=0.4, k_p=10.0, k_v=6.0)),
-        "ctbr": (Gains(max_tilt=math.radians(45.0), thrust_margin=1.0), GotoConfig(accel=12.0, brake=8.0, lead=0.2, stop_at=0.5, k_p=4.0, k_v=4.0)),
+        "prt": (
+            Gains(max_tilt=math.radians(50.0), thrust_margin=1.0, lag_comp=1.0, thrust_keep=0.8),
+            GotoConfig(accel=13.0, brake=8.5, lead=0.2, stop_at=0.4, k_p=10.0, k_v=6.0),
+        ),
+        "ctbr": (
+            Gains(max_tilt=math.radians(45.0), thrust_margin=1.0),
+            GotoConfig(accel=12.0, brake=8.0, lead=0.2, stop_at=0.5, k_p=4.0, k_v=4.0),
+        ),
     }
 
 
@@ -263,7 +270,9 @@ class HitTheBallPolicy(_BallPolicy):
         ball_p, ball_v = self.ball(drone, obs)
         anchor = self._vec(drone.pos, ANCHOR).expand_as(drone.pos)
         total, speed = self.climb(ball_p, ball_v)
-        strike = self.planner.plan(ball_p, ball_v, c.contact_z + self.planner.reach, lambda bp, bv: self.best_return(bp, bv, speed), c.max_tilt)
+        strike = self.planner.plan(
+            ball_p, ball_v, c.contact_z + self.planner.reach, lambda bp, bv: self.best_return(bp, bv, speed), c.max_tilt
+        )
         # the climb: up at contact, plus a run toward -x (only the normal part of the racket's
         # velocity counts); the run starts from rest c.run * total / 2 behind the contact point
         vel = torch.zeros_like(strike.drone_vel)
@@ -279,7 +288,9 @@ class HitTheBallPolicy(_BallPolicy):
         return torch.where((ball_v[..., :1] < -1.0), home, hit)
 
 
-SCRIPTED_POLICIES: dict[str, type[ScriptedPolicy]] = {cls.task: cls for cls in (HoverPolicy, BackAndForthPolicy, HitTheBallPolicy, SoloBumpPolicy)}
+SCRIPTED_POLICIES: dict[str, type[ScriptedPolicy]] = {
+    cls.task: cls for cls in (HoverPolicy, BackAndForthPolicy, HitTheBallPolicy, SoloBumpPolicy)
+}
 
 
 def make_scripted_policy(env_or_task, action_space: str | None = None, **kwargs) -> ScriptedPolicy:

@@ -39,11 +39,13 @@ class SpikeConfig:
     set_apex: float = 4.8  # the set's apex (the setter swings from rest in half a second: it cannot set much higher)
     set_slack: float = 0.1  # m off the racket's centre the setter may meet the drop
     set_att_accel: float = 12.0  # rad/s^2 the setter plans its turns with (the racket's tilt at the contact sets the set's direction)
-    set_glide: bool = True  # the setter's lookahead may also glide sideways into the contact (least effort), not stop there (off: the plain strike only)
+    # the setter's lookahead may also glide sideways into the contact (least effort), not stop there (off: the plain strike only)
+    set_glide: bool = True
     set_nav: float = 3.0  # the glide's guidance gain on the miss (3: the least-effort law)
     set_nav_min: float = 0.15  # s: the glide's steering time (to the lock) is taken as this at least (near its end the law grows stiff)
     # the spike
-    attack_spot: tuple[float, float, float] = (1.2, -1.0, 3.3)  # where the attacker meets the set (drone centre; above the net's top, so beside the net is no fault)
+    # where the attacker meets the set (drone centre; above the net's top, so beside the net is no fault)
+    attack_spot: tuple[float, float, float] = (1.2, -1.0, 3.3)
     target: tuple[float, float] = (-4.5, 0.0)  # where the spike should land
     short: float = 0.5  # m short of the target the spike aims (the near side of the target circle)
     land_z: float = 0.2  # the ball lands when its centre is this low
@@ -65,23 +67,31 @@ class SpikeConfig:
     rush_tilt: float = math.radians(45.0)  # the attacker's tilt limit when it flies
     recover_att_accel: float = 35.0  # rad/s^2 the attacker plans its turn out of the throw with (the Iris can do about 35)
     min_x: float = 0.7  # m: the set is met no closer to the net than this (the spike's tilt carries the drone toward it)
-    retreat: tuple[float, float, float] = (1.5, 0.0, 1.0)  # where the attacker flies after the spike, from the attack spot: back, and up (over the net's top)
+    # where the attacker flies after the spike, from the attack spot: back, and up (over the net's top)
+    retreat: tuple[float, float, float] = (1.5, 0.0, 1.0)
     net_x: float = 0.2  # m: after its touch the attacker turns hard away where it would be closer to the net than this ...
     net_look: float = 0.25  # s ... this soon (a drone across the net, x < 0, is a fault at any height)
-    off_net_z: float = 3.5  # m: ... and climbs to this height at least (by the net and below its top is a fault too; 3.0 left it sinking onto the net)
+    # m: ... and climbs to this height at least (by the net and below its top is a fault too; 3.0 left it sinking onto the net)
+    off_net_z: float = 3.5
     wait_dz: float = 0.0  # m above the attack spot the attacker waits for the set
-    offset: tuple[float, float] = (0.05, -0.1)  # m (x, y) the racket's centre is aimed off the ball: back from the net, and ahead of the attacker, which comes from +y and lags
+    # m (x, y) the racket's centre is aimed off the ball: back from the net, and ahead of the attacker, which comes from +y
+    # and lags
+    offset: tuple[float, float] = (0.05, -0.1)
     # the lookahead (lookahead.py): the last moments of the throw are chosen among variants tried on the model
     lookahead: bool = True  # off: the plain throw
     look_time: float = 0.5  # s before the contact the choosing starts (the turn into the throw and the throw take 0.4 s)
     set_lookahead: bool = True  # the setter chooses its set on the model too (off: the plain set)
     set_look_time: float = 0.5  # s before the set the setter starts choosing among sets aimed around the attack spot
-    set_look_dz: tuple[float, ...] = (0.0, -0.25)  # m the set's contact may move down (a setter that starts high has no room to swing up into it)
+    # m the set's contact may move down (a setter that starts high has no room to swing up into it)
+    set_look_dz: tuple[float, ...] = (0.0, -0.25)
     set_low_cost: float = 2.0  # per metre the set peaks under ``set_apex`` (as against per metre off the spot)
-    set_low_near: float = 0.6  # m nearer the net a set should come down per metre it peaks under ``set_apex`` (it falls slowly, so is spiked slower: from nearer the net it still reaches the target)
+    # m nearer the net a set should come down per metre it peaks under ``set_apex`` (it falls slowly, so is spiked slower:
+    # from nearer the net it still reaches the target)
+    set_low_near: float = 0.6
     set_look_aim: float = 0.5  # m between those aims (a 5 x 5 grid)
     look_aim: float = 0.3  # m between the aim variants (a 5 x 5 grid around the aim)
-    look_vz: tuple[float, ...] = (0.0, -0.6)  # m/s added to the spike's planned vz (the throw sinks: a spike planned steeper comes out downward)
+    # m/s added to the spike's planned vz (the throw sinks: a spike planned steeper comes out downward)
+    look_vz: tuple[float, ...] = (0.0, -0.6)
     look_dz: tuple[float, ...] = (0.0, -0.25)  # m the contact may move down (a set that peaks low falls slowly: met lower, it is faster)
     look_offset: float = 0.06  # m the racket-centre variants move in its plane
     look_near: float = 1.0  # m: a ball this close with no plan left (met late) is still chosen on the model
@@ -113,7 +123,8 @@ class SetAndSpikePlayer(_Player):
         # the attacker crosses the court to its spot and throws itself into the spike: steeper tilts
         self.attack_ctrl = DroneController(self.params, action_space, replace(self.ctrl.gains, max_tilt=cfg.rush_tilt))
         # ... and, after the spike, turns out of its throw as fast as the airframe can
-        self.recover_ctrl = DroneController(self.params, action_space, replace(self.ctrl.gains, max_tilt=cfg.rush_tilt, att_accel=cfg.recover_att_accel))
+        recover = replace(self.ctrl.gains, max_tilt=cfg.rush_tilt, att_accel=cfg.recover_att_accel)
+        self.recover_ctrl = DroneController(self.params, action_space, recover)
         self.ctrl = DroneController(self.params, action_space, replace(self.ctrl.gains, att_accel=cfg.set_att_accel))
         self.lookahead = Lookahead(self.params, action_space)
 
@@ -153,7 +164,8 @@ class SetAndSpikePlayer(_Player):
         return spot + torch.tensor((0.0, 0.0, self.planner.reach), dtype=ref.dtype, device=ref.device)
 
     def set_velocity(self, bp, bv, variant=None):
-        """The set [..., 3]: through ``set_apex`` down onto the attack spot, moved by the first two values of ``variant`` (a lookahead's)."""
+        """The set [..., 3]: through ``set_apex`` down onto the attack spot, moved by the first two
+        values of ``variant`` (a lookahead's)."""
         a = self.attack_ball(bp)
         target = a[:2] if variant is None else a[:2] + variant[..., :2]
         return launch_for_apex(bp, target, self.cfg.set_apex, a[2], self.params.gravity)
@@ -183,9 +195,11 @@ class SetAndSpikePlayer(_Player):
         kw = {"dtype": ball_p.dtype, "device": ball_p.device}
         variants = variant_rows(grid_5x5(ball_p) * c.set_look_aim, torch.tensor((0.0, 1.0) if c.set_glide else (0.0,), **kw),
                                 torch.tensor(c.set_look_dz, **kw))
-        return self.lookahead.refine(plain, now, s.t, drone, ball_p, ball_v, variants,
-                                     lambda d, p, v, w, var: self.set_action(d, p, v, lambda bp, bv: self.set_velocity(bp, bv, var), w, var[..., 2] > 0.5, var[..., 3]),
-                                     self.set_cost, context=(wait,))
+
+        def fly(d, p, v, w, var):
+            return self.set_action(d, p, v, lambda bp, bv: self.set_velocity(bp, bv, var), w, var[..., 2] > 0.5, var[..., 3])
+
+        return self.lookahead.refine(plain, now, s.t, drone, ball_p, ball_v, variants, fly, self.set_cost, context=(wait,))
 
     # ------------------------------------------------------------------ the spike
     def spike(self, bp, bv, aim=None, dvz=None):
@@ -304,7 +318,8 @@ class SetAndSpikePlayer(_Player):
     def rush(self, drone, target):
         """Thrust [..., 3] that flies to ``target`` in about minimum time and stops there."""
         c = self.cfg
-        return self.attack_ctrl.thrust_vector(drone, goto_accel(drone.pos, drone.vel, target, c.rush_accel, c.rush_speed, brake=c.rush_brake, lead=c.rush_lead))
+        accel = goto_accel(drone.pos, drone.vel, target, c.rush_accel, c.rush_speed, brake=c.rush_brake, lead=c.rush_lead)
+        return self.attack_ctrl.thrust_vector(drone, accel)
 
     def act(self, drone, t):
         c = self.cfg
@@ -349,7 +364,8 @@ class SetAndSpikePlayer(_Player):
         z_net = p[..., 2] + v[..., 2] * t_net - 0.5 * g * t_net**2
         drone_bad = (o.min_x < c.look_margin) | (o.min_x_low < 0.2 + c.look_margin) | (o.min_z < 0.5)
         # each failure costs what it costs the success rate: a miss three of its four parts, the others one
-        lost = (v[..., 2] >= 0).float() + ((z_net < c.net_height + 0.05) | drone_bad | (off > 1.0)).float() + 3.0 * (~o.hit | o.body).float()
+        lost = (v[..., 2] >= 0).float() + ((z_net < c.net_height + 0.05) | drone_bad | (off > 1.0)).float()
+        lost = lost + 3.0 * (~o.hit | o.body).float()
         return cost + 10.0 * lost
 
     def attack(self, drone, ball_p, ball_v, wait, mine):

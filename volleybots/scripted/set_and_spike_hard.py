@@ -24,7 +24,8 @@ class TipConfig(SpikeConfig):
     min_x: float = 0.4
     max_tilt: float = math.radians(30.0)
     set_low_near: float = 0.0  # the tip is taken near the net already
-    set_att_accel: float = 9.0  # the tip needs a truer set than the spike: gentler turns overshoot less at the contact (Hard 0.78 -> 0.82 over seeds 0-3)
+    # the tip needs a truer set than the spike: gentler turns overshoot less at the contact (Hard 0.78 -> 0.82 over seeds 0-3)
+    set_att_accel: float = 9.0
     tip_speed: float = 1.9  # m/s toward -x the tip leaves with: under the defence racket's 2 m/s trigger
     tip_vz: float = -0.6  # m/s down (the spike counts as downward; it must still clear the net)
     tip_vz_min: float = -0.1  # m/s down at least
@@ -58,7 +59,8 @@ class SetAndSpikeHardPlayer(SetAndSpikePlayer):
     def __init__(self, action_space="prt", params=None, gains=None, cfg: TipConfig = TipConfig(), touch: TouchConfig = SET_TOUCH):
         super().__init__(action_space, params, gains, cfg, touch)
         # the drop needs little thrust, and the racket is nearly level then: its direction holds
-        self.drop_ctrl = DroneController(self.params, action_space, replace(self.attack_ctrl.gains, min_thrust_z=self.params.gravity - cfg.drop_accel - 1.0, max_tilt=cfg.drop_tilt))
+        drop = replace(self.attack_ctrl.gains, min_thrust_z=self.params.gravity - cfg.drop_accel - 1.0, max_tilt=cfg.drop_tilt)
+        self.drop_ctrl = DroneController(self.params, action_space, drop)
 
     def spike(self, bp, bv):
         c = self.cfg

@@ -4,10 +4,11 @@ It owns the batch of worlds (physics backend + action space + referee), the Torc
 resets, truncation and per-episode statistics; a task only says how to reset, what each drone sees,
 and what the referee's events are worth (``reset_task``, ``observe``, ``evaluate``).
 
-Keys: ``("agents", "observation")`` [N, A, obs], ``("agents", "action")`` [N, A, 4] (or [N, A] int for
-the discrete space), ``("agents", "reward")`` [N, A, 1]; ``done``/``terminated``/``truncated`` [N, 1]
-shared by all agents; ``("stats", name)`` [N, 1] running episode statistics (return, length, the task
-metric and every reward term), final when ``done`` is set.
+Keys (named once in ``volleybots/keys.py``): ``("agents", "observation")`` [N, A, obs],
+``("agents", "action")`` [N, A, 4] (or [N, A] int for the discrete space), ``("agents", "reward")``
+[N, A, 1]; ``done``/``terminated``/``truncated`` [N, 1] shared by all agents; ``("stats", name)``
+[N, 1] running episode statistics (return, length, the task metric and every reward term), final
+when ``done`` is set.
 
 Static shapes. The step (physics sub-steps, referee, rewards, statistics, observations) and the reset
 are two pure batched functions of fixed shapes, ``_step_core(action)`` and ``_reset_core(mask,
@@ -35,6 +36,7 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
+from volleybots.keys import ACTION, AGENTS, DONE, NEXT, OBS, REWARD, STATS, TERMINATED, TRUNCATED, leaf, stat
 from volleybots.physics import WorldParams, make_action_space, make_physics
 from volleybots.physics.math import quat_axes, quat_rotate
 from volleybots.physics.params import BallParams, DroneParams
@@ -143,8 +145,9 @@ class VolleyEnv(EnvBase):
         # it also keeps team 0's: what a learner on team 0 (a Versus or self-play seat) is paid
         self._team0 = torch.tensor([i for i, t in enumerate(self.teams) if t == 0], device=self.device) if self.competitive else None
         team0 = ("return_team0", *(f"r_{k}_team0" for k in self.reward_terms)) if self.competitive else ()
+        terms = (f"r_{k}" for k in self.reward_terms)
         # nonfinite_action stays last: the step reads it as the stats tensor's last column
-        self._stats_keys = ("return", "episode_len", self.metric, *self.extra_stats, *(f"r_{k}" for k in self.reward_terms), *team0, "nonfinite_action")
+        self._stats_keys = ("return", "episode_len", self.metric, *self.extra_stats, *terms, *team0, "nonfinite_action")
         self._stats = {k: torch.zeros(num_envs, device=self.device) for k in self._stats_keys}
         self._warned_nonfinite = False
         self._make_specs()
@@ -220,8 +223,10 @@ class VolleyEnv(EnvBase):
         n, a = self.num_envs, self.n_drones
         dev = self.device
         self.observation_spec = Composite(
-            agents=Composite(observation=Unbounded((n, a, self.obs_dim), device=dev), shape=(n, a), device=dev),
-            stats=Composite({k: Unbounded((n, 1), device=dev) for k in self._stats_keys}, shape=(n,), device=dev),
+            {
+                AGENTS: Composite({leaf(OBS): Unbounded((n, a, self.obs_dim), device=dev)}, shape=(n, a), device=dev),
+                STATS: Composite({k: Unbounded((n, 1), device=dev) for k in self._stats_keys}, shape=(n,), device=dev),
+            },
             shape=(n,),
             device=dev,
         )
@@ -229,14 +234,12 @@ class VolleyEnv(EnvBase):
             act = Bounded(-1.0, 1.0, (n, a, self.actions.dim), device=dev)
         else:
             act = Categorical(self.actions.n, (n, a), device=dev, dtype=torch.long)
-        self.action_spec = Composite(agents=Composite(action=act, shape=(n, a), device=dev), shape=(n,), device=dev)
+        self.action_spec = Composite({AGENTS: Composite({leaf(ACTION): act}, shape=(n, a), device=dev)}, shape=(n,), device=dev)
         self.reward_spec = Composite(
-            agents=Composite(reward=Unbounded((n, a, 1), device=dev), shape=(n, a), device=dev), shape=(n,), device=dev
+            {AGENTS: Composite({leaf(REWARD): Unbounded((n, a, 1), device=dev)}, shape=(n, a), device=dev)}, shape=(n,), device=dev
         )
         self.done_spec = Composite(
-            done=Categorical(2, (n, 1), dtype=torch.bool, device=dev),
-            terminated=Categorical(2, (n, 1), dtype=torch.bool, device=dev),
-            truncated=Categorical(2, (n, 1), dtype=torch.bool, device=dev),
+            {flag: Categorical(2, (n, 1), dtype=torch.bool, device=dev) for flag in (DONE, TERMINATED, TRUNCATED)},
             shape=(n,),
             device=dev,
         )
@@ -254,8 +257,8 @@ class VolleyEnv(EnvBase):
         n, dev = self.num_envs, self.device
         return TensorDict(
             {
-                "agents": TensorDict({"observation": obs}, batch_size=(n, self.n_drones), device=dev),
-                "stats": TensorDict({k: stats[:, i : i + 1] for i, k in enumerate(self._stats_keys)}, batch_size=(n,), device=dev),
+                AGENTS: TensorDict({leaf(OBS): obs}, batch_size=(n, self.n_drones), device=dev),
+                STATS: TensorDict({k: stats[:, i : i + 1] for i, k in enumerate(self._stats_keys)}, batch_size=(n,), device=dev),
             },
             batch_size=self.batch_size,
             device=dev,
@@ -291,7 +294,7 @@ class VolleyEnv(EnvBase):
             mask = torch.ones(self.num_envs, dtype=torch.bool, device=self.device)
         out = self._obs_td(*self._reset_envs(mask))
         false = torch.zeros(self.num_envs, 1, dtype=torch.bool, device=self.device)
-        out.update({"done": false, "terminated": false.clone(), "truncated": false.clone()})
+        out.update({DONE: false, TERMINATED: false.clone(), TRUNCATED: false.clone()})
         return out
 
     # ------------------------------------------------------------------ step
@@ -330,7 +333,7 @@ class VolleyEnv(EnvBase):
         return self.observe(), reward, terminated, truncated, self._stats_tensor()
 
     def _run_step(self, tensordict: TensorDictBase):
-        action = tensordict.get(("agents", "action"))
+        action = tensordict.get(ACTION)
         self.actions.check(action)
         obs, reward, terminated, truncated, stats = self._step_fn(action)
         if not self._warned_nonfinite and self.actions.continuous and bool(stats[:, -1].any()):
@@ -340,10 +343,10 @@ class VolleyEnv(EnvBase):
                 RuntimeWarning, stacklevel=3,
             )
         out = self._obs_td(obs, stats)
-        out.set(("agents", "reward"), reward.unsqueeze(-1))
-        out.set("terminated", terminated.unsqueeze(-1))
-        out.set("truncated", truncated.unsqueeze(-1))
-        out.set("done", (terminated | truncated).unsqueeze(-1))
+        out.set(REWARD, reward.unsqueeze(-1))
+        out.set(TERMINATED, terminated.unsqueeze(-1))
+        out.set(TRUNCATED, truncated.unsqueeze(-1))
+        out.set(DONE, (terminated | truncated).unsqueeze(-1))
         return out
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
@@ -356,17 +359,17 @@ class VolleyEnv(EnvBase):
         if tensordict.device != self.device:
             tensordict = tensordict.to(self.device)
         nxt = self._run_step(tensordict)
-        tensordict.set("next", nxt)
+        tensordict.set(NEXT, nxt)
         following = self._step_mdp(tensordict)
-        done = nxt.get("done").reshape(self.num_envs)
+        done = nxt.get(DONE).reshape(self.num_envs)
         if bool(done.any()):
             obs, stats = self._reset_envs(done)
             following.update(self._obs_td(obs, stats))
             false = torch.zeros(self.num_envs, 1, dtype=torch.bool, device=self.device)
-            following.update({"done": false, "terminated": false.clone(), "truncated": false.clone()})
+            following.update({DONE: false, TERMINATED: false.clone(), TRUNCATED: false.clone()})
         return tensordict, following
 
     def episode_stats(self, td: TensorDictBase) -> dict[str, torch.Tensor]:
         """The statistics of the episodes that ended in a step's output ``td`` (its ``next``)."""
-        done = td.get("done").reshape(-1)
-        return {k: td.get(("stats", k)).reshape(-1)[done] for k in self._stats_keys}
+        done = td.get(DONE).reshape(-1)
+        return {k: td.get(stat(k)).reshape(-1)[done] for k in self._stats_keys}

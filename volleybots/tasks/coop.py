@@ -101,7 +101,9 @@ class BumpAndPass(_CoopTask):
     name = "bump_and_pass"
     anchors_xyz = ((4.5, -2.5, 2.0), (4.5, 2.5, 2.0))
     obs_parts = coop_parts(2)
-    reward_terms = ("success_hit", "success_cross", "dist_to_anchor", "ball_misbehave", "drone_misbehave", "wrong_hit", "hit_direction", "dist_to_ball")
+    reward_terms = (
+        "success_hit", "success_cross", "dist_to_anchor", "ball_misbehave", "drone_misbehave", "wrong_hit", "hit_direction", "dist_to_ball",
+    )
     shaping_terms = ("hit_direction", "dist_to_ball")
     metric = "bumps"  # longest run of consecutive successful bumps
     extra_stats = ("passes", "hits")
@@ -190,7 +192,8 @@ class _SetAndSpike(_CoopTask):
     def __init__(self, *args, **kw):
         super().__init__(*args, **kw)
         n = self.num_envs
-        self.flags = {k: torch.zeros(n, dtype=torch.bool, device=self.device) for k in ("setter_hit", "attacker_hit", "downward_spike", "crossed", self.goal)}
+        flags = ("setter_hit", "attacker_hit", "downward_spike", "crossed", self.goal)
+        self.flags = {k: torch.zeros(n, dtype=torch.bool, device=self.device) for k in flags}
         self.target = torch.tensor(self.target_xy, device=self.device)
 
     @property

@@ -4,12 +4,20 @@ docs/hierarchical.md). Hover (tasks/single.py) is the fifth.
 Each is one drone of team 0 on the 3 vs 3 court (12 x 6), in its own half (x > 0, the net at x = 0),
 at the anchor of its role in the team, with the ball placed as it arrives there in a rally:
 
-| drill | drone (role, anchor) | ball at reset | done when | success |
-|---|---|---|---|---|
-| ``serve`` | back, (6, 0, 2) | at rest 3 m above the drone | the ball lands | in the opponent's court (x < 0) |
-| ``pass`` | back, (6, 0, 2) | sent over the net by the opponents: from x in [-4.5, -2] it comes down through 2.75 m in the back of the court, x in [4.5, 6.5], y in [-1.5, 1.5], 1.3-1.7 s later | after the touch the ball comes down through 2.75 m | within 1 m (horizontally) of the front-left anchor (3, -1.5) |
-| ``set`` | front-left, (3, -1.5, 2) | passed by the back drone: from its touch (x in [4.5, 6.5], y in [-1, 1], 2.75 m) it comes down through 2.75 m within 0.5 m of the front-left anchor, 1.2-1.6 s later | as Pass | within 1 m of the front-right anchor (3, 1.5) |
-| ``attack`` | front-right, (3, 1.5, 2) | set by the front-left drone: from (3, -1.5, 2.75) +- 0.5 m it comes down through 2.75 m within 0.5 m of the front-right anchor, 1.2-1.6 s later | the ball lands | in the opponent's court, in the half the one-hot ``side`` says (left: y < 0, right: y > 0; the attacker faces -x) |
+- ``serve``. Drone (role, anchor): back, (6, 0, 2). Ball at reset: at rest 3 m above the drone. Done
+  when: the ball lands. Success: in the opponent's court (x < 0).
+- ``pass``. Drone: back, (6, 0, 2). Ball at reset: sent over the net by the opponents: from x in
+  [-4.5, -2] it comes down through 2.75 m in the back of the court, x in [4.5, 6.5], y in
+  [-1.5, 1.5], 1.3-1.7 s later. Done when: after the touch the ball comes down through 2.75 m.
+  Success: within 1 m (horizontally) of the front-left anchor (3, -1.5).
+- ``set``. Drone: front-left, (3, -1.5, 2). Ball at reset: passed by the back drone: from its touch
+  (x in [4.5, 6.5], y in [-1, 1], 2.75 m) it comes down through 2.75 m within 0.5 m of the
+  front-left anchor, 1.2-1.6 s later. Done when: as Pass. Success: within 1 m of the front-right
+  anchor (3, 1.5).
+- ``attack``. Drone: front-right, (3, 1.5, 2). Ball at reset: set by the front-left drone: from
+  (3, -1.5, 2.75) +- 0.5 m it comes down through 2.75 m within 0.5 m of the front-right anchor,
+  1.2-1.6 s later. Done when: the ball lands. Success: in the opponent's court, in the half the
+  one-hot ``side`` says (left: y < 0, right: y > 0; the attacker faces -x).
 
 2.75 m is where a drone at the scripted players' contact height (2.6 m) meets the ball's centre.
 Drones start at their anchor +- 0.1 m, level, at rest (as in the match).
@@ -298,4 +306,7 @@ class Attack(_Drill):
 
 DRILLS = (Serve, Pass, Set, Attack)
 
-__all__ = ["Attack", "BACK", "CONTACT_Z", "DRILLS", "DRILL_PARTS", "FRONT_LEFT", "FRONT_RIGHT", "Pass", "Serve", "Set", "TEAM_ANCHORS", "velocity_through"]
+__all__ = [
+    "Attack", "BACK", "CONTACT_Z", "DRILLS", "DRILL_PARTS", "FRONT_LEFT", "FRONT_RIGHT", "Pass", "Serve", "Set", "TEAM_ANCHORS",
+    "velocity_through",
+]

@@ -102,7 +102,8 @@ class _Match(MultiDroneTask):
         if self.fixed_serve is not None:
             team = torch.full_like(team, self.fixed_serve)
         server = torch.stack((self.team_index(0)[self.server_rank], self.team_index(1)[self.server_rank]))[team]
-        ball = pos.gather(1, server.view(n, 1, 1).expand(n, 1, 3)).squeeze(1) + torch.tensor((0.0, 0.0, self.ball_above), device=self.device)
+        above = torch.tensor((0.0, 0.0, self.ball_above), device=self.device)
+        ball = pos.gather(1, server.view(n, 1, 1).expand(n, 1, 3)).squeeze(1) + above
         self.place_ball(mask, ball)
         self.referee.reset(mask, self.physics.state.ball_pos, first=server)
         self.serve_team = torch.where(mask, team, self.serve_team)
@@ -136,7 +137,8 @@ class _Match(MultiDroneTask):
         # a ball out (or in the net) with no hitter yet is the server's
         unclaimed = (ev.ball_out | ev.ball_net) & (ev.last_hitter < 0) & ~out.ended
         fault = fault | (one_hot(self.serve_team, 2).bool() & unclaimed.unsqueeze(1))
-        reason = torch.where(unclaimed, torch.where(ev.ball_out, Referee.FAULTS.index("ball_out"), Referee.FAULTS.index("ball_net")), reason)
+        ball_fault = torch.where(ev.ball_out, Referee.FAULTS.index("ball_out"), Referee.FAULTS.index("ball_net"))
+        reason = torch.where(unclaimed, ball_fault, reason)
         ended = fault.any(1)
         draw_fault = fault.all(1)
         crash = ev.drone_low

@@ -20,6 +20,7 @@ from typing import Callable
 import torch
 from tensordict import TensorDict, TensorDictBase
 
+from volleybots.keys import AGENTS, OBS, leaf, stat
 from volleybots.tasks.base import VolleyEnv
 from volleybots.tasks.layout import root_layout
 
@@ -100,11 +101,11 @@ class MultiDroneTask(VolleyEnv):
 
     def select_team(self, td: TensorDictBase, team: int) -> TensorDictBase:
         """The ``("agents", ...)`` entries of ``team``'s agents: a tensordict of batch [N, A_t]."""
-        return td.get("agents")[:, self.team_index(team)]
+        return td.get(AGENTS)[:, self.team_index(team)]
 
     def write_team(self, td: TensorDictBase, team: int, sub: TensorDictBase) -> TensorDictBase:
         """Scatter ``sub`` [N, A_t] (e.g. a team policy's actions) back into ``td``'s agents."""
-        agents = td.get("agents")
+        agents = td.get(AGENTS)
         idx = self.team_index(team)
         for key in sub.keys(include_nested=True, leaves_only=True):
             val = sub.get(key)
@@ -156,13 +157,13 @@ class TeamPolicies:
         self.policies = policies
 
     def __call__(self, td: TensorDictBase) -> TensorDictBase:
-        starts = td.get(("stats", "episode_len")).reshape(-1) == 0
+        starts = td.get(stat("episode_len")).reshape(-1) == 0
         for team, policy in enumerate(self.policies):
             if hasattr(policy, "begin_episodes"):
                 policy.begin_episodes(starts)
-            sub = TensorDict({"agents": self.env.select_team(td, team)}, batch_size=td.batch_size, device=td.device)
+            sub = TensorDict({AGENTS: self.env.select_team(td, team)}, batch_size=td.batch_size, device=td.device)
             out = policy(sub)
             out = sub if out is None else out
             # everything it wrote (a learner's log-probabilities too), not the observation it read
-            self.env.write_team(td, team, out.get("agents").exclude("observation"))
+            self.env.write_team(td, team, out.get(AGENTS).exclude(leaf(OBS)))
         return td

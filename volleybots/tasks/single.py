@@ -160,7 +160,9 @@ class _BallDrill(VolleyEnv):
 
     def observe(self):
         s = self.physics.state
-        return self.layout.build(root=self.root_state(), anchor=s.pos - self.anchor, ball=s.pos - s.ball_pos.unsqueeze(1), ball_vel=s.ball_vel.unsqueeze(1))
+        return self.layout.build(
+            root=self.root_state(), anchor=s.pos - self.anchor, ball=s.pos - s.ball_pos.unsqueeze(1), ball_vel=s.ball_vel.unsqueeze(1)
+        )
 
 
 class HitTheBall(_BallDrill):
@@ -218,7 +220,9 @@ class SoloBump(_BallDrill):
 
     far_start = 0.5  # m from the ball's column: the scripted player misses first balls from starts this far (docs/imitation.md)
 
-    def __init__(self, *args, hit_reward: float = 2.0, height_reward: float = 8.0, strict_bumps: bool = False, far_starts: float = 0.0, **kw):
+    def __init__(
+        self, *args, hit_reward: float = 2.0, height_reward: float = 8.0, strict_bumps: bool = False, far_starts: float = 0.0, **kw
+    ):
         """``strict_bumps`` pays ``height_reward`` only for the bumps the metric counts (struck within
         1 m of the anchor, apex in [3.5, 4.5] m); the paper's reward (False) pays every apex of 3.5 m or
         more, so a policy can earn it while drifting off the anchor, where the metric's streak restarts.

@@ -63,7 +63,9 @@ def resume(run_dir, overrides=()) -> dict:
     if ckpt is not None:
         done = int(read_checkpoint(ckpt)["frames"])
         if done >= cfg.total_frames:
-            raise ConfigError(f"run {str(run_dir)!r} already has {done} frames >= total_frames={cfg.total_frames}; raise total_frames to continue it")
+            raise ConfigError(
+                f"run {str(run_dir)!r} already has {done} frames >= total_frames={cfg.total_frames}; raise total_frames to continue it"
+            )
         run.check_metrics()
     check_memory(cfg)
     check_references(cfg)
@@ -81,7 +83,10 @@ def resume(run_dir, overrides=()) -> dict:
 def _counts(cfg) -> str:
     """The config's counts that decide the memory a run takes, for an out-of-memory message."""
     buffer = f", algo.buffer_size={cfg.algo.buffer_size}" if "buffer_size" in cfg.algo else ""
-    return f"env.num_envs={cfg.env.num_envs}, algo.steps_per_batch={cfg.algo.steps_per_batch}, evaluation.episodes={cfg.evaluation.episodes}{buffer}"
+    return (
+        f"env.num_envs={cfg.env.num_envs}, algo.steps_per_batch={cfg.algo.steps_per_batch}, "
+        f"evaluation.episodes={cfg.evaluation.episodes}{buffer}"
+    )
 
 __all__ = [
     "AllAgents", "EVAL_SEED_OFFSET", "RESUME_KEYS", "SelfPlay", "Trainer", "Versus", "apply_init", "check_init", "collect", "default_seat",

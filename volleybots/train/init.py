@@ -66,7 +66,8 @@ def apply_init(algo, cfg, spec: AgentSpec) -> dict:
     there = _side(src.algo.name, src.task.name, there_drones, src.env.action_space, int(state["obs_dim"]))
     what = f"init={cfg.init!r} ({there}) does not fit this run ({here})"
     for name, a, b in (("task", src.task.name, cfg.task.name), ("drone count", there_drones, here_drones),
-                       ("action space", src.env.action_space, cfg.env.action_space), ("observation size", int(state["obs_dim"]), spec.obs_dim)):
+                       ("action space", src.env.action_space, cfg.env.action_space),
+                       ("observation size", int(state["obs_dim"]), spec.obs_dim)):
         if a != b:
             raise ConfigError(f"{what}: the {name} differs")
     source = build_learner(state, AgentSpec(spec.device, int(state["n_agents"]), int(state["obs_dim"]), spec.actions), f"init={cfg.init!r}")
@@ -92,7 +93,10 @@ def apply_init(algo, cfg, spec: AgentSpec) -> dict:
 
 def _init_info(path: Path, state: dict, src, loaded: list[str], skipped: list[str]) -> dict:
     """What ``init=`` loaded, for summary.json and the checkpoints."""
-    return {"source": str(path), "sha256": sha256(path), "algo": src.algo.name, "frames": int(state["frames"]), "loaded": loaded, "skipped": skipped}
+    return {
+        "source": str(path), "sha256": sha256(path), "algo": src.algo.name, "frames": int(state["frames"]),
+        "loaded": loaded, "skipped": skipped,
+    }
 
 
 def learner_spec(cfg, env) -> AgentSpec:

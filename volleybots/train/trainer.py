@@ -191,7 +191,10 @@ class Trainer:
                 stats = finished_stats(batch, self.seat.team)
                 losses = self.algo.update(self.seat.view(self.env, batch))
                 dt = last_dt = time.perf_counter() - t_batch  # also the next batch's estimate for time_limit
-                row = {"phase": "train", "frames": self.frames, "iteration": self.iteration, "wall_time": self._wall(), "fps": self.frames_per_batch / dt}
+                row = {
+                    "phase": "train", "frames": self.frames, "iteration": self.iteration, "wall_time": self._wall(),
+                    "fps": self.frames_per_batch / dt,
+                }
                 row.update(row_extra or {})
                 row.update(stats)
                 row.update(losses)
@@ -203,7 +206,8 @@ class Trainer:
                     last = stats
                 # the caller's counters see this batch before a checkpoint records them
                 stopping = stop is not None and stop(row)
-                bar(self.frames, row["fps"], self.metric, last.get(self.metric), row["wall_time"], note(self.frames, row["fps"]) if note else "")
+                extra = note(self.frames, row["fps"]) if note else ""
+                bar(self.frames, row["fps"], self.metric, last.get(self.metric), row["wall_time"], extra)
                 if stopping:
                     break
                 if ck_every and self.frames >= next_ck and self.frames < cfg.total_frames:
