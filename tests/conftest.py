@@ -8,6 +8,7 @@ Markers (registered in pyproject.toml) only select: `python -m pytest -q` runs e
 from __future__ import annotations
 
 import csv
+import functools
 import os
 import shutil
 import subprocess
@@ -150,3 +151,23 @@ def copy_run(tmp_path):
         return Path(shutil.copytree(src, tmp_path / name, ignore=shutil.ignore_patterns(".lock")))
 
     return copy
+
+
+# ---- scripted rollouts read by several tests of one module (each module runs on one xdist worker)
+SCRIPTED_STEPS = 170  # every first Set and Spike episode is over by then (a spiked ball lands about 2.8 s in)
+
+
+@functools.cache  # several tests read the same episodes (nothing mutates them)
+def first_episodes(task, n=32, seed=2, action_space="prt", steps=SCRIPTED_STEPS):
+    """The stats of each env's first episode under the task's scripted policy, the rollout, and the
+    mask [N, T] of each env's first done step."""
+    import volleybots
+    from volleybots.scripted import make_scripted_policy
+
+    env = volleybots.make_env(task, num_envs=n, seed=seed, action_space=action_space)
+    td = env.rollout(steps, policy=make_scripted_policy(env), break_when_any_done=False)
+    nxt = td["next"]
+    done = nxt["done"].squeeze(-1)
+    first = done & (done.long().cumsum(1) == 1)
+    assert bool(first.any(1).all()), "an env did not finish its first episode"
+    return {k: nxt["stats", k].squeeze(-1)[first] for k in env._stats_keys}, td, first
