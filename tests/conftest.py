@@ -73,10 +73,19 @@ def one_line_exit_2(res, *words) -> str:
 
 
 def pytest_collection_modifyitems(items):
-    """A learning test trains to a floor: it is slow by nature, so ``-m "not slow"`` leaves it out too."""
+    """A learning test trains to a floor: it is slow by nature, so ``-m "not slow"`` leaves it out too.
+
+    The modules that hold the slowest tests (learning, then slow) are collected first: xdist's
+    ``loadscope`` hands modules out in collection order, so the long ones start at once and the short
+    ones fill in behind them, instead of one worker finishing a long module alone at the end."""
     for item in items:
         if item.get_closest_marker("learning") and not item.get_closest_marker("slow"):
             item.add_marker(pytest.mark.slow)
+    rank: dict[str, int] = {}
+    for item in items:
+        weight = 2 if item.get_closest_marker("learning") else 1 if item.get_closest_marker("slow") else 0
+        rank[item.module.__name__] = max(rank.get(item.module.__name__, 0), weight)
+    items.sort(key=lambda item: -rank[item.module.__name__])  # stable: a module's own order is kept
 
 
 @pytest.fixture(autouse=True)

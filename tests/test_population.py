@@ -284,7 +284,8 @@ def test_a_bc_seeded_population_starts_from_a_clone_that_beats_random_and_resume
     cfg = tiny("psro_nash", "algo.learner_init=bc", "algo.seed_members=[bc,random]", "algo.bc_frames=4096", "env.num_envs=32",
                "algo.hidden=[64,64]", "algo.iterations=1", "algo.min_updates=1", "algo.max_updates=1")
     assert cfg.algo.anchor_coeff == 0.3 and cfg.algo.actor_freeze_updates == 10  # the recipe, by default
-    start(cfg, run)
+    summary = start(cfg, run)
+    assert summary["wall_time_split"]["clone"] > 0  # the clone's making is a part of the run's wall time of its own
     clone = run / "population" / "bc"
     assert (clone / "checkpoints" / "final.pt").is_file() and RunDir(clone).load_config().algo.name == "bc"
     meta, pay, members = _read(run)

@@ -3,10 +3,15 @@ sets down over the net and a good share of them into the target. Hard and the CT
 own modules (test_scripted_set_and_spike_hard.py, _ctbr.py), so that each module's rollouts, the
 suite's slowest, run on their own test worker."""
 
+import pytest
 import torch
 from conftest import first_episodes
 
+# the scripted pair searches its touches on the world model: its rollouts take minutes on 2 cores
+slow = pytest.mark.slow
 
+
+@slow
 def test_setter_always_sets_and_stays_home():
     st, td, first = first_episodes("set_and_spike_easy")
     assert (st["setter_hit"] == 1).all()
@@ -16,6 +21,7 @@ def test_setter_always_sets_and_stays_home():
     assert (setter[:, 0] > 0.2).all() and (setter[:, 2] > 1.0).all()
 
 
+@slow
 def test_spikes_go_down_over_the_net():
     # measured on these 32 episodes: Easy attacker_hit, downward, in_target and success all 1.0
     # (the benchmark's 100 episodes: 0.993 on seeds 0-2; without the lookaheads 0.45 here)

@@ -1,7 +1,10 @@
 """Scripted Set and Spike pair flown through the CTBR action space (collective thrust and body rates)."""
 
+import pytest
 import torch
 from conftest import first_episodes
+
+pytestmark = pytest.mark.slow  # the scripted pair searches its touches on the world model: minutes on 2 cores
 
 
 def test_ctbr_pair_still_plays():

@@ -1,7 +1,10 @@
 """Scripted Set and Spike pair, Hard: the setter always sets and stays home, and the attacker's tip
 is one the defence racket never touches."""
 
+import pytest
 from conftest import first_episodes
+
+pytestmark = pytest.mark.slow  # the scripted pair searches its touches on the world model: minutes on 2 cores
 
 
 def test_setter_always_sets_and_stays_home_on_hard():

@@ -70,7 +70,9 @@ def parse_spec(spec: str, builtins=("scripted", "random", "hierarchical"), what:
         return Spec(label or target, "checkpoint", str(entry.checkpoint))
     path = Path(target)
     if not exists(path):
-        raise ConfigError(f"{what} {target[:80]!r} does not exist; expected {allowed}")
+        # a very long name is cut in the middle: its end (the file's own name) is what tells it apart
+        shown = target if len(target) <= 160 else f"{target[:40]}...{target[-117:]}"
+        raise ConfigError(f"{what} {shown!r} does not exist; expected {allowed}")
     if path.is_file():
         return Spec(label, "drills" if path.suffix in (".yaml", ".yml") else "checkpoint", target)
     if path.is_dir():

@@ -55,7 +55,7 @@ from volleybots.version import __version__
 
 ITERATION_SEED = 1_000  # iteration i runs with seed + i * ITERATION_SEED
 GAMES_SEED = 500_000  # payoff games of member k against j use seed + GAMES_SEED + 1000 k + j
-SPLIT = ("oracle_training", "payoff_games", "evaluations")  # the parts of a run's wall time it reports
+SPLIT = ("clone", "oracle_training", "payoff_games", "evaluations")  # the parts of a run's wall time it reports
 
 
 @dataclass
@@ -147,7 +147,10 @@ class PopulationLoop:
         if self.cfg.logger == "wandb":  # one W&B run over all iterations, continued by a resume
             self.wandb = WandbLogger(self.cfg, self.run.path, resume=bool(metas or self.run.periodic_checkpoints()))
         seeds = list(self.m.seed_members)
-        self.clone = make_clone(self.cfg, self.run.path) if needs_clone(self.m) else None  # once per run, then reused
+        self.clone = None
+        if needs_clone(self.m):
+            with self._timed("clone"):  # once per run, then reused (a resume finds it made)
+                self.clone = make_clone(self.cfg, self.run.path)
         if seeds and not self.metas():
             with self._timed("payoff_games"):
                 self._seed_population(seeds)

@@ -1,6 +1,6 @@
 """The empirical payoff table of a population: W/D/L counts per ordered pair of members.
 
-The counts are one record ``wdl`` [n, n, 3] (``volleybots.ratings.record``): those of ``(i, j)`` are
+The counts are one record ``wdl`` of shape ``[n, n, 3]`` (``volleybots.ratings.record``): those of ``(i, j)`` are
 from member ``i``'s side and ``(j, i)`` holds the mirror image, so the zero-sum payoff matrix
 ``(wins - losses) / games`` is antisymmetric. A member against itself has payoff 0 by the symmetry of
 the court and is not played. Entries are added as members join, never recomputed.
