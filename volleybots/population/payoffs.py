@@ -17,8 +17,8 @@ With 60 games an entry the payoff's interval is about +-0.2 to +-0.25 wide on ea
 meta-solver fitted to such a table fits noise of that size; more ``payoff_games`` narrow it as
 1 / sqrt(games).
 
-``payoffs.json`` holds the counts under ``wdl`` ([n][n][3], as ``crossplay.json`` does). A table
-written before that held three [n][n] matrices ``wins``, ``draws`` and ``losses``; it still loads, so
+``payoffs.json`` holds the counts under ``wdl`` (``[n][n][3]``, as ``crossplay.json`` does). A table
+written before that held three ``[n][n]`` matrices ``wins``, ``draws`` and ``losses``; it still loads, so
 that a population run resumes across the upgrade.
 """
 
