@@ -194,3 +194,13 @@ def first_episodes(task, n=32, seed=2, action_space="prt", steps=SCRIPTED_STEPS)
     first = done & (done.long().cumsum(1) == 1)
     assert bool(first.any(1).all()), "an env did not finish its first episode"
     return {k: nxt["stats", k].squeeze(-1)[first] for k in env._stats_keys}, td, first
+
+
+def setter_sets_and_stays_home(task: str) -> None:
+    """Set and Spike's scripted setter always sets, and until its episode ends never leaves its own
+    half or drops low (asserted on each env's first episode)."""
+    st, td, first = first_episodes(task)
+    assert (st["setter_hit"] == 1).all()
+    alive = (first.long().cumsum(1) - first.long()) == 0
+    setter = td["next", "agents", "observation"][..., 0, :3][alive]
+    assert (setter[:, 0] > 0.2).all() and (setter[:, 2] > 1.0).all()

@@ -5,7 +5,7 @@ suite's slowest, run on their own test worker."""
 
 import pytest
 import torch
-from conftest import first_episodes
+from conftest import first_episodes, setter_sets_and_stays_home
 
 # the scripted pair searches its touches on the world model: its rollouts take minutes on 2 cores
 slow = pytest.mark.slow
@@ -13,12 +13,7 @@ slow = pytest.mark.slow
 
 @slow
 def test_setter_always_sets_and_stays_home():
-    st, td, first = first_episodes("set_and_spike_easy")
-    assert (st["setter_hit"] == 1).all()
-    # until its episode ends the setter never leaves its own half or drops low
-    alive = (first.long().cumsum(1) - first.long()) == 0
-    setter = td["next", "agents", "observation"][..., 0, :3][alive]
-    assert (setter[:, 0] > 0.2).all() and (setter[:, 2] > 1.0).all()
+    setter_sets_and_stays_home("set_and_spike_easy")
 
 
 @slow

@@ -2,18 +2,13 @@
 is one the defence racket never touches."""
 
 import pytest
-from conftest import first_episodes
+from conftest import first_episodes, setter_sets_and_stays_home
 
 pytestmark = pytest.mark.slow  # the scripted pair searches its touches on the world model: minutes on 2 cores
 
 
 def test_setter_always_sets_and_stays_home_on_hard():
-    st, td, first = first_episodes("set_and_spike_hard")
-    assert (st["setter_hit"] == 1).all()
-    # until its episode ends the setter never leaves its own half or drops low
-    alive = (first.long().cumsum(1) - first.long()) == 0
-    setter = td["next", "agents", "observation"][..., 0, :3][alive]
-    assert (setter[:, 0] > 0.2).all() and (setter[:, 2] > 1.0).all()
+    setter_sets_and_stays_home("set_and_spike_hard")
 
 
 def test_hard_tip_is_never_defended():
