@@ -75,3 +75,20 @@ def test_a_population_run_reports_progress_final_eval_curves_and_its_wall_time_s
     assert (tmp_path / "pop" / "curves.rrd").stat().st_size > 0
     last = read_metrics(tmp_path / "pop" / "metrics.csv")[-1]
     assert last["phase"] == "eval" and last["eval_win"] == ev["stats"]["win"]["mean"]
+
+
+def test_an_oracle_stops_early_enough_for_its_payoff_games_to_end_by_the_time_limit():
+    from types import SimpleNamespace
+
+    from volleybots.population.loop import PopulationLoop
+    from volleybots.population.payoffs import payoff_reserve
+
+    assert payoff_reserve(0.0, 1) == 0.0  # no pair played yet: nothing to estimate from
+    assert payoff_reserve(30.0, 3) == 30.0  # 3 pairs took 30 s: the 3 pairs of a fourth member take 30 s more
+    assert payoff_reserve(12.0, 4) == 8.0  # 6 pairs in 12 s: 2 s a pair, 4 new pairs
+    # iteration i's learner gets the run's time limit less the reserve; without a limit nothing changes
+    for limit, want in ((100.0, 80.0), (0.0, 0.0)):
+        cfg = load([*TINY, "algo=psro_nash", f"time_limit={limit}"])
+        loop = SimpleNamespace(cfg=cfg, m=cfg.algo, clone=None)
+        assert PopulationLoop._iteration_cfg(loop, 2, 0, reserve=20.0).time_limit == want
+        assert PopulationLoop._iteration_cfg(loop, 2, 0).time_limit == limit

@@ -43,7 +43,7 @@ from volleybots.play.seats import SelfPlay, Versus
 from volleybots.policies import BUILTIN, Competitor, checkpoint_member, member_path, population_members, resolve_competitor
 from volleybots.population.clone import CLONE, clone_member, make_clone, needs_clone
 from volleybots.population.final import evaluate_mixture, log_final_eval
-from volleybots.population.payoffs import PayoffTable, plot
+from volleybots.population.payoffs import PayoffTable, payoff_reserve, plot
 from volleybots.population.solvers import SOLVERS
 from volleybots.replay import write_curves
 from volleybots.runs import CKPT_FORMAT, POPULATION_DIR, RunDir, check_writable, locked, read_checkpoint, read_metas, read_population
@@ -160,9 +160,11 @@ class PopulationLoop:
             i = 1 + sum(1 for m in metas if m["iteration"] >= 1)
             frames = metas[-1]["frames"] if metas else 0
             updates = metas[-1]["updates"] if metas else 0
-            if i > self.m.iterations or frames >= self.cfg.total_frames or (self.cfg.time_limit and wall() >= self.cfg.time_limit):
-                break
             k = len(seeds) + i - 1
+            # the new member's payoff games must end by the time limit too, so its oracle stops that much earlier
+            out_of_time = self.cfg.time_limit and wall() + self._reserve(k) >= self.cfg.time_limit
+            if i > self.m.iterations or frames >= self.cfg.total_frames or out_of_time:
+                break
             if not member_path(self.run.path, k).is_file():
                 with self._timed("oracle_training"):
                     evals = self._oracle(i, k, frames, updates, wall())
@@ -235,12 +237,15 @@ class PopulationLoop:
         plot(table, mixture, self.run.path / "payoffs.png", f"{self.m.name} on {self.cfg.task.name}: iteration {i}")
 
     # ---------------------------------------------------------------------------- the oracle
-    def _iteration_cfg(self, i: int, frames: int):
+    def _iteration_cfg(self, i: int, frames: int, reserve: float = 0.0):
         """The config iteration ``i`` trains with: its own seed, a budget of ``max_updates`` batches (SP:
-        the run's whole budget), ``init=`` the clone for ``learner_init=bc``, and the fine-tuning recipe
-        (``actor_freeze_updates``, ``anchor_coeff``) only for a learner that starts from a policy."""
+        the run's whole budget), ``init=`` the clone for ``learner_init=bc``, the fine-tuning recipe
+        (``actor_freeze_updates``, ``anchor_coeff``) only for a learner that starts from a policy, and
+        a time limit ``reserve`` seconds before the run's (its payoff games come after it)."""
         data = to_dict(self.cfg)
         data["seed"] = self.cfg.seed + i * ITERATION_SEED
+        if self.cfg.time_limit and reserve:
+            data["time_limit"] = self.cfg.time_limit - reserve
         if self.m.learner_init == CLONE:
             data["init"] = str(self.clone)
         elif data.get("init") is None:  # a learner from scratch has no policy to warm up for or hold to
@@ -250,10 +255,14 @@ class PopulationLoop:
             data["total_frames"] = min(self.cfg.total_frames, frames + self.m.max_updates * per_batch)
         return validate(data)
 
+    def _reserve(self, k: int) -> float:
+        """Seconds member ``k``'s payoff games will take (0 without a time limit to keep)."""
+        return payoff_reserve(self.split["payoff_games"], k) if self.cfg.time_limit else 0.0
+
     def _oracle(self, i: int, k: int, frames: int, updates: int, wall: float) -> float:
-        """Train iteration ``i``'s learner (resuming its checkpoint if one exists) and save it as member
-        ``k``; returns the seconds its periodic evaluations took."""
-        cfg, m = self._iteration_cfg(i, frames), self.m
+        """Train iteration ``i``'s learner (resuming its checkpoint if one exists) as member ``k``, early
+        enough for its payoff games to end by the time limit; returns its periodic evaluations' seconds."""
+        cfg, m = self._iteration_cfg(i, frames, self._reserve(k)), self.m
         yardstick = resolve_competitor(m.eval_opponent)
         if m.self_play:
             seat = SelfPlay(yardstick)

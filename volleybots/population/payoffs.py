@@ -34,6 +34,15 @@ from volleybots.ratings import record  # a leaf too: numpy / scipy only
 
 Z95 = 1.959963984540054  # the standard normal's 97.5 % quantile: two-sided 95 % intervals
 
+
+def payoff_reserve(payoff_seconds: float, members: int) -> float:
+    """The seconds a new member's payoff games against ``members`` others should take, at the mean
+    time per pair of the ``members x (members - 1) / 2`` pairs played so far in ``payoff_seconds``
+    (0 before any pair was played: the first estimate comes after the first games)."""
+    played = members * (members - 1) // 2
+    return payoff_seconds / played * members if played else 0.0
+
+
 class PayoffTable:
     def __init__(self, labels: list[str] | None = None, wdl=None):
         self.labels = list(labels or [])
