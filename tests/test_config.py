@@ -146,3 +146,17 @@ def test_configs_saved_with_the_old_compile_physics_task_key_still_load():
     old["task"]["compile_phisics"] = False
     with pytest.raises(ConfigError, match="compile_phisics"):
         validate(old)
+
+
+def test_a_verbs_count_option_reads_an_integral_float_and_refuses_a_fraction():
+    # ``budget=4e6`` as ``total_frames=2e6`` reads in a config; 2.5 frames is no count
+    from volleybots.config.args import split_args
+    from volleybots.errors import ConfigError
+
+    names, opts, over = split_args(["random", "budget=4e6", "games=400", "task=1v1"], {"budget": int, "games": int})
+    assert names == ["random"] and over == ["task=1v1"]
+    assert opts == {"budget": 4_000_000, "games": 400} and type(opts["budget"]) is int
+    with pytest.raises(ConfigError, match=r"budget='2\.5' must be an integer"):
+        split_args(["budget=2.5"], {"budget": int})
+    with pytest.raises(ConfigError, match="out of range"):
+        split_args(["budget=0e0"], {"budget": int})

@@ -28,10 +28,13 @@ OVERRIDE_PREFIXES = ("task.", "env.")
 
 
 def typed_option(key: str, value: str, kind: type):
-    """``value`` of option ``key`` read as ``kind`` (an int is a float where a float is asked)."""
+    """``value`` of option ``key`` read as ``kind``: an int is a float where a float is asked, and an
+    integral float an int where an int is (``budget=4e6``, as ``total_frames=2e6`` reads in a config)."""
     v = parse_value(value)
     if kind is float and isinstance(v, int) and not isinstance(v, bool):
         v = float(v)
+    if kind is int and isinstance(v, float) and v.is_integer():
+        v = int(v)
     if not isinstance(v, kind) or (kind is int and isinstance(v, bool)):
         what = "an integer" if kind is int else "true or false" if kind is bool else "a " + kind.__name__
         raise ConfigError(f"{key}={value!r} must be {what}")
