@@ -37,8 +37,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import torch
-from scipy.stats import binomtest
 
 import volleybots
 from volleybots.config import load
@@ -46,6 +46,8 @@ from volleybots.play import run_episodes
 from volleybots.play.games import play_games
 from volleybots.policies import Competitor, hierarchical_member, resolve_competitor
 from volleybots.policies.builtin import learned_drill
+from volleybots.ratings import record
+from volleybots.ratings.intervals import wilson_interval
 from volleybots.scripted.policies import SCRIPTED_POLICIES
 from volleybots.tasks.match import Referee
 from volleybots.train import train
@@ -57,10 +59,11 @@ DRILLS = ("serve", "pass", "set", "attack")
 
 
 def wilson(k: int, n: int) -> tuple[float | None, float | None]:
-    if n == 0:  # no decisive game: no interval (None in the JSON)
+    """The library's Wilson interval (``volleybots.ratings.intervals``), None for no games (JSON null)."""
+    if n == 0:
         return None, None
-    ci = binomtest(k, n).proportion_ci(0.95, method="wilson")
-    return float(ci.low), float(ci.high)
+    lo, hi = wilson_interval(k, n)
+    return float(lo), float(hi)
 
 
 def drill_figures(name: str, episodes: int, seeds: list[int], checkpoint: str | None) -> dict:
@@ -81,9 +84,10 @@ def match_figures(hier: Competitor, opponent: str, games: int, seed: int) -> dic
     t0 = time.time()
     g = play_games(cfg, hier, resolve_competitor(opponent), games, seed)
     w, d, l_ = (int(x) for x in g.total)
+    rate = record.win_rate(g.total)
     faults = lambda k: {f: int(n) for f, n in zip(Referee.FAULTS, g.faults[k], strict=True) if n}  # noqa: E731
     return {"team": hier.label, "opponent": opponent, "games": games, "seed": seed, "wins": w, "draws": d, "losses": l_,
-            "win_rate": w / (w + l_) if w + l_ else None, "ci95": wilson(w, w + l_), "served": int(g.served),
+            "win_rate": None if np.isnan(rate) else float(rate), "ci95": wilson(w, w + l_), "served": int(g.served),
             "lost_by": faults(0), "won_by_opponent_fault": faults(1), "seconds": round(time.time() - t0)}
 
 
