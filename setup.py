@@ -6,6 +6,6 @@ from setuptools import find_packages, setup
 setup(
     packages=find_packages(include=["volleybots", "volleybots.*"]) + ["volleybots.conf"],
     package_dir={"volleybots.conf": "conf"},
-    # the zoo's weights-only checkpoints and their cards ship inside the package
-    package_data={"volleybots.conf": ["**/*.yaml"], "volleybots.zoo": ["*/*.pt", "*/*.yaml"]},
+    # the zoo's weights-only checkpoints, a mixture's member files (<task>/<method>/*.pt) and their cards ship inside the package
+    package_data={"volleybots.conf": ["**/*.yaml"], "volleybots.zoo": ["*/*.pt", "*/*/*.pt", "*/*.yaml"]},
 )

@@ -1,18 +1,23 @@
-"""Put a trained run into the zoo: ``volleybots/zoo/<task>/<method>.pt`` and its card ``<method>.yaml``.
+"""Put a trained run into the zoo: ``volleybots/zoo/<task>/<method>.pt`` and its card ``<method>.yaml``;
+a population run as a mixture, its members in ``<task>/<method>/``.
 
     python benchmarks/zoo.py RUN_DIR METHOD --games 400 --seed 9000
 
-The checkpoint keeps what acting needs and what ``load_algo_state`` reads (networks, observation
+A checkpoint keeps what acting needs and what ``load_algo_state`` reads (networks, observation
 statistics, counters) with a fresh optimiser state: a few hundred KB instead of the run's megabytes.
+A population run (``volleybots.runs.is_population_run``) ships its final meta-strategy: every member
+of nonzero weight, slimmed so, as ``<method>/<label>.pt``, and the card's ``mixture:`` lists them with
+their weights (``volleybots.zoo``).
 The card records the command, frames, seed and wall time from the run's files, and the figures of
-``--games`` games per pair against ``random`` and ``scripted`` on the evaluation seed ``--seed`` (a seed
-no setting was chosen on), both sides equally.
+``--games`` games per pair of the entry (a mixture as the one competitor it is) against ``random`` and
+``scripted`` on the evaluation seed ``--seed`` (a seed no setting was chosen on), both sides equally.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -22,13 +27,20 @@ import yaml
 from volleybots.config import make_env, to_dict
 from volleybots.eval.crossplay import crossplay, match_config, resolve_all
 from volleybots.policies.store import load_learner, saved_config
-from volleybots.runs import RunDir, read_checkpoint, run_policy_checkpoint
+from volleybots.runs import RunDir, is_population_run, read_checkpoint, read_population, run_policy_checkpoint
 from volleybots.zoo import PREFIX, ZOO_DIR
+
+NOTE = "both sides equally; the seed was never used to choose a setting"
 
 
 def slim_checkpoint(src: Path) -> dict:
-    """The checkpoint ``src`` with a fresh optimiser and no training-only state (rng, evals, anchor)."""
+    """The checkpoint ``src`` with a fresh optimiser and no training-only state (rng, evals, anchor);
+    a population's record of a built-in player (no drills) is already only what plays."""
     state = read_checkpoint(src)
+    if "builtin" in state:
+        if state.get("drills"):  # they name checkpoint files of this machine, which the zoo does not ship
+            raise SystemExit(f"{src} is the hierarchical team with trained drills: the zoo cannot ship its drills' files")
+        return state
     env = make_env(saved_config(state, f"checkpoint {str(src)!r}"), num_envs=1)
     learner, _ = load_learner(src, env, int(state["n_agents"]))
     algo = learner.state_dict()
@@ -42,6 +54,65 @@ def slim_checkpoint(src: Path) -> dict:
     return {**{k: state[k] for k in keep if k in state}, "algo": algo}
 
 
+def save(state: dict, out: Path) -> None:
+    out.parent.mkdir(parents=True, exist_ok=True)
+    torch.save(state, out)
+    torch.load(out, weights_only=True)  # what every user does
+
+
+def single_entry(ckpt: Path, task_dir: Path, method: str) -> dict:
+    """Write ``<method>.pt`` from the checkpoint ``ckpt`` and return the card's run fields."""
+    slim = slim_checkpoint(ckpt)
+    save(slim, task_dir / f"{method}.pt")
+    cfg = slim["config"]
+    return {"algo": cfg["algo"]["name"], "frames": int(slim["frames"]), "seed": int(cfg["seed"]), "wall_time": slim.get("wall_time", 0.0),
+            "config": to_dict(cfg)}
+
+
+def mixture_entry(run: RunDir, pop, task_dir: Path, method: str) -> dict:
+    """Write ``<method>/<label>.pt`` for every member of nonzero weight in the final meta-strategy
+    ``pop`` and return the card's run fields, with ``members`` (all of them) and ``mixture`` (those shipped)."""
+    members, mixture = [], []
+    for k, (path, label, weight) in enumerate(zip(pop.members, pop.labels, pop.mixture, strict=True)):
+        state = read_checkpoint(path)
+        members.append({"label": label, "frames": int(state.get("frames", 0)), "weight": float(weight)})
+        if weight > 0:
+            # a label that is no plain file name, or one two members share, names the file by its index
+            plain = re.fullmatch(r"[A-Za-z0-9_.-]+", label) and pop.labels.count(label) == 1
+            file = f"{method}/{label if plain else f'member_{k:03d}'}.pt"
+            save(slim_checkpoint(path), task_dir / file)
+            mixture.append({"file": file, "weight": float(weight)})
+    cfg = run.load_config()
+    last = pop.metas[-1]
+    return {"algo": cfg.algo.name, "frames": int(last["frames"]), "seed": int(cfg.seed), "wall_time": last["wall_time"],
+            "config": to_dict(cfg), "iteration": pop.iteration, "members": members, "mixture": mixture}
+
+
+def entry(run: RunDir, task_dir: Path, method: str) -> dict:
+    """Write the entry's files and return the card's run fields: a population whose final meta-strategy
+    plays more than one member is a mixture; any other run ships its one policy."""
+    what = f"run {str(run.path)!r}"
+    for old in [task_dir / f"{method}.pt", *(task_dir / method).glob("*.pt")]:  # a rerun replaces the entry whole, of either kind
+        old.unlink(missing_ok=True)
+    if not is_population_run(run.path):
+        return single_entry(run_policy_checkpoint(run.path, what), task_dir, method)
+    pop = read_population(run.path, what)
+    playing = [p for p, w in zip(pop.members, pop.mixture, strict=True) if w > 0]
+    return mixture_entry(run, pop, task_dir, method) if len(playing) > 1 else single_entry(playing[0], task_dir, method)
+
+
+def figures(name: str, method: str, games: int, seed: int) -> dict:
+    """The entry's figures against ``random`` and ``scripted``: ``games`` games per pair on ``seed``."""
+    comps = resolve_all([f"{method}={PREFIX}{name}", "random", "scripted"])
+    res = crossplay(match_config(comps, ["threads=1"]), comps, games, seed=seed)
+    wr, lo_hi = res.win_rate(), res.interval()
+    out = {}
+    for j, opponent in ((1, "random"), (2, "scripted")):
+        w, d, l_ = res.wdl[0, j].astype(int).tolist()
+        out[f"vs_{opponent}"] = f"{wr[0, j]:.3f} of decisive games [{lo_hi[0][0, j]:.2f}, {lo_hi[1][0, j]:.2f}], W/D/L {w}/{d}/{l_}"
+    return out
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("run", type=Path)
@@ -51,40 +122,29 @@ def main(argv=None) -> int:
     p.add_argument("--command", default="", help="the command that trained the run, for the card")
     a = p.parse_args(argv)
     run = RunDir(a.run)
-    ckpt = run_policy_checkpoint(run.path, f"run {str(a.run)!r}")
+    task = run.load_config().task.name
+    task_dir = ZOO_DIR / task
+    fields = entry(run, task_dir, a.method)
     summary = json.loads(run.summary_path.read_text()) if run.summary_path.is_file() else {}
-    slim = slim_checkpoint(ckpt)
-    task = slim["task"]
-    out = ZOO_DIR / task / f"{a.method}.pt"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    torch.save(slim, out)
-    torch.load(out, weights_only=True)  # what every user does
-    comps = resolve_all([f"{a.method}={out}", "random", "scripted"])
-    cfg = match_config(comps, ["threads=1"])
-    res = crossplay(cfg, comps, a.games, seed=a.seed)
-    wr, lo_hi = res.win_rate(), res.interval()
-    figures = {}
-    for j, name in ((1, "random"), (2, "scripted")):
-        w, d, l_ = res.wdl[0, j].astype(int).tolist()
-        figures[f"vs_{name}"] = f"{wr[0, j]:.3f} of decisive games [{lo_hi[0][0, j]:.2f}, {lo_hi[1][0, j]:.2f}], W/D/L {w}/{d}/{l_}"
-    card = {
-        "name": PREFIX + f"{task}/{a.method}",
+    name = f"{task}/{a.method}"
+    head = {
+        "name": PREFIX + name,
         "task": task,
-        "algo": slim["config"]["algo"]["name"],
-        "command": a.command or f"volleybots train task={task} algo={slim['config']['algo']['name']} seed={slim['config']['seed']}",
-        "frames": int(slim["frames"]),
-        "seed": int(slim["config"]["seed"]),
-        "wall_time_s": round(float(summary.get("wall_time_s", slim.get("wall_time", 0.0))), 1),
-        "evaluation": {
-            "games_per_pair": a.games,
-            "seed": a.seed,
-            "note": "both sides equally; the seed was never used to choose a setting",
-        },
-        "figures": figures,
-        "config": to_dict(slim["config"]),
+        "algo": fields["algo"],
+        "command": a.command or f"volleybots train task={task} algo={fields['algo']} seed={fields['seed']}",
+        "frames": fields["frames"],
+        "seed": fields["seed"],
+        "wall_time_s": round(float(summary.get("wall_time_s", fields["wall_time"])), 1),
+        **{k: fields[k] for k in ("iteration", "members", "mixture") if k in fields},
+        "evaluation": {"games_per_pair": a.games, "seed": a.seed, "note": NOTE},
     }
-    out.with_suffix(".yaml").write_text(yaml.safe_dump(card, sort_keys=False))
-    print(f"wrote {out} ({out.stat().st_size / 1024:.0f} KB) and its card: {figures}")
+    card = task_dir / f"{a.method}.yaml"
+    # the entry must be listed to be played by its name; until its figures are measured its card lacks them
+    card.write_text(yaml.safe_dump({**head, "config": fields["config"]}, sort_keys=False))
+    figs = figures(name, a.method, a.games, a.seed)
+    card.write_text(yaml.safe_dump({**head, "figures": figs, "config": fields["config"]}, sort_keys=False))
+    files = [task_dir / f"{a.method}.pt"] if "mixture" not in fields else [task_dir / m["file"] for m in fields["mixture"]]
+    print(f"wrote {PREFIX + name} ({', '.join(f'{f.stat().st_size / 1024:.0f} KB' for f in files)}) and its card: {figs}")
     return 0
 
 

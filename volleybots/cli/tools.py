@@ -45,7 +45,8 @@ def list_cmd() -> None:
     typer.echo("zoo (trained policies shipped with the package: zoo:TASK/METHOD wherever a competitor goes):")
     for name, e in entries().items() or ():
         figures = ", ".join(f"{k} {v}" for k, v in (e.card.get("figures") or {}).items())
-        typer.echo(f"  {PREFIX + name:<20} {e.card.get('frames', '?')} frames, seed {e.card.get('seed', '?')}; {figures}")
+        mixture = f"a mixture of {len(e.members)} policies, " if e.is_mixture else ""
+        typer.echo(f"  {PREFIX + name:<20} {mixture}{e.card.get('frames', '?')} frames, seed {e.card.get('seed', '?')}; {figures}")
     if not entries():
         typer.echo("  (none in this install)")
 

@@ -17,6 +17,7 @@ from volleybots.policies.competitors import (
     population_members,
     read_meta,
     resolve_competitor,
+    single_policy,
 )
 from volleybots.policies.store import load_learner, load_policy, parse_spec, policy_checkpoint, sha256
 from volleybots.policies.targets import EVAL_KEYS, Target, check_references, resolve_target
@@ -25,5 +26,5 @@ __all__ = [
     "BUILTIN", "EVAL_KEYS", "PLAYERS", "Competitor", "Member", "MixturePolicy", "Player", "Target", "builtin_member", "check_references",
     "checkpoint_member", "hierarchical_member", "hierarchical_policy", "load_learner", "load_policy", "member_path", "parse_spec",
     "policy_checkpoint", "population_members", "random_policy", "read_drills_file", "read_meta", "resolve_competitor", "resolve_target",
-    "scripted_policy", "sha256",
+    "scripted_policy", "sha256", "single_policy",
 ]

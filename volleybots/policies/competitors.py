@@ -2,8 +2,9 @@
 
 A competitor is ``scripted``, ``random``, ``hierarchical`` (3v3 only: drills under an event-driven high
 level, ``volleybots.scripted.hierarchical``; a ``*.yaml`` file ``hierarchical: {drill: checkpoint}``
-gives it trained drills), a checkpoint file, a run directory (its final policy) or a
-population run (its members and final meta-strategy); ``name=PATH`` gives it a label. Its
+gives it trained drills), a checkpoint file, a run directory (its final policy), a
+population run (its members and final meta-strategy) or a zoo entry (a zoo mixture: its members and
+weights); ``name=PATH`` gives it a label. Its
 ``team_policy(env)`` acts for one team: it reads a team's ``("agents", "observation")`` [N, A_t]
 (already mirrored, so one policy plays either side) and writes ``("agents", "action")``. A competitor
 of several members draws one member per env each time that env's episode starts (``TeamPolicies``
@@ -26,10 +27,11 @@ from typing import Callable
 import torch
 from tensordict import TensorDictBase
 
+from volleybots import zoo
 from volleybots.errors import ConfigError
 from volleybots.keys import ACTION, AGENTS
 from volleybots.policies.builtin import BUILTIN, HIERARCHICAL_TASK, PLAYERS, acted, hierarchical_policy, read_drills_file
-from volleybots.policies.store import load_learner, parse_spec, saved_config, sha256
+from volleybots.policies.store import load_learner, parse_single, parse_spec, saved_config, sha256
 from volleybots.runs import (
     META_FILE,
     POPULATION_DIR,
@@ -159,8 +161,8 @@ def read_meta(run_path: Path) -> list[list[float]]:
 
 
 def resolve_competitor(spec: str) -> Competitor:
-    """``scripted``, ``random``, ``hierarchical``, a checkpoint, a run dir, a population run or a
-    hierarchical team's drills file (``*.yaml``: ``hierarchical: {drill: checkpoint}``); ``name=PATH``
+    """``scripted``, ``random``, ``hierarchical``, a checkpoint, a run dir, a population run, a zoo entry
+    or a hierarchical team's drills file (``*.yaml``: ``hierarchical: {drill: checkpoint}``); ``name=PATH``
     labels it (the grammar of ``volleybots.policies.store.parse_spec``)."""
     s = parse_spec(spec)
     if s.kind == "builtin":
@@ -170,7 +172,11 @@ def resolve_competitor(spec: str) -> Competitor:
         return Competitor(label, [hierarchical_member(read_drills_file(s.path), label)])
     if s.kind == "checkpoint":
         m = checkpoint_member(s.path)
-        return Competitor(s.label or m.label, [m])
+        return Competitor(s.label or s.zoo or m.label, [m])
+    if s.kind == "mixture":  # members labelled <method>/<member>, as their files are named in the card
+        e = zoo.lookup(s.target)
+        ms = [checkpoint_member(p, f"{p.parent.name}/{p.stem}") for p in e.members]
+        return Competitor(s.label or s.zoo, ms, list(e.weights))
     path = s.path
     if is_population_run(path):  # exactly its last complete iteration, or refused (runs.contents)
         pop = read_population(path, f"run {s.target!r}")
@@ -180,7 +186,18 @@ def resolve_competitor(spec: str) -> Competitor:
     return Competitor(s.label or path.name, [checkpoint_member(ckpt, path.name)])
 
 
+def single_policy(spec: str, what: str) -> Competitor:
+    """The competitor ``spec`` names where one policy must play (``algo.seed_members``): a population
+    run or a zoo mixture is one ``ConfigError`` line."""
+    parse_single(spec, what)
+    comp = resolve_competitor(spec)
+    if len(comp.members) != 1:
+        raise ConfigError(f"{what} {spec!r} is a population of {len(comp.members)} policies; name single policies (its member files)")
+    return comp
+
+
 __all__ = [
     "META_FILE", "POPULATION_DIR", "Competitor", "Member", "MixturePolicy", "builtin_member", "checkpoint_member", "hierarchical_member",
     "member_path", "population_members", "read_meta", "resolve_competitor",
+    "single_policy",
 ]

@@ -15,7 +15,8 @@ The grammar (``parse_spec``), used by ``eval``, ``replay``, ``eval crossplay``, 
     RUN_DIR                              a run: its population (members and final mixture) if it is a
                                          population run, else its final (else latest) checkpoint
     PATH.yaml                            a hierarchical team with trained drills: ``hierarchical: {drill: checkpoint}``
-    zoo:TASK/METHOD                      a policy shipped in the package (``volleybots.zoo``)
+    zoo:TASK/METHOD                      a policy shipped in the package (``volleybots.zoo``), or a shipped
+                                         mixture of policies (a population's meta-strategy)
     NAME=any of the above                the same, labelled NAME
 """
 
@@ -32,7 +33,7 @@ from volleybots.errors import ConfigError
 from volleybots.files import exists
 from volleybots.runs import RunDir, load_algo_state, read_checkpoint, refuse_interpolation, run_policy_checkpoint
 
-KINDS = ("builtin", "checkpoint", "run", "drills")
+KINDS = ("builtin", "checkpoint", "run", "drills", "mixture")
 # (sha256, device, n_agents, obs_dim, action_space) -> the learner with its weights loaded; shared safely because
 # acting never changes a learner (observation statistics move only in ``update``)
 _CACHE: dict[tuple, object] = {}
@@ -45,7 +46,8 @@ class Spec:
 
     label: str  # the given label, or "" (the caller derives one)
     kind: str  # one of KINDS
-    target: str  # the built-in's name or the path as given
+    target: str  # the built-in's name, the path as given (a zoo entry's file), or a zoo mixture's name
+    zoo: str = ""  # the zoo name it was given as ("zoo:TASK/METHOD"), which labels it when no label is given
 
     @property
     def path(self) -> Path:
@@ -67,7 +69,9 @@ def parse_spec(spec: str, builtins=("scripted", "random", "hierarchical"), what:
         if entry is None:
             shipped = ", ".join(zoo.PREFIX + n for n in zoo.entries()) or "none in this install"
             raise ConfigError(f"{what} {target!r} is not in the zoo; shipped: {shipped}")
-        return Spec(label or target, "checkpoint", str(entry.checkpoint))
+        if entry.is_mixture:
+            return Spec(label, "mixture", target, zoo=target)
+        return Spec(label, "checkpoint", str(entry.checkpoint), zoo=target)
     path = Path(target)
     if not exists(path):
         # a very long name is cut in the middle: its end (the file's own name) is what tells it apart
@@ -146,10 +150,21 @@ def load_policy(path, env, deterministic: bool = True, n_agents: int | None = No
     return algo.policy(deterministic=deterministic)
 
 
+def parse_single(spec: str, what: str, builtins=("scripted", "random", "hierarchical")) -> Spec:
+    """``parse_spec`` where one policy must play (``init=``, a target, ``algo.seed_members``): a zoo
+    mixture is one ``ConfigError`` line naming its member files, which are what to give instead."""
+    s = parse_spec(spec, builtins, what=what)
+    if s.kind == "mixture":
+        e = zoo.lookup(s.target)
+        raise ConfigError(f"{what} {spec!r} is a zoo mixture of {len(e.members)} policies, not one policy; give one of its member "
+                          f"files instead ({', '.join(p.name for p in e.members)} in {e.members[0].parent})")
+    return s
+
+
 def policy_checkpoint(spec: str, what: str, builtins=("scripted", "random", "hierarchical")) -> Path:
     """The checkpoint a single-policy name stands for: the file, a zoo entry, or a run's final (else
     latest) one, checked against what the run holds; anything else is one ``ConfigError`` line."""
-    s = parse_spec(spec, builtins, what=what)
+    s = parse_single(spec, what, builtins)
     if s.kind == "checkpoint":
         return s.path
     if s.kind == "run":
@@ -158,6 +173,6 @@ def policy_checkpoint(spec: str, what: str, builtins=("scripted", "random", "hie
 
 
 __all__ = [
-    "KINDS", "Spec", "build_learner", "learner_class", "load_learner", "load_policy", "parse_spec", "policy_checkpoint", "saved_config",
-    "sha256",
+    "KINDS", "Spec", "build_learner", "learner_class", "load_learner", "load_policy", "parse_single", "parse_spec", "policy_checkpoint",
+    "saved_config", "sha256",
 ]

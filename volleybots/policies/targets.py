@@ -66,7 +66,7 @@ def check_references(cfg) -> None:
     ``algo.eval_opponent`` a built-in player of the task, and ``algo.payoff_pool=ray`` needs ray
     installed. ``init=`` is checked by ``volleybots.train.check_init``, which builds the networks."""
     from volleybots.algos.base import class_attr
-    from volleybots.policies.competitors import resolve_competitor
+    from volleybots.policies.competitors import resolve_competitor, single_policy
     from volleybots.tasks import TASKS
 
     task_cls = TASKS[cfg.task.name]
@@ -92,10 +92,7 @@ def check_references(cfg) -> None:
     for spec in cfg.algo.get("seed_members") or ():
         if str(spec) == CLONE:  # the run's own clone of the scripted team: made by the run, checked by the preset
             continue
-        comp = resolve_competitor(str(spec))
-        if len(comp.members) != 1:
-            raise ConfigError(f"algo.seed_members entry {spec!r} is a population; name single policies (its member files)")
-        comp.check_fits(task_cls.name, cfg.env.action_space, obs_dim)
+        single_policy(str(spec), "algo.seed_members entry").check_fits(task_cls.name, cfg.env.action_space, obs_dim)
 
 
 __all__ = ["BUILTIN", "EVAL_KEYS", "Target", "check_references", "resolve_target"]

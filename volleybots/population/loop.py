@@ -40,7 +40,7 @@ from volleybots.errors import ConfigError
 from volleybots.files import write_atomic
 from volleybots.play.pool import head_to_heads
 from volleybots.play.seats import SelfPlay, Versus
-from volleybots.policies import BUILTIN, Competitor, checkpoint_member, member_path, population_members, resolve_competitor
+from volleybots.policies import BUILTIN, Competitor, checkpoint_member, member_path, population_members, resolve_competitor, single_policy
 from volleybots.population.clone import CLONE, clone_member, make_clone, needs_clone
 from volleybots.population.final import evaluate_mixture, log_final_eval
 from volleybots.population.payoffs import PayoffTable, payoff_reserve, plot
@@ -194,10 +194,7 @@ class PopulationLoop:
             if str(spec) == CLONE:
                 clone_member(self.clone, path)
                 continue
-            comp = resolve_competitor(spec)
-            if len(comp.members) != 1:
-                raise ConfigError(f"algo.seed_members entry {spec!r} is a population; name single policies")
-            src = comp.members[0].source
+            src = single_policy(spec, "algo.seed_members entry").members[0].source
             if src["kind"] in BUILTIN:  # a record naming it (a hierarchical team also its drills' checkpoints)
                 record = {"format": CKPT_FORMAT, "builtin": src["kind"], "label": src["kind"], "frames": 0}
                 if src.get("drills"):

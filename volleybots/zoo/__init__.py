@@ -1,17 +1,28 @@
 """The zoo: trained policies shipped inside the package, named ``zoo:<task>/<method>`` wherever a
-competitor or a target is (``eval crossplay``, ``opponent=``, ``algo.seed_members``, ``replay``).
+competitor is (``eval crossplay``, ``opponent=``, ``replay A B``); a single policy also wherever one
+policy goes (``eval``, ``replay TARGET``, ``init=``, ``algo.seed_members``).
 
-Each entry is a weights-only checkpoint ``<task>/<method>.pt`` (``torch.load(..., weights_only=True)``
-reads it) beside its card ``<task>/<method>.yaml``: the command that trained it, its frames, seed and
-wall time, and the figures measured on held-out evaluation seeds. A leaf module: it only finds files.
+An entry is its card ``<task>/<method>.yaml`` (the command that trained it, its frames, seed and wall
+time, and the figures measured on held-out evaluation seeds) with either of:
+
+- **a single policy:** the weights-only checkpoint ``<task>/<method>.pt`` beside the card
+  (``torch.load(..., weights_only=True)`` reads it);
+- **a mixture** (a population's final meta-strategy, e.g. PSRO-Nash): the card's ``mixture:`` lists
+  ``{file: <method>/<member>.pt, weight: w}``, files relative to the task folder, members of nonzero
+  weight only. It plays as one competitor that draws a member per game with those weights.
+
+A leaf module: it only finds files and checks that a mixture's files exist and its weights sum to 1.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
+
+from volleybots.errors import ConfigError
 
 ZOO_DIR = Path(__file__).resolve().parent
 PREFIX = "zoo:"
@@ -20,24 +31,52 @@ PREFIX = "zoo:"
 @dataclass(frozen=True)
 class Entry:
     name: str  # "<task>/<method>"
-    checkpoint: Path
     card: dict
+    members: tuple[Path, ...]  # the checkpoint files: the one of a single policy, or a mixture's members
+    weights: tuple[float, ...]  # the chance each member plays a game; (1.0,) for a single policy
+    is_mixture: bool  # whether the card lists a mixture (even one of a single member)
 
     @property
     def task(self) -> str:
         return self.name.split("/", 1)[0]
 
+    @property
+    def checkpoint(self) -> Path | None:
+        """The file of a single policy; None for a mixture (its files are ``members``)."""
+        return None if self.is_mixture else self.members[0]
+
+
+def _mixture(card_path: Path, listed) -> tuple[tuple[Path, ...], tuple[float, ...]]:
+    """A card's ``mixture:`` as member files and weights; a damaged list is one ``ConfigError`` line."""
+    what = f"zoo card {str(card_path)!r}"
+    if not isinstance(listed, list) or not listed:
+        raise ConfigError(f"{what}: 'mixture' must be a non-empty list of {{file: <method>/<member>.pt, weight: w}}")
+    files, weights = [], []
+    for item in listed:
+        file, weight = (item.get("file"), item.get("weight")) if isinstance(item, dict) else (None, None)
+        if not isinstance(file, str) or isinstance(weight, bool) or not isinstance(weight, (int, float)) or not weight > 0:
+            raise ConfigError(f"{what}: mixture item {item!r} is not {{file: <method>/<member>.pt, weight: w > 0}}")
+        path = card_path.parent / file
+        if not path.is_file():
+            raise ConfigError(f"{what}: member file {file!r} is missing")
+        files.append(path)
+        weights.append(float(weight))
+    if not math.isclose(sum(weights), 1.0, abs_tol=1e-6):
+        raise ConfigError(f"{what}: the mixture's weights sum to {sum(weights)}, not 1")
+    return tuple(files), tuple(w / sum(weights) for w in weights)
+
 
 def entries() -> dict[str, Entry]:
-    """Every shipped policy by name, in name order (an entry without its card is not listed)."""
+    """Every shipped policy by name, in name order (a checkpoint without its card is not listed)."""
     out = {}
-    for ckpt in sorted(ZOO_DIR.glob("*/*.pt")):
-        card_path = ckpt.with_suffix(".yaml")
-        if not card_path.is_file():
-            continue
+    for card_path in sorted(ZOO_DIR.glob("*/*.yaml")):
         card = yaml.safe_load(card_path.read_text()) or {}
-        name = f"{ckpt.parent.name}/{ckpt.stem}"
-        out[name] = Entry(name, ckpt, card if isinstance(card, dict) else {})
+        card = card if isinstance(card, dict) else {}
+        name = f"{card_path.parent.name}/{card_path.stem}"
+        if "mixture" in card:
+            out[name] = Entry(name, card, *_mixture(card_path, card["mixture"]), is_mixture=True)
+        elif card_path.with_suffix(".pt").is_file():
+            out[name] = Entry(name, card, (card_path.with_suffix(".pt"),), (1.0,), is_mixture=False)
     return out
 
 
