@@ -180,6 +180,25 @@ def copy_run(tmp_path):
 SCRIPTED_STEPS = 170  # every first Set and Spike episode is over by then (a spiked ball lands about 2.8 s in)
 
 
+def rollout_first_episodes(env, policy, steps: int):
+    """What ``env.rollout(steps, policy, break_when_any_done=False)`` returns ([N, T], the same
+    steps), cut short after the step by which every env has finished its first episode: what comes
+    later belongs to second episodes, and a scripted player's lookahead makes each step cost most of
+    a second. T is ``steps`` where some env's first episode is still running."""
+    n = env.num_envs
+    over = torch.zeros(n, dtype=torch.bool)
+    out = []
+    td = env.reset()
+    for _ in range(steps):
+        td.update(policy(td))
+        step, td = env.step_and_maybe_reset(td)
+        out.append(step)
+        over |= step["next", "done"].reshape(n)
+        if bool(over.all()):
+            break
+    return torch.stack(out, 1)
+
+
 @functools.cache  # several tests read the same episodes (nothing mutates them)
 def first_episodes(task, n=32, seed=2, action_space="prt", steps=SCRIPTED_STEPS):
     """The stats of each env's first episode under the task's scripted policy, the rollout, and the
@@ -188,7 +207,7 @@ def first_episodes(task, n=32, seed=2, action_space="prt", steps=SCRIPTED_STEPS)
     from volleybots.scripted import make_scripted_policy
 
     env = volleybots.make_env(task, num_envs=n, seed=seed, action_space=action_space)
-    td = env.rollout(steps, policy=make_scripted_policy(env), break_when_any_done=False)
+    td = rollout_first_episodes(env, make_scripted_policy(env), steps)
     nxt = td["next"]
     done = nxt["done"].squeeze(-1)
     first = done & (done.long().cumsum(1) == 1)

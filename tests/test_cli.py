@@ -105,8 +105,8 @@ def test_train_writes_a_complete_run_directory(run_dir):
 
 
 def test_eval_of_a_run_prints_a_table_and_json(run_dir):
-    res = _volleybots("eval", str(run_dir), "episodes=3", "--json")
-    assert res.returncode == 0, res.stderr[-2000:]
+    res = runner.invoke(app, ["eval", str(run_dir), "episodes=3", "--json"])
+    assert res.exit_code == 0, res.output[-2000:]
     out = json.loads(res.stdout)
     assert out["episodes"] == 3 and out["metric"] == "distance" and out["task"] == "hover"
     assert out["checkpoint"].endswith("final.pt") and out["deterministic"] is True
@@ -161,9 +161,10 @@ def test_eval_of_the_scripted_pair_on_a_multi_drone_task():
     assert out["config"]["task"]["episode_len"] == 400
 
 
-def test_train_cfg_prints_the_config_without_training(tmp_path):
-    res = _volleybots("train", "--cfg", "job", "task=solo_bump", "env.action_space=ctbr", cwd=tmp_path)
-    assert res.returncode == 0, res.stderr[-2000:]
+def test_train_cfg_prints_the_config_without_training(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # where a run's outputs/ would appear
+    res = runner.invoke(app, ["train", "--cfg", "job", "task=solo_bump", "env.action_space=ctbr"])
+    assert res.exit_code == 0, res.output[-2000:]
     assert "name: solo_bump" in res.stdout and "action_space: ctbr" in res.stdout and "hit_reward: 2.0" in res.stdout
     assert not any(tmp_path.iterdir())  # nothing was trained or written
 
@@ -176,9 +177,9 @@ def test_bench_prints_the_speed_table():
 
 
 def test_multirun_sweeps_seeds(tmp_path):
-    res = _volleybots("train", "-m", "seed=0,1", *[o for o in TINY if not o.startswith("total_frames")], "total_frames=512",
-                      "evaluation.episodes=1", "evaluation.record=false", f"hydra.sweep.dir={tmp_path / 'sweep'}")
-    assert res.returncode == 0, res.stderr[-2000:]
+    res = runner.invoke(app, ["train", "-m", "seed=0,1", *[o for o in TINY if not o.startswith("total_frames")], "total_frames=512",
+                              "evaluation.episodes=1", "evaluation.record=false", f"hydra.sweep.dir={tmp_path / 'sweep'}"])
+    assert res.exit_code == 0, res.output[-2000:]
     seeds = sorted(json.loads((p / "summary.json").read_text())["seed"] for p in (tmp_path / "sweep").iterdir() if p.is_dir())
     assert seeds == [0, 1]
 

@@ -6,9 +6,6 @@ line naming the extra, exit 2."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -39,27 +36,36 @@ LAUNCHERS = {
     # a local Ray instance of 2 CPUs, without its web dashboard
     "ray": ["hydra/launcher=ray", "+hydra.launcher.ray.init.num_cpus=2", "+hydra.launcher.ray.init.include_dashboard=false"],
 }
-ENV = {**os.environ, "OMP_NUM_THREADS": "1", "RAY_AUTH_MODE": "disabled"}
-
-
-def sweep(launcher: str, root: Path) -> Path:
-    out = root / launcher
-    res = subprocess.run(
-        [sys.executable, "-m", "volleybots.cli", "train", "-m", *LAUNCHERS[launcher], *SWEEP, f"hydra.sweep.dir={out}"],
-        cwd=root,
-        env=ENV,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-3000:]
-    return out
 
 
 @pytest.fixture(scope="module")
 def sweeps(tmp_path_factory):
+    """The three sweeps, each started in this process as ``volleybots train -m`` (a child process would spend
+    about 10 s of CPU importing torch before its launcher even starts); their jobs run in the launchers' own
+    processes (joblib's loky workers, submitit's job processes, Ray's workers)."""
     root = tmp_path_factory.mktemp("sweeps")
-    return {name: sweep(name, root) for name in LAUNCHERS}
+    out = {}
+    with pytest.MonkeyPatch.context() as mp:
+        mp.chdir(root)
+        # the jobs' processes inherit these: one OpenMP thread each, and Ray's local instance without a token
+        mp.setenv("OMP_NUM_THREADS", "1")
+        mp.setenv("RAY_AUTH_MODE", "disabled")
+        for name, args in LAUNCHERS.items():
+            out[name] = root / name
+            try:
+                res = CliRunner().invoke(app, ["train", "-m", *args, *SWEEP, f"hydra.sweep.dir={out[name]}"])
+            finally:
+                # both launchers leave their workers running in this process for a next sweep
+                if name == "joblib":
+                    from joblib.externals.loky import get_reusable_executor
+
+                    get_reusable_executor().shutdown(wait=True)
+                if name == "ray":
+                    import ray
+
+                    ray.shutdown()
+            assert res.exit_code == 0, name + ": " + res.output[-5000:]
+    return out
 
 
 def finals(sweep_dir: Path) -> dict[int, dict]:

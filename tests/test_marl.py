@@ -7,17 +7,17 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import subprocess
-import sys
 from types import SimpleNamespace
 
 import pytest
 import torch
 from conftest import flat
 from tensordict import TensorDict
+from typer.testing import CliRunner
 
 from volleybots.algos import ALGOS
 from volleybots.algos.base import TASK_KINDS
+from volleybots.cli import app
 from volleybots.config import ConfigError, load
 from volleybots.eval import evaluate
 from volleybots.runs import read_metrics
@@ -86,11 +86,8 @@ def test_replay_records_a_mat_run(tmp_path):
     """MAT acts through its own auto-regressive loop: the replay command drives it like any policy."""
     train(load(["task=bump_and_pass", "algo=mat", *RUN, *tiny("mat"), "checkpoint.every=0", f"total_frames={FPB}"]), tmp_path / "run")
     out = tmp_path / "ep.rrd"
-    res = subprocess.run(
-        [sys.executable, "-m", "volleybots.cli", "replay", str(tmp_path / "run"), "--out", str(out), "--no-viewer"],
-        capture_output=True, text=True, timeout=300,
-    )
-    assert res.returncode == 0, res.stderr[-2000:]
+    res = CliRunner().invoke(app, ["replay", str(tmp_path / "run"), "--out", str(out), "--no-viewer"])
+    assert res.exit_code == 0, res.output[-2000:]
     assert out.is_file() and out.stat().st_size > 1000
 
 
@@ -113,11 +110,8 @@ def test_what_an_algorithm_cannot_train_is_refused(overrides, message):
 
 def test_the_cli_refuses_in_one_line_with_exit_2_and_writes_nothing(tmp_path):
     run = tmp_path / "run"
-    res = subprocess.run(
-        [sys.executable, "-m", "volleybots.cli", "train", "algo=happo", "task=hover", f"hydra.run.dir={run}"],
-        capture_output=True, text=True, timeout=300,
-    )
-    assert res.returncode == 2
+    res = CliRunner().invoke(app, ["train", "algo=happo", "task=hover", f"hydra.run.dir={run}"])
+    assert res.exit_code == 2
     assert len(res.stderr.strip().splitlines()) == 1 and "bump_and_pass" in res.stderr
     assert not run.exists()
 

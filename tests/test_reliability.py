@@ -392,10 +392,8 @@ def test_a_run_killed_before_its_first_checkpoint_can_be_retried(tmp_path):
     victim.wait()
     assert victim.returncode == -signal.SIGKILL and not (run / "checkpoints").exists()
     # resume= starts it afresh from frame 0 (saying so); the dead process left no lock behind
-    res = subprocess.run(
-        cli_cmd("train", f"resume={run}", f"total_frames={2 * FPB}"), env=CLI_ENV, capture_output=True, text=True, timeout=300
-    )
-    assert res.returncode == 0, res.stderr[-2000:]
+    res = runner.invoke(app, ["train", f"resume={run}", f"total_frames={2 * FPB}"])
+    assert res.exit_code == 0, res.output[-2000:]
     assert "note:" in res.stderr and "afresh" in res.stderr
     assert [int(x["frames"]) for x in train_rows(run)] == [FPB, 2 * FPB]
     # and the same for the plain command run again, after another early death

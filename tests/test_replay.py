@@ -57,7 +57,9 @@ def test_replay_picks_a_fresh_default_file(tmp_path, monkeypatch):
 
 def test_replay_of_the_scripted_policy_or_a_clear_error(tmp_path):
     out = tmp_path / "scripted.rrd"
-    res = runner.invoke(app, ["replay", "scripted", "task=solo_bump", "threads=1", "--out", str(out), "--no-viewer"])
+    # 100 steps hold the opening bump: the recording's layout is the point, not the player's whole 16 s (18 s to play)
+    res = runner.invoke(app, ["replay", "scripted", "task=solo_bump", "task.episode_len=100", "threads=1", "--out", str(out),
+                              "--no-viewer"])
     try:
         from volleybots.scripted import make_scripted_policy  # noqa: F401
     except ImportError:

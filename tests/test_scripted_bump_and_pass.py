@@ -1,14 +1,25 @@
 """Scripted Bump and Pass pair: plays full episodes with legal bumps and stays airborne."""
 
+import functools
+
 import torch
 
 import volleybots
 from volleybots.scripted import make_scripted_policy
 
+STEPS = 800  # one whole episode (16 s) of every env: the pair keeps each rally going that long
+
+
+@functools.cache  # both tests read the same rollout, the first one its opening steps (nothing mutates it)
+def rollout(task, n=8):
+    env = volleybots.make_env(task, num_envs=n, seed=2)
+    return env, env.rollout(STEPS, policy=make_scripted_policy(env), break_when_any_done=False)
+
 
 def episodes(task, steps, n=8):
-    env = volleybots.make_env(task, num_envs=n, seed=2)
-    td = env.rollout(steps, policy=make_scripted_policy(env), break_when_any_done=False)
+    """The first ``steps`` steps of the rollout, and the stats of the episodes that ended in them."""
+    env, td = rollout(task, n)
+    td = td[:, :steps]
     nxt = td["next"]
     done = nxt["done"].squeeze(-1)
     return {k: nxt["stats", k].squeeze(-1)[done] for k in env._stats_keys}, td
