@@ -72,14 +72,14 @@ def one_line_exit_2(res, *words) -> str:
     return err
 
 
-# Seconds each of the heaviest test modules took on the 2-core machine (xdist, 2 workers, 2026-11-27).
+# Seconds each of the heaviest test modules took on the 2-core machine (xdist, 2 workers, 2026-11-27, main 2f30c9c).
 # Only the order of scheduling reads them; no test is selected or skipped by them.
 MODULE_SECONDS = {
-    "test_cli": 194, "test_population": 183, "test_offpolicy_learning": 162, "test_marl": 153, "test_launchers": 151,
-    "test_reliability": 146, "test_scripted_set_and_spike": 141, "test_exploitability": 110, "test_scripted_bump_and_pass": 100,
-    "test_scripted_set_and_spike_ctbr": 83, "test_bc": 76, "test_ppo": 72, "test_crossplay": 64, "test_hierarchical": 56,
-    "test_wandb": 51, "test_config": 50, "test_scripted_set_and_spike_hard": 50, "test_compiled_step": 46, "test_registries": 45,
-    "test_payoff_pool": 44, "test_env": 42, "test_replay": 38, "test_init": 37, "test_lookahead": 37, "test_sac_init": 36,
+    "test_offpolicy_learning": 157, "test_cli": 121, "test_population": 118, "test_scripted_set_and_spike": 115, "test_launchers": 98,
+    "test_reliability": 96, "test_scripted_set_and_spike_ctbr": 95, "test_scripted_bump_and_pass": 93, "test_exploitability": 93,
+    "test_marl": 78, "test_ppo": 74, "test_payoff_pool": 59, "test_bc": 58, "test_hierarchical": 50, "test_crossplay": 48,
+    "test_scripted_set_and_spike_hard": 42, "test_wandb": 37, "test_lookahead": 35, "test_registries": 34, "test_scripted": 32,
+    "test_docs": 31, "test_sac_init": 27, "test_env": 27, "test_config": 27, "test_init": 24, "test_drills": 24,
 }
 
 
