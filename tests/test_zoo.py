@@ -94,7 +94,7 @@ def test_a_damaged_mixture_card_is_one_line_naming_it(mixture_zoo):
     card = mixture_zoo / "1v1" / "mix.yaml"
     good = card.read_text()
     card.write_text(good.replace("weight: 0.25", "weight: 0.5"))
-    with pytest.raises(ConfigError, match="mix.yaml'.*weights sum to 1.25, not 1"):
+    with pytest.raises(ConfigError, match="mix.yaml'.*sums to 1.25, not 1"):
         zoo.entries()
     card.write_text(good.replace("mix/b.pt", "mix/c.pt"))
     with pytest.raises(ConfigError, match="member file 'mix/c.pt' is missing"):

@@ -16,13 +16,13 @@ A leaf module: it only finds files and checks that a mixture's files exist and i
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
 
 from volleybots.errors import ConfigError
+from volleybots.files import Fields
 
 ZOO_DIR = Path(__file__).resolve().parent
 PREFIX = "zoo:"
@@ -47,23 +47,22 @@ class Entry:
 
 
 def _mixture(card_path: Path, listed) -> tuple[tuple[Path, ...], tuple[float, ...]]:
-    """A card's ``mixture:`` as member files and weights; a damaged list is one ``ConfigError`` line."""
+    """A card's ``mixture:`` as member files and weights; a damaged list is one ``ConfigError`` line
+    (the weights are checked as a population's meta-strategy is: ``files.Fields.mixture``)."""
     what = f"zoo card {str(card_path)!r}"
     if not isinstance(listed, list) or not listed:
         raise ConfigError(f"{what}: 'mixture' must be a non-empty list of {{file: <method>/<member>.pt, weight: w}}")
-    files, weights = [], []
+    files = []
     for item in listed:
-        file, weight = (item.get("file"), item.get("weight")) if isinstance(item, dict) else (None, None)
-        if not isinstance(file, str) or isinstance(weight, bool) or not isinstance(weight, (int, float)) or not weight > 0:
+        file = item.get("file") if isinstance(item, dict) else None
+        if not isinstance(file, str) or not isinstance(item.get("weight"), (int, float)) or not item["weight"] > 0:
             raise ConfigError(f"{what}: mixture item {item!r} is not {{file: <method>/<member>.pt, weight: w > 0}}")
         path = card_path.parent / file
         if not path.is_file():
             raise ConfigError(f"{what}: member file {file!r} is missing")
         files.append(path)
-        weights.append(float(weight))
-    if not math.isclose(sum(weights), 1.0, abs_tol=1e-6):
-        raise ConfigError(f"{what}: the mixture's weights sum to {sum(weights)}, not 1")
-    return tuple(files), tuple(w / sum(weights) for w in weights)
+    weights = Fields({"mixture": [item["weight"] for item in listed]}, what).mixture("mixture", len(files))
+    return tuple(files), tuple(weights)
 
 
 def entries() -> dict[str, Entry]:
