@@ -26,6 +26,9 @@ class PopulationConfig(MAPPOConfig):
     solver: str = "nash"
     learner_init: str = "scratch"
     bc_frames: int = ranged(200_000, ge=1)
+    # the clone's fit: Adam steps per teacher frame sampled (bc's replay_ratio); a small bc_frames
+    # wants a high one (4096 frames at 8 are 8 steps: a clone that serves into play half the time)
+    bc_replay_ratio: float = ranged(8.0, gt=0)
     # the fine-tuning recipe of docs/imitation.md (critic warm-up, KL anchor at 0.3); they act on learners
     # that start from a policy (the clone, or init=); the loop sets both to 0 for a learner from scratch
     actor_freeze_updates: int = ranged(10, ge=0)

@@ -40,12 +40,12 @@ def needs_clone(algo_cfg) -> bool:
 
 def clone_config(cfg):
     """The validated config of the clone's run: the population's task, env, seed stream and networks;
-    ``algo=bc opponent=scripted`` for ``algo.bc_frames`` frames."""
+    ``algo=bc opponent=scripted`` for ``algo.bc_frames`` frames, fitted at ``algo.bc_replay_ratio``."""
     data = to_dict(cfg)
     m = cfg.algo
     net = {f.name: getattr(m, f.name) for f in dataclasses.fields(PPONetConfig) if f.name not in _NOT_COPIED}
     net["hidden"] = list(net["hidden"])
-    data["algo"] = {"name": "bc", **net, "expert_frames": m.bc_frames // 2}
+    data["algo"] = {"name": "bc", **net, "expert_frames": m.bc_frames // 2, "replay_ratio": m.bc_replay_ratio}
     data.update(opponent="scripted", opponent_deterministic=False, total_frames=m.bc_frames, init=None, time_limit=0,
                 seed=cfg.seed + CLONE_SEED, resume=None)
     return validate(data)
