@@ -134,7 +134,7 @@ def exploitability_cmd(
         None,
         help="TARGET (a competitor), then budget=1000000 games=1000 seed=0 scenario=any|serve|receive init=RUN num_envs=N "
         "batch=256 task=1v1 env.action_space=prt, and algo.KEY=VALUE for the best response's MAPPO (with init=, "
-        "algo.actor_freeze_updates=10 algo.anchor_coeff=0.3 unless given).",
+        "a critic warm-up of algo.actor_freeze_updates=10 batches unless given).",
     ),
     as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of a line."),
     out: Optional[Path] = typer.Option(
