@@ -72,14 +72,15 @@ def one_line_exit_2(res, *words) -> str:
     return err
 
 
-# Seconds each of the heaviest test modules took on the 2-core machine (xdist, 2 workers, 2026-11-27, main 2f30c9c).
+# Seconds each of the heaviest test modules took on the 2-core machine (xdist, 2 workers, 2026-11-27, main 9cfec76).
 # Only the order of scheduling reads them; no test is selected or skipped by them.
 MODULE_SECONDS = {
-    "test_offpolicy_learning": 157, "test_cli": 121, "test_population": 118, "test_scripted_set_and_spike": 115, "test_launchers": 98,
-    "test_reliability": 96, "test_scripted_set_and_spike_ctbr": 95, "test_scripted_bump_and_pass": 93, "test_exploitability": 93,
-    "test_marl": 78, "test_ppo": 74, "test_payoff_pool": 59, "test_bc": 58, "test_hierarchical": 50, "test_crossplay": 48,
-    "test_scripted_set_and_spike_hard": 42, "test_wandb": 37, "test_lookahead": 35, "test_registries": 34, "test_scripted": 32,
-    "test_docs": 31, "test_sac_init": 27, "test_env": 27, "test_config": 27, "test_init": 24, "test_drills": 24,
+    "test_offpolicy_learning": 146, "test_cli": 119, "test_population": 118, "test_scripted_set_and_spike": 109,
+    "test_reliability": 96, "test_marl": 91, "test_launchers": 89, "test_ppo": 82, "test_scripted_set_and_spike_ctbr": 76,
+    "test_bc": 63, "test_scripted_bump_and_pass": 56, "test_crossplay": 51, "test_payoff_pool": 42, "test_wandb": 40,
+    "test_lookahead": 40, "test_scripted_set_and_spike_hard": 37, "test_hierarchical": 37, "test_registries": 36,
+    "test_scripted": 34, "test_env": 33, "test_exploitability": 33, "test_config": 31, "test_docs": 30, "test_compiled_step": 28,
+    "test_sac_init": 26, "test_zoo": 23,
 }
 
 
