@@ -295,6 +295,11 @@ def test_a_bc_seeded_population_starts_from_a_clone_that_beats_random_and_resume
     meta, pay, members = _read(run)
     assert pay["members"] == ["bc", "random", "br1"]
     assert sum(pay["games"][0]) == 12  # the clone played its payoff games like any member
+    # the clone learned its teacher: its fit's error fell over its 8 batches
+    import csv
+
+    mse = [float(r["action_mse"]) for r in csv.DictReader((clone / "metrics.csv").open()) if r.get("action_mse")]
+    assert len(mse) == 8 and mse[-1] < 0.8 * mse[0], mse
     # the first member, the clone, already plays: it wins most decisive games against random
     g = play_games(cfg, resolve_competitor(f"bc={members[0]}"), resolve_competitor("random"), 32, seed=11, batch=32)
     w, d, l_ = (int(x) for x in g.total)
