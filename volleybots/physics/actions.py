@@ -11,6 +11,7 @@ from abc import ABC, abstractmethod
 import torch
 
 from volleybots.physics.controllers import RateController
+from volleybots.physics.math import num
 from volleybots.physics.params import WorldParams
 
 ACTION_SPACE_INFO = {
@@ -58,7 +59,8 @@ class PRT(ActionSpace):
     name = "prt"
 
     def command_fn(self, action):
-        cmd = action.clamp(-1.0, 1.0)
+        one = num(1.0, action)
+        cmd = action.clamp(-one, one)
         return lambda state: cmd
 
 

@@ -10,6 +10,7 @@ import math
 
 import torch
 
+from volleybots.physics.math import num
 from volleybots.physics.params import DroneParams
 
 PWM = 65535.0  # the Crazyflie mixer works in motor PWM units; we divide back to a thrust fraction
@@ -30,6 +31,8 @@ class RateController:
         # mixer signs: roll torque is raised by rotors at +y, pitch by rotors at -x,
         # yaw by rotors spinning with direction -1 (their reaction torque is +z)
         self.mix = torch.stack((torch.sign(rp[:, 1]) * 0.5, -torch.sign(rp[:, 0]) * 0.5, -dirs), -1)  # [4, 3]
+        # the numbers of every tick as 0-d tensors (physics.math.num: plain numbers cost extra torch calls)
+        self._rad2deg, self._dt, self._pwm = (torch.tensor(v, **kw) for v in (180.0 / math.pi, dt, PWM))
         self.integral = torch.zeros(num_envs, n_drones, 3, **kw)
         self.prev_err = torch.zeros(num_envs, n_drones, 3, **kw)
 
@@ -45,16 +48,18 @@ class RateController:
     @classmethod
     def scale_action(cls, action: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """CTBR action in [-1, 1]^4 -> (body rate targets in deg/s [.., 3], collective thrust fraction [..])."""
-        a = action.clamp(-1.0, 1.0)
-        return a[..., :3] * cls.max_rate_deg, (a[..., 3] + 1.0) * 0.5
+        one = num(1.0, action)
+        a = action.clamp(-one, one)
+        return a[..., :3] * num(cls.max_rate_deg, a), (a[..., 3] + one) * num(0.5, a)
 
     def __call__(self, omega_body: torch.Tensor, rate_target_deg: torch.Tensor, thrust_frac: torch.Tensor) -> torch.Tensor:
         """One controller tick. Returns per-rotor commands in [-1, 1] whose steady thrust is the mix."""
-        rate = omega_body * (180.0 / math.pi)
+        rate = omega_body * self._rad2deg
         err = rate_target_deg - rate
-        self.integral = torch.maximum(torch.minimum(self.integral + err * self.dt, self.i_limit), -self.i_limit)
-        deriv = (err - self.prev_err) / self.dt
+        self.integral = torch.maximum(torch.minimum(self.integral + err * self._dt, self.i_limit), -self.i_limit)
+        deriv = (err - self.prev_err) / self._dt
         self.prev_err = err
         out = self.kp * err + self.ki * self.integral + self.kd * deriv  # PWM units
-        frac = thrust_frac.unsqueeze(-1) + (out @ self.mix.T) / PWM
-        return frac.clamp(0.0, 1.0) * 2.0 - 1.0
+        frac = thrust_frac.unsqueeze(-1) + (out @ self.mix.T) / self._pwm
+        one = num(1.0, frac)
+        return frac.clamp(num(0.0, frac), one) * num(2.0, frac) - one

@@ -4,6 +4,27 @@ from __future__ import annotations
 
 import torch
 
+_NUMBERS: dict = {}
+
+
+def num(value: float, like: torch.Tensor):
+    """``value`` as a 0-d tensor of ``like``'s dtype and device, made once and kept.
+
+    On a CPU, ``tensor * 0.5`` costs ~2.7x ``tensor * k`` with ``k`` such a tensor: torch wraps the
+    Python number in a double tensor and converts it to ``like``'s dtype on every call (four extra
+    torch calls), and the physics sub-step does that ~100 times (docs/performance.md). The result is
+    bit for bit the same: the number is rounded to ``like``'s dtype either way. Under
+    ``torch.compile`` the plain number is returned: the compiler folds it into its kernels.
+    """
+    if torch.compiler.is_compiling():
+        return value
+    key = (value, like.dtype, like.device)
+    t = _NUMBERS.get(key)
+    if t is None:
+        with torch.inference_mode(False):  # an ordinary tensor, usable wherever autograd records
+            t = _NUMBERS[key] = torch.tensor(value, dtype=like.dtype, device=like.device)
+    return t
+
 
 class Vec3:
     """A batch of 3-vectors held as three separate tensors (struct of arrays), for the physics sub-step.
@@ -88,29 +109,33 @@ class Quat:
     def heading(self) -> Vec3:
         """The body x axis in the world frame."""
         w, x, y, z = self.w, self.v.x, self.v.y, self.v.z
-        return Vec3(1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y))
+        one, two = num(1.0, w), num(2.0, w)
+        return Vec3(one - two * (y * y + z * z), two * (x * y + w * z), two * (x * z - w * y))
 
     def up(self) -> Vec3:
         """The body z axis in the world frame."""
         w, x, y, z = self.w, self.v.x, self.v.y, self.v.z
-        return Vec3(2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y))
+        one, two = num(1.0, w), num(2.0, w)
+        return Vec3(two * (x * z + w * y), two * (y * z - w * x), one - two * (x * x + y * y))
 
     def rotate(self, v: Vec3) -> Vec3:
         """Body-frame vectors into the world frame."""
-        t = self.v.cross(v).scale(2.0)
+        t = self.v.cross(v).scale(num(2.0, self.w))
         return v + t.scale(self.w) + self.v.cross(t)
 
     def rotate_inverse(self, v: Vec3) -> Vec3:
         """World vectors into the body frame."""
-        t = (-self.v).cross(v).scale(2.0)
+        t = (-self.v).cross(v).scale(num(2.0, self.w))
         return v + t.scale(self.w) - self.v.cross(t)
 
     def integrate(self, omega_body: Vec3, h: float) -> "Quat":
         """Advance by body rates over h with the exact exponential map (renormalised, so |q| = 1 up to rounding)."""
-        angle = omega_body.norm() * h
-        half = 0.5 * angle
+        w = self.w
+        angle = omega_body.norm() * num(h, w)
+        half = num(0.5, w) * angle
         # sin(x)/x with a series near 0 so that zero rotation stays exact and differentiable
-        scale = torch.where(angle < 1e-6, 0.5 * h * (1 - half * half / 6), torch.sin(half) / angle.clamp_min(1e-12) * h)
+        small = num(0.5 * h, w) * (num(1.0, w) - half * half / num(6.0, w))
+        scale = torch.where(angle < num(1e-6, w), small, torch.sin(half) / angle.clamp_min(num(1e-12, w)) * num(h, w))
         q = self.mul(Quat(torch.cos(half), omega_body.scale(scale)))
         inv = torch.rsqrt(q.w * q.w + q.v.dot(q.v))
         return Quat(q.w * inv, q.v.scale(inv))

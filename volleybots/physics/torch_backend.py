@@ -8,12 +8,14 @@ spirit of Brax, so it can be compiled; ``TorchPhysics`` is the thin stateful wra
 
 from __future__ import annotations
 
+import contextlib
+import functools
 from dataclasses import dataclass, fields, replace
 from typing import Callable
 
 import torch
 
-from volleybots.physics.math import Quat, Vec3, quat_axes, quat_rotate
+from volleybots.physics.math import Quat, Vec3, num, quat_axes, quat_rotate
 from volleybots.physics.params import WorldParams
 
 
@@ -83,12 +85,13 @@ class Constants:
 
 
 def rotor_thrusts(throttle: torch.Tensor, kf: float) -> torch.Tensor:
-    return throttle * throttle * kf
+    return throttle * throttle * num(kf, throttle)
 
 
 def throttle_target(cmd: torch.Tensor) -> torch.Tensor:
     """Command in [-1, 1] -> throttle whose squared value (the thrust) is linear in the command."""
-    return torch.sqrt((cmd.clamp(-1.0, 1.0) + 1.0) * 0.5)
+    one = num(1.0, cmd)
+    return torch.sqrt((cmd.clamp(-one, one) + one) * num(0.5, cmd))
 
 
 def downwash_force(pos: torch.Tensor, up: torch.Tensor, total_thrust: torch.Tensor) -> torch.Tensor:
@@ -98,15 +101,16 @@ def downwash_force(pos: torch.Tensor, up: torch.Tensor, total_thrust: torch.Tens
     summed over j: without the short reduction the compiled pass vectorises over envs.
     """
     pos, up = Vec3.of(pos), Vec3.of(up)
+    k = functools.partial(num, like=total_thrust)
     force = Vec3(0.0, 0.0, 0.0)
     for j in range(pos.x.shape[1]):
         pj, axis = pos[:, j : j + 1], -up[:, j : j + 1]  # wash direction of j
         diff = pos - pj  # p_i - p_j
         z = diff.dot(axis)  # distance below j along its wash
         radial = (diff - axis.scale(z)).norm()
-        z = z.clamp_min(0.0)
-        mag = torch.exp(-0.5 * (2 * radial / z.clamp_min(1e-6)) ** 2) / (1 + 0.3 * z) ** 2
-        mag = torch.where(z > 0, mag, 0.0)  # zero for i = j too
+        z = z.clamp_min(k(0.0))
+        mag = torch.exp(k(-0.5) * (k(2.0) * radial / z.clamp_min(k(1e-6))) ** 2) / (k(1.0) + k(0.3) * z) ** 2
+        mag = torch.where(z > k(0.0), mag, k(0.0))  # zero for i = j too
         force = force + axis.scale(total_thrust[:, j : j + 1] * mag)
     return force.stack()
 
@@ -121,7 +125,7 @@ def control_step_downwash(c: Constants, s: PhysicsState) -> torch.Tensor | None:
     if not c.downwash or s.pos.shape[1] < 2:
         return None
     _, up = quat_axes(s.quat)
-    return downwash_force(s.pos, up, rotor_thrusts(s.throttle, c.kf).sum(-1)) / c.mass
+    return downwash_force(s.pos, up, rotor_thrusts(s.throttle, c.kf).sum(-1)) / num(c.mass, s.pos)
 
 
 def substep(
@@ -131,54 +135,59 @@ def substep(
 
     ``wash`` is the control step's downwash acceleration (``control_step_downwash``), None for none.
     Returns the new state and this sub-step's racket / body contact flags [N, D] and ground flag [N].
-    The arithmetic runs on one tensor per component (``Vec3``, ``Quat``): see ``Vec3`` for why.
+    The arithmetic runs on one tensor per component (``Vec3``, ``Quat``): see ``Vec3`` for why; every
+    number is a 0-d tensor (``num``): see there.
     """
-    h = c.h
+    k = functools.partial(num, like=s.pos)
+    h = k(c.h)
     q0 = Quat.of(s.quat)
     pos0, vel0, omega0 = Vec3.of(s.pos), Vec3.of(s.vel), Vec3.of(s.omega)
     up0 = q0.up()
-    racket0 = pos0 + up0.scale(c.racket_off)
+    racket0 = pos0 + up0.scale(k(c.racket_off))
     bpos0, bvel0 = Vec3.of(s.ball_pos), Vec3.of(s.ball_vel)
     ball0 = bpos0.unsqueeze(1)
     hgt0 = (ball0 - racket0).dot(up0)  # [N, D] ball height above each racket plane
 
     # rotors: first-order lag toward the commanded throttle, thrust ~ throttle^2
-    throttle = s.throttle + (throttle_target(cmd) - s.throttle) * c.lag
+    throttle = s.throttle + (throttle_target(cmd) - s.throttle) * k(c.lag)
     t = rotor_thrusts(throttle, c.kf).unbind(-1)
     total = t[0] + t[1] + t[2] + t[3]
-    torque = Vec3(*(sum(t[i] * c.torque_rows[i][k] for i in range(4)) for k in range(3)))  # body frame
+    rows = [[k(x) for x in row] for row in c.torque_rows]
+    torque = Vec3(*(t[0] * rows[0][j] + t[1] * rows[1][j] + t[2] * rows[2][j] + t[3] * rows[3][j] for j in range(3)))  # body frame
 
     # linear: thrust along body z, gravity, damping, downwash (semi-implicit Euler)
-    acc = up0.scale(total / c.mass) - vel0.scale(c.lin_damp)
+    acc = up0.scale(total / k(c.mass)) - vel0.scale(k(c.lin_damp))
     if wash is not None:
         acc = acc + Vec3.of(wash)
-    acc = Vec3(acc.x, acc.y, acc.z - c.g)
+    acc = Vec3(acc.x, acc.y, acc.z - k(c.g))
     vel = vel0 + acc.scale(h)
     pos = pos0 + vel.scale(h)
 
     # angular: Euler's equations in the body frame
-    inertia = Vec3(*c.inertia_xyz)
+    inertia = Vec3(*(k(i) for i in c.inertia_xyz))
     gyro = torque - omega0.cross(omega0.mul(inertia))
-    dw = Vec3(gyro.x / inertia.x, gyro.y / inertia.y, gyro.z / inertia.z) - omega0.scale(c.ang_damp)
+    dw = Vec3(gyro.x / inertia.x, gyro.y / inertia.y, gyro.z / inertia.z) - omega0.scale(k(c.ang_damp))
     omega = omega0 + dw.scale(h)
-    q1 = q0.integrate(omega, h)
+    q1 = q0.integrate(omega, c.h)
 
     # ball flight
-    bacc = Vec3(0.0, 0.0, -c.g)
     if c.drag > 0:
-        bacc = bacc - bvel0.scale(c.drag * bvel0.norm())
-    ball_vel = bvel0 + bacc.scale(h)
+        bacc = Vec3(0.0, 0.0, -k(c.g)) - bvel0.scale(k(c.drag) * bvel0.norm())
+        ball_vel = bvel0 + bacc.scale(h)
+    else:
+        ball_vel = Vec3(bvel0.x, bvel0.y, bvel0.z + k(-c.g * c.h))
     ball_pos = bpos0 + ball_vel.scale(h)
 
     # ball vs racket: swept test of the ball centre against the racket plane (offset by the ball
     # radius) so that no speed can tunnel through the thin disk; the racket's own motion counts.
+    ball_r = k(c.ball_r)
     up1 = q1.up()
-    racket1 = pos + up1.scale(c.racket_off)
+    racket1 = pos + up1.scale(k(c.racket_off))
     ball1 = ball_pos.unsqueeze(1)
     rel1 = ball1 - racket1
     hgt1 = rel1.dot(up1)
     rel0 = ball0 - racket0
-    frac = ((hgt0 - c.ball_r) / (hgt0 - hgt1).clamp_min(1e-9)).clamp(0.0, 1.0)
+    frac = ((hgt0 - ball_r) / (hgt0 - hgt1).clamp_min(k(1e-9))).clamp(k(0.0), k(1.0))
     cross_pt = rel0 + (rel1 - rel0).scale(frac)
     in_plane = cross_pt - up1.scale(cross_pt.dot(up1))
     radial = in_plane.norm()
@@ -186,18 +195,18 @@ def substep(
     v_pt = vel + q1.rotate(omega).cross(contact_pt - pos)
     v_rel = ball_vel.unsqueeze(1) - v_pt
     vn = v_rel.dot(up1)
-    racket_hit = (hgt0 >= 0.5 * c.ball_r) & (hgt1 < c.ball_r) & (radial <= c.racket_r) & (vn < 0)
+    racket_hit = (hgt0 >= k(0.5 * c.ball_r)) & (hgt1 < ball_r) & (radial <= k(c.racket_r)) & (vn < k(0.0))
 
     # ball vs body box (everything that is not the racket's upper face)
     local = q1.rotate_inverse(ball1 - pos)
-    hx, hy, hz = c.half_xyz
+    hx, hy, hz = (k(x) for x in c.half_xyz)
     d_local = local - Vec3(local.x.clamp(-hx, hx), local.y.clamp(-hy, hy), local.z.clamp(-hz, hz))
     dist = d_local.norm()
-    inside = dist < 1e-9
-    n_local = Vec3.where(inside, Vec3(0.0, 0.0, 1.0), d_local.scale(1.0 / dist.clamp_min(1e-9)))
+    inside = dist < k(1e-9)
+    n_local = Vec3.where(inside, Vec3(k(0.0), k(0.0), k(1.0)), d_local.scale(k(1.0) / dist.clamp_min(k(1e-9))))
     n_body = q1.rotate(n_local)
     vn_body = v_rel.dot(n_body)
-    body_hit = (dist < c.ball_r) & ~racket_hit & (vn_body < 0)
+    body_hit = (dist < ball_r) & ~racket_hit & (vn_body < k(0.0))
 
     # at most one drone answers per env and sub-step: the first in drone order that touched
     any_racket = racket_hit.any(1)
@@ -206,21 +215,22 @@ def substep(
     body_hit = body_hit & (torch.cumsum(body_hit.int(), 1) == 1)
 
     normal = Vec3.where(racket_hit, up1, n_body)
-    e = torch.where(racket_hit, torch.full_like(vn, c.ball_e), c.body_e)  # (two numbers would give the default dtype)
+    e = torch.where(racket_hit, k(c.ball_e), k(c.body_e))
     hit = racket_hit | body_hit
-    dv = normal.scale(torch.where(hit, -(1 + e) * torch.where(racket_hit, vn, vn_body), 0.0))  # ball velocity change
-    depth = torch.where(racket_hit, c.ball_r - hgt1, c.ball_r - dist).clamp_min(0.0)
+    dv = normal.scale(torch.where(hit, -(k(1.0) + e) * torch.where(racket_hit, vn, vn_body), k(0.0)))  # ball velocity change
+    depth = torch.where(racket_hit, ball_r - hgt1, ball_r - dist).clamp_min(k(0.0))
     ball_vel = ball_vel + dv.sum(1)
-    ball_pos = ball_pos + normal.scale(torch.where(hit, depth, 0.0)).sum(1)
-    vel = vel - dv.scale(c.ball_m / c.mass)  # reaction on the drone (linear part)
+    ball_pos = ball_pos + normal.scale(torch.where(hit, depth, k(0.0))).sum(1)
+    vel = vel - dv.scale(k(c.ball_m / c.mass))  # reaction on the drone (linear part)
 
     # ground: the ball bounces, a drone rests on its body box
-    ground = (ball_pos.z < c.ball_r) & (ball_vel.z < 0)
-    ball_vel = Vec3(ball_vel.x, ball_vel.y, torch.where(ground, -c.ground_e * ball_vel.z, ball_vel.z))
-    ball_pos = Vec3(ball_pos.x, ball_pos.y, ball_pos.z.clamp_min(c.ball_r))
-    low = pos.z < c.drone_ground
-    vel = Vec3(vel.x, vel.y, torch.where(low, vel.z.clamp_min(0.0), vel.z))
-    pos = Vec3(pos.x, pos.y, pos.z.clamp_min(c.drone_ground))
+    ground = (ball_pos.z < ball_r) & (ball_vel.z < k(0.0))
+    ball_vel = Vec3(ball_vel.x, ball_vel.y, torch.where(ground, k(-c.ground_e) * ball_vel.z, ball_vel.z))
+    ball_pos = Vec3(ball_pos.x, ball_pos.y, ball_pos.z.clamp_min(ball_r))
+    drone_ground = k(c.drone_ground)
+    low = pos.z < drone_ground
+    vel = Vec3(vel.x, vel.y, torch.where(low, vel.z.clamp_min(k(0.0)), vel.z))
+    pos = Vec3(pos.x, pos.y, pos.z.clamp_min(drone_ground))
 
     new = PhysicsState(
         pos=pos.stack(), quat=q1.stack(), vel=vel.stack(), omega=omega.stack(), throttle=throttle,
@@ -287,20 +297,32 @@ class TorchPhysics:
             ball_vel=z(num_envs, 3),
         )
         # compile the pure sub-step only (static shapes): the command function changes every step
+        self.compiled = compile
         self._substep = torch.compile(substep_flat, **compile_options()) if compile else substep_flat
 
     def step(self, command_fn: CommandFn) -> Contacts:
         """Advance one control step (``substeps`` sub-steps); ``command_fn(state)`` gives rotor commands."""
         state = self.state
         racket = body = ground = None
-        wash = control_step_downwash(self.consts, state)
+        # Eager sub-steps run in inference mode, which skips autograd's bookkeeping on each of their
+        # ~1,100 small torch calls: the 1 vs 1 physics step ran ~1.4x faster (docs/performance.md).
+        # The env is not differentiable anyway; its results are cloned into ordinary tensors below,
+        # so callers may still write into the state. The command function (the rate controller keeps
+        # its integrators across steps) runs outside, on ordinary tensors.
+        fast = not (self.compiled or torch.compiler.is_compiling())  # a compiled step has no such overhead
+        infer = torch.inference_mode if fast else contextlib.nullcontext  # (inference_mode(False) would switch it off)
+        with infer():
+            wash = control_step_downwash(self.consts, state)
         for _ in range(self.params.substeps):
             cmd = command_fn(state)
-            *tensors, r, b, g = self._substep(self.consts, cmd, wash, *(getattr(state, k) for k in _FIELDS))
-            state = PhysicsState(*tensors)
-            racket = r if racket is None else racket | r
-            body = b if body is None else body | b
-            ground = g if ground is None else ground | g
+            with infer():
+                *tensors, r, b, g = self._substep(self.consts, cmd, wash, *(getattr(state, k) for k in _FIELDS))
+                state = PhysicsState(*tensors)
+                racket = r if racket is None else racket | r
+                body = b if body is None else body | b
+                ground = g if ground is None else ground | g
+        if fast:
+            state, racket, body, ground = state.clone(), racket.clone(), body.clone(), ground.clone()
         self.state = state
         return Contacts(racket=racket, body=body, ground=ground)
 

@@ -151,8 +151,11 @@ class Lookahead:
 
         many = DroneObs(rep(drone.pos), rep(drone.quat), rep(drone.vel), rep(drone.omega_world), rep(drone.throttle))
         var = variants.repeat(b, 1)
-        out = self.rollout(many, rep(ball_p), rep(ball_v), lambda d, bp, bv: fly(d, bp, bv, var), steps, after, after_steps, net_z)
-        score = cost(out).view(b, k)
+        # the search only chooses an action, so its rollouts skip autograd's bookkeeping (as the env's
+        # physics does); the indexing below copies what it returns into ordinary tensors
+        with torch.inference_mode():
+            out = self.rollout(many, rep(ball_p), rep(ball_v), lambda d, bp, bv: fly(d, bp, bv, var), steps, after, after_steps, net_z)
+            score = cost(out).view(b, k)
         best = score.argmin(-1)
         idx = torch.arange(b, device=ball_p.device) * k + best
         return out.action[idx], score.gather(-1, best.unsqueeze(-1)).squeeze(-1), best
