@@ -13,7 +13,11 @@ All functions are batched over leading dimensions and differentiable-free plain 
 
 from __future__ import annotations
 
+import functools
+
 import torch
+
+from volleybots.physics.math import num
 
 G = 9.81
 
@@ -23,7 +27,7 @@ def ball_at(pos: torch.Tensor, vel: torch.Tensor, t: torch.Tensor, g: float = G)
     t = t.unsqueeze(-1)
     grav = torch.zeros_like(vel)
     grav[..., 2] = -g
-    return pos + vel * t + 0.5 * grav * t * t, vel + grav * t
+    return pos + vel * t + num(0.5, vel) * grav * t * t, vel + grav * t
 
 
 def time_to_height(z: torch.Tensor, vz: torch.Tensor, height, g: float = G, descending: bool = True) -> torch.Tensor:
@@ -32,10 +36,11 @@ def time_to_height(z: torch.Tensor, vz: torch.Tensor, height, g: float = G, desc
     Returns +inf where the ball never reaches that height (its apex is below it). The descending
     root is the later one, so a ball below ``height`` and rising still gets the time of its fall.
     """
-    disc = vz * vz + 2.0 * g * (z - height)
-    root = torch.sqrt(disc.clamp_min(0.0))
-    t = (vz + root) / g if descending else (vz - root) / g
-    return torch.where(disc >= 0, t, torch.full_like(t, float("inf")))
+    k = functools.partial(num, like=vz)  # the numbers as 0-d tensors: physics.math.num
+    disc = vz * vz + k(2.0 * g) * (z - height)
+    root = torch.sqrt(disc.clamp_min(k(0.0)))
+    t = (vz + root) / k(g) if descending else (vz - root) / k(g)
+    return torch.where(disc >= k(0.0), t, k(float("inf")))
 
 
 def launch_for_apex(pos: torch.Tensor, target_xy: torch.Tensor, apex, land_z, g: float = G) -> torch.Tensor:
@@ -74,8 +79,8 @@ def racket_for(v_in: torch.Tensor, v_out: torch.Tensor, restitution: float = 0.8
     """
     dv = v_out - v_in
     mag = dv.norm(dim=-1)
-    n = dv / mag.clamp_min(1e-9).unsqueeze(-1)
-    s = (v_in * n).sum(-1) + mag / (1.0 + restitution)
+    n = dv / mag.clamp_min(num(1e-9, mag)).unsqueeze(-1)
+    s = (v_in * n).sum(-1) + mag / num(1.0 + restitution, mag)
     return n, s
 
 

@@ -18,13 +18,14 @@ every drone of every env at once; nothing here keeps state between calls.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import torch
 
 from volleybots.physics.controllers import RateController
-from volleybots.physics.math import quat_axes, quat_rotate_inverse
+from volleybots.physics.math import num, quat_axes, quat_rotate_inverse
 from volleybots.physics.params import WorldParams
 from volleybots.tasks.layout import root_layout
 
@@ -87,7 +88,7 @@ class DroneObs:
 
 
 def _unit(v: torch.Tensor, eps: float = 1e-9) -> torch.Tensor:
-    return v / v.norm(dim=-1, keepdim=True).clamp_min(eps)
+    return v / v.norm(dim=-1, keepdim=True).clamp_min(num(eps, v))
 
 
 class DroneController:
@@ -142,14 +143,15 @@ class DroneController:
         reference's feed-forward acceleration. Horizontal and vertical are shaped separately."""
         g = self.gains
         e = p_ref - drone.pos
+        k = functools.partial(num, like=e)
         eh = e[..., :2]
         dist = eh.norm(dim=-1, keepdim=True)
-        v_h = eh / dist.clamp_min(1e-9) * sqrt_law(dist, g.k_pos_xy, g.pos_accel_xy)
+        v_h = eh / dist.clamp_min(k(1e-9)) * sqrt_law(dist, g.k_pos_xy, g.pos_accel_xy)
         ez = e[..., 2:]
         v_z = torch.sign(ez) * sqrt_law(ez.abs(), g.k_pos_z, g.pos_accel_z)
         dv = v_ref + torch.cat((v_h, v_z), -1) - drone.vel
         k_xy = g.k_vel_xy_ctbr if self.action_space == "ctbr" else g.k_vel_xy
-        acc = torch.cat((k_xy * dv[..., :2], g.k_vel_z * dv[..., 2:]), -1)
+        acc = torch.cat((k(k_xy) * dv[..., :2], k(g.k_vel_z) * dv[..., 2:]), -1)
         return acc if a_ref is None else acc + a_ref
 
     def thrust_vector(self, drone: DroneObs, accel: torch.Tensor) -> torch.Tensor:
@@ -162,16 +164,17 @@ class DroneController:
         the tilt limit.
         """
         g = self.gains
-        f = accel + self.params.drone.lin_damping * drone.vel
+        k = functools.partial(num, like=accel)
+        f = accel + k(self.params.drone.lin_damping) * drone.vel
         fmax = g.thrust_margin * self.max_accel
-        fz = (f[..., 2] + self.g).clamp(g.min_thrust_z, min(fmax, self.g + g.max_climb))
+        fz = (f[..., 2] + k(self.g)).clamp(k(g.min_thrust_z), k(min(fmax, self.g + g.max_climb)))
         h = f[..., :2]
         if not g.vertical_first:
-            scale = (fmax / torch.cat((h, fz.unsqueeze(-1)), -1).norm(dim=-1)).clamp(max=1.0)
+            scale = (torch.cat((h, fz.unsqueeze(-1)), -1).norm(dim=-1).reciprocal() * k(fmax)).clamp(max=k(1.0))
             h, fz = h * scale.unsqueeze(-1), fz * scale
-        h_max = torch.minimum(torch.sqrt((fmax**2 - fz**2).clamp_min(0.0)), fz * math.tan(g.max_tilt))
+        h_max = torch.minimum(torch.sqrt((k(fmax**2) - fz**2).clamp_min(k(0.0))), fz * k(math.tan(g.max_tilt)))
         h_norm = h.norm(dim=-1)
-        h = h * (h_max / h_norm.clamp_min(1e-9)).clamp(max=1.0).unsqueeze(-1)
+        h = h * (h_max / h_norm.clamp_min(k(1e-9))).clamp(max=k(1.0)).unsqueeze(-1)
         return torch.cat((h, fz.unsqueeze(-1)), -1)
 
     # ------------------------------------------------------------------ attitude and actuation
@@ -188,7 +191,7 @@ class DroneController:
         axis_b = _unit(quat_rotate_inverse(drone.quat, axis))
         # the rotors answer with a delay: brake for the angle that will be left after it
         closing = (drone.omega_body * axis_b).sum(-1)
-        left = angle - self.gains.att_delay * closing
+        left = angle - num(self.gains.att_delay, closing) * closing
         speed = torch.sign(left) * sqrt_law(left.abs(), k_att, brake)
         rates = axis_b * speed.unsqueeze(-1)
         yaw = torch.zeros_like(angle) if yaw_rate is None else yaw_rate
@@ -205,14 +208,15 @@ class DroneController:
         b3 = _unit(f)
         _, up = quat_axes(drone.quat)
         # thrust along the body axis we have now, so a tilt error does not turn into a height error
-        collective = (f * up).sum(-1).clamp_min(0.0)
+        k = functools.partial(num, like=f)
+        collective = (f * up).sum(-1).clamp_min(k(0.0))
         if self.action_space == "ctbr":
             rates = self.body_rates(drone, b3, self.gains.k_att_ctbr, self.gains.att_accel_ctbr, yaw_rate)
-            rate_act = rates / math.radians(RateController.max_rate_deg)
-            thrust_act = 2.0 * collective * self.mass / (4 * self.kf) - 1.0
-            return torch.cat((rate_act, thrust_act.unsqueeze(-1)), -1).clamp(-1.0, 1.0)
+            rate_act = rates / k(math.radians(RateController.max_rate_deg))
+            thrust_act = k(2.0) * collective * k(self.mass) / k(4 * self.kf) - k(1.0)
+            return torch.cat((rate_act, thrust_act.unsqueeze(-1)), -1).clamp(-k(1.0), k(1.0))
         rates = self.body_rates(drone, b3, self.gains.k_att, self.gains.att_accel, yaw_rate)
-        return self.rotor_commands(drone, collective * self.mass, rates)
+        return self.rotor_commands(drone, collective * k(self.mass), rates)
 
     def rotor_commands(self, drone: DroneObs, thrust: torch.Tensor, rates_des: torch.Tensor) -> torch.Tensor:
         """PRT inner loop: body-rate targets and total thrust (N) -> rotor commands in [-1, 1]."""
@@ -220,16 +224,18 @@ class DroneController:
         J = c["inertia"]
         w = drone.omega_body
         d = self.params.drone
-        alpha = self.gains.k_rate * (rates_des - w) + d.ang_damping * w
+        k = functools.partial(num, like=thrust)
+        alpha = k(self.gains.k_rate) * (rates_des - w) + k(d.ang_damping) * w
         torque = J * alpha + torch.cross(w, J * w, dim=-1)
         t = self.allocate(thrust, torque)
+        kf, zero, one = k(self.kf), k(0.0), k(1.0)
         if drone.throttle is not None and self.gains.lag_comp > 0:
             # choose the throttle target whose mean over the coming step is the wanted throttle
-            want = torch.sqrt(t / self.kf)
+            want = torch.sqrt(t / kf)
             b = self.beta * self.gains.lag_comp
-            target = ((want - b * drone.throttle) / (1.0 - b)).clamp(0.0, 1.0)
-            t = target * target * self.kf
-        return (2.0 * t / self.kf - 1.0).clamp(-1.0, 1.0)
+            target = ((want - k(b) * drone.throttle) / k(1.0 - b)).clamp(zero, one)
+            t = target * target * kf
+        return (k(2.0) * t / kf - one).clamp(-one, one)
 
     def allocate(self, thrust: torch.Tensor, torque: torch.Tensor) -> torch.Tensor:
         """Total thrust [...] and body torque [..., 3] -> rotor thrusts [..., 4] in [0, KF].
@@ -239,31 +245,36 @@ class DroneController:
         that the torque is scaled down just enough to fit.
         """
         mix = self._c(thrust)["mix"]
+        k = functools.partial(num, like=thrust)
+        kf = k(self.kf)
         u = mix[:, 0]  # rotor share of one newton of total thrust
         w = torque @ mix[:, 1:].T  # [..., 4] torque part, sums to zero
-        floor = self.gains.thrust_keep * thrust.clamp(max=4 * self.kf)
+        floor = k(self.gains.thrust_keep) * thrust.clamp(max=k(4 * self.kf))
 
         def bounds(wk):
             # thrust range keeping every rotor in [0, KF]: 0 <= T u_i + w_i <= KF
             lo = (-wk / u).amax(-1)
-            hi = ((self.kf - wk) / u).amin(-1)
+            hi = ((kf - wk) / u).amin(-1)
             return torch.maximum(lo, floor), hi
 
         lo, hi = bounds(w)
         ok = lo <= hi
-        # bisection on the torque scale where no thrust fits (saturated manoeuvres)
-        s_lo, s_hi = torch.zeros_like(thrust), torch.ones_like(thrust)
-        for _ in range(10):
-            mid = 0.5 * (s_lo + s_hi)
-            l2, h2 = bounds(w * mid.unsqueeze(-1))
-            fits = l2 <= h2
-            s_lo = torch.where(fits, mid, s_lo)
-            s_hi = torch.where(fits, s_hi, mid)
-        w = w * torch.where(ok, torch.ones_like(s_lo), s_lo).unsqueeze(-1)
-        lo, hi = bounds(w)
+        # bisection on the torque scale where no thrust fits (saturated manoeuvres); with none, the
+        # torque stays as it is (times 1: the same numbers), without the bisection's ~100 torch calls
+        if not bool(ok.all()):
+            s_lo, s_hi = torch.zeros_like(thrust), torch.ones_like(thrust)
+            half = k(0.5)
+            for _ in range(10):
+                mid = half * (s_lo + s_hi)
+                l2, h2 = bounds(w * mid.unsqueeze(-1))
+                fits = l2 <= h2
+                s_lo = torch.where(fits, mid, s_lo)
+                s_hi = torch.where(fits, s_hi, mid)
+            w = w * torch.where(ok, torch.ones_like(s_lo), s_lo).unsqueeze(-1)
+            lo, hi = bounds(w)
         total = torch.minimum(torch.maximum(thrust, lo), hi)
         t = total.unsqueeze(-1) * u + w
-        return t.clamp(0.0, self.kf)
+        return t.clamp(k(0.0), kf)
 
 
 def sqrt_law(error: torch.Tensor, k: float, accel: float) -> torch.Tensor:
@@ -272,7 +283,8 @@ def sqrt_law(error: torch.Tensor, k: float, accel: float) -> torch.Tensor:
     "square-root controller" of ArduPilot). A linear law alone would demand decelerations of
     ``k^2 * error`` that a torque- or thrust-limited airframe cannot give."""
     linear = accel / (k * k)
-    return torch.where(error <= linear, k * error, torch.sqrt((2.0 * accel * (error - 0.5 * linear)).clamp_min(0.0)))
+    n = functools.partial(num, like=error)
+    return torch.where(error <= n(linear), n(k) * error, torch.sqrt((n(2.0 * accel) * (error - n(0.5 * linear))).clamp_min(n(0.0))))
 
 
 def heading_yaw_rate(drone: DroneObs, yaw_des: torch.Tensor | float, k: float) -> torch.Tensor:

@@ -10,11 +10,13 @@ reference is a pure function of the ball state, so a policy using it keeps no me
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import torch
 
+from volleybots.physics.math import num
 from volleybots.physics.params import WorldParams
 from volleybots.scripted.ballistics import ball_at, racket_for, time_to_height
 
@@ -25,17 +27,19 @@ def quintic(p0, v0, a0, p1, v1, a1, duration: torch.Tensor, t: torch.Tensor):
     States are [..., 3], ``duration`` and ``t`` are [...]. Returns (position, velocity, acceleration).
     The quintic is the minimum-jerk path between two full states (Mueller et al. 2015).
     """
-    T = duration.clamp_min(1e-3).unsqueeze(-1)
-    t = t.unsqueeze(-1).clamp(min=0.0).minimum(T)
-    dp = p1 - p0 - v0 * T - 0.5 * a0 * T * T
+    k = functools.partial(num, like=duration)  # the numbers as 0-d tensors: physics.math.num
+    half = k(0.5)
+    T = duration.clamp_min(k(1e-3)).unsqueeze(-1)
+    t = t.unsqueeze(-1).clamp(min=k(0.0)).minimum(T)
+    dp = p1 - p0 - v0 * T - half * a0 * T * T
     dv = v1 - v0 - a0 * T
     da = a1 - a0
-    c3 = (10.0 * dp - 4.0 * dv * T + 0.5 * da * T * T) / T**3
-    c4 = (-15.0 * dp + 7.0 * dv * T - da * T * T) / T**4
-    c5 = (6.0 * dp - 3.0 * dv * T + 0.5 * da * T * T) / T**5
-    pos = p0 + v0 * t + 0.5 * a0 * t * t + c3 * t**3 + c4 * t**4 + c5 * t**5
-    vel = v0 + a0 * t + 3 * c3 * t**2 + 4 * c4 * t**3 + 5 * c5 * t**4
-    acc = a0 + 6 * c3 * t + 12 * c4 * t**2 + 20 * c5 * t**3
+    c3 = (k(10.0) * dp - k(4.0) * dv * T + half * da * T * T) / T**3
+    c4 = (k(-15.0) * dp + k(7.0) * dv * T - da * T * T) / T**4
+    c5 = (k(6.0) * dp - k(3.0) * dv * T + half * da * T * T) / T**5
+    pos = p0 + v0 * t + half * a0 * t * t + c3 * t**3 + c4 * t**4 + c5 * t**5
+    vel = v0 + a0 * t + k(3.0) * c3 * t**2 + k(4.0) * c4 * t**3 + k(5.0) * c5 * t**4
+    acc = a0 + k(6.0) * c3 * t + k(12.0) * c4 * t**2 + k(20.0) * c5 * t**3
     return pos, vel, acc
 
 
@@ -47,15 +51,17 @@ def goto_accel(pos, vel, target, accel: float, speed: float, k_v: float = 6.0, k
     tracked with gain ``k_v``. The braking is planned ``lead`` seconds early: the drone needs that
     long to turn its thrust around. Returns the commanded acceleration, at most ``accel`` in norm."""
     d = target - pos
+    k = functools.partial(num, like=d)
+    zero = k(0.0)
     dist = d.norm(dim=-1, keepdim=True)
-    closing = (vel * d).sum(-1, keepdim=True) / dist.clamp_min(1e-6)
-    to_go = (dist - stop_at - lead * closing.clamp_min(0.0)).clamp_min(0.0)
+    closing = (vel * d).sum(-1, keepdim=True) / dist.clamp_min(k(1e-6))
+    to_go = (dist - k(stop_at) - k(lead) * closing.clamp_min(zero)).clamp_min(zero)
     brake = accel if brake is None else brake
-    v_mag = torch.minimum(torch.sqrt(2.0 * brake * to_go), k_p * to_go).clamp(max=speed)
-    v_des = d / dist.clamp_min(1e-6) * v_mag
-    a = k_v * (v_des - vel)
+    v_mag = torch.minimum(torch.sqrt(k(2.0 * brake) * to_go), k(k_p) * to_go).clamp(max=k(speed))
+    v_des = d / dist.clamp_min(k(1e-6)) * v_mag
+    a = k(k_v) * (v_des - vel)
     n = a.norm(dim=-1, keepdim=True)
-    return a * (accel / n.clamp_min(1e-9)).clamp(max=1.0)
+    return a * (n.clamp_min(k(1e-9)).reciprocal() * k(accel)).clamp(max=k(1.0))
 
 
 @dataclass
@@ -104,15 +110,16 @@ class StrikePlanner:
         bp, bv = ball_at(ball_pos, ball_vel, t0, self.g)
         v_out = want_out(bp, bv)
         n, s = racket_for(bv, v_out, self.e)
+        k = functools.partial(num, like=n)
         if max_tilt is not None:
             n = limit_tilt(n, max_tilt)
-            s = (bv * n).sum(-1) + (v_out - bv).norm(dim=-1) / (1.0 + self.e)
-        drone_pos = bp - self.reach * n
+            s = (bv * n).sum(-1) + (v_out - bv).norm(dim=-1) / k(1.0 + self.e)
+        drone_pos = bp - k(self.reach) * n
         drone_vel = s.unsqueeze(-1) * n
-        nz = n[..., 2].clamp_min(0.2)
-        thrust = self.g / nz if self.contact_thrust is None else torch.full_like(nz, self.contact_thrust)
+        nz = n[..., 2].clamp_min(k(0.2))
+        thrust = nz.reciprocal() * k(self.g) if self.contact_thrust is None else torch.full_like(nz, self.contact_thrust)
         drone_acc = thrust.unsqueeze(-1) * n
-        drone_acc = torch.cat((drone_acc[..., :2], drone_acc[..., 2:] - self.g), -1)
+        drone_acc = torch.cat((drone_acc[..., :2], drone_acc[..., 2:] - k(self.g)), -1)
         return Strike(t, bp, bv, v_out, n, s, drone_pos, drone_vel, drone_acc)
 
     def hold_point(self, strike: Strike, window: float | torch.Tensor) -> torch.Tensor:
