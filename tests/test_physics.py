@@ -222,3 +222,46 @@ def test_downwash_pushes_lower_drone_down():
     for _ in range(25):
         off.step(const(hover))
     assert abs(off.state.pos[0, 0, 2].item() - 2.0) < 0.02
+
+
+def test_numbers_are_cached_ordinary_tensors_rounded_as_torch_rounds_a_python_number():
+    from volleybots.physics.math import num
+
+    x = torch.rand(5, 3)
+    with torch.inference_mode():
+        k = num(0.1, x)
+        assert num(0.1, x) is k  # made once
+        assert torch.equal(x * k, x * 0.1)  # the same bits as the Python number
+    assert k.dtype == x.dtype and k.dim() == 0 and not k.is_inference()  # usable where autograd records
+    assert num(0.1, x.double()).dtype == torch.float64
+
+
+def test_an_eager_step_hands_back_ordinary_tensors_and_repeats_the_same_state():
+    # the sub-steps run in inference mode; what they leave must still be writable by a caller
+    a, b = world(4, 2), world(4, 2)
+    b.compiled = True  # (an attribute only: this world's sub-steps run outside inference mode)
+    cmd = torch.rand(4, 2, 4) * 2 - 1
+    for ph in (a, b):
+        ph.state.pos[..., 2] = 2.0
+        for _ in range(5):
+            contacts = ph.step(lambda s: cmd)
+    for name, t in a.state.tensors().items():
+        assert not t.is_inference(), name
+        assert torch.equal(t, b.state.tensors()[name]), name
+    assert not contacts.racket.is_inference()
+    a.state.pos[..., 2] += 1.0  # a caller may write into the state
+
+
+def test_a_physics_sub_step_makes_few_torch_calls():
+    # at the tests' and the lookahead's batch sizes an eager sub-step costs its number of torch calls;
+    # 654 on 2026-11-27 (1,064 before numbers became 0-d tensors): a regression guard, not a timing
+    from torch.profiler import profile
+
+    from volleybots.physics.torch_backend import substep
+
+    ph = world(32, 2)
+    cmd = torch.zeros(32, 2, 4)
+    with torch.inference_mode(), profile() as prof:
+        substep(ph.consts, ph.state, cmd)
+    n = sum(1 for e in prof.events() if e.name.startswith("aten::"))
+    assert n <= 700, n
