@@ -234,6 +234,11 @@ def test_numbers_are_cached_ordinary_tensors_rounded_as_torch_rounds_a_python_nu
         assert torch.equal(x * k, x * 0.1)  # the same bits as the Python number
     assert k.dtype == x.dtype and k.dim() == 0 and not k.is_inference()  # usable where autograd records
     assert num(0.1, x.double()).dtype == torch.float64
+    from volleybots.physics import math as pmath
+
+    for i in range(5000):  # numbers that change every call only refill a bounded cache
+        num(float(i) + 0.5, x)
+    assert len(pmath._NUMBERS) <= 4096
 
 
 def test_an_eager_step_hands_back_ordinary_tensors_and_repeats_the_same_state():

@@ -14,13 +14,17 @@ def num(value: float, like: torch.Tensor):
     Python number in a double tensor and converts it to ``like``'s dtype on every call (four extra
     torch calls), and the physics sub-step does that ~100 times (docs/performance.md). The result is
     bit for bit the same: the number is rounded to ``like``'s dtype either way. Under
-    ``torch.compile`` the plain number is returned: the compiler folds it into its kernels.
+    ``torch.compile`` the plain number is returned: the compiler folds it into its kernels. Meant for
+    constants (gains, model parameters): a number that changes every call would only fill the cache,
+    which is therefore emptied past 4096 entries.
     """
     if torch.compiler.is_compiling():
         return value
     key = (value, like.dtype, like.device)
     t = _NUMBERS.get(key)
     if t is None:
+        if len(_NUMBERS) >= 4096:
+            _NUMBERS.clear()
         with torch.inference_mode(False):  # an ordinary tensor, usable wherever autograd records
             t = _NUMBERS[key] = torch.tensor(value, dtype=like.dtype, device=like.device)
     return t
