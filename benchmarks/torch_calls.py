@@ -16,17 +16,18 @@ call (``aten::to``, ``_to_copy``, ``empty_strided``, ``copy_``).
 from __future__ import annotations
 
 import argparse
-import time
+import sys
 from collections import Counter
+from pathlib import Path
 
 import torch
 from torch.profiler import profile
 
 import volleybots
 
-
-def _csv(s: str) -> list[str]:
-    return [x.strip() for x in s.split(",") if x.strip()]
+sys.path.insert(0, str(Path(__file__).parent))
+from bench import _csv  # noqa: E402  (the other benchmarks' helpers)
+from profile_step import cpu_ms as cpu_ms_once  # noqa: E402
 
 
 def calls(fn, reps: int = 3) -> float:
@@ -38,15 +39,9 @@ def calls(fn, reps: int = 3) -> float:
 
 
 def cpu_ms(fn, reps: int, rounds: int = 5) -> float:
-    """CPU ms per ``fn()``: the fastest of ``rounds`` rounds of ``reps`` calls."""
-    fn()
-    best = float("inf")
-    for _ in range(rounds):
-        start = time.process_time()
-        for _ in range(reps):
-            fn()
-        best = min(best, (time.process_time() - start) / reps * 1e3)
-    return best
+    """CPU ms per ``fn()``: the fastest of ``rounds`` rounds of ``reps`` calls (a shared machine's
+    load only ever adds time)."""
+    return min(cpu_ms_once(fn, reps) for _ in range(rounds))
 
 
 def scalar_line() -> str:

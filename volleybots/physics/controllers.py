@@ -31,8 +31,6 @@ class RateController:
         # mixer signs: roll torque is raised by rotors at +y, pitch by rotors at -x,
         # yaw by rotors spinning with direction -1 (their reaction torque is +z)
         self.mix = torch.stack((torch.sign(rp[:, 1]) * 0.5, -torch.sign(rp[:, 0]) * 0.5, -dirs), -1)  # [4, 3]
-        # the numbers of every tick as 0-d tensors (physics.math.num: plain numbers cost extra torch calls)
-        self._rad2deg, self._dt, self._pwm = (torch.tensor(v, **kw) for v in (180.0 / math.pi, dt, PWM))
         self.integral = torch.zeros(num_envs, n_drones, 3, **kw)
         self.prev_err = torch.zeros(num_envs, n_drones, 3, **kw)
 
@@ -54,12 +52,13 @@ class RateController:
 
     def __call__(self, omega_body: torch.Tensor, rate_target_deg: torch.Tensor, thrust_frac: torch.Tensor) -> torch.Tensor:
         """One controller tick. Returns per-rotor commands in [-1, 1] whose steady thrust is the mix."""
-        rate = omega_body * self._rad2deg
+        dt = num(self.dt, omega_body)  # numbers as 0-d tensors: see physics.math.num
+        rate = omega_body * num(180.0 / math.pi, omega_body)
         err = rate_target_deg - rate
-        self.integral = torch.maximum(torch.minimum(self.integral + err * self._dt, self.i_limit), -self.i_limit)
-        deriv = (err - self.prev_err) / self._dt
+        self.integral = torch.maximum(torch.minimum(self.integral + err * dt, self.i_limit), -self.i_limit)
+        deriv = (err - self.prev_err) / dt
         self.prev_err = err
         out = self.kp * err + self.ki * self.integral + self.kd * deriv  # PWM units
-        frac = thrust_frac.unsqueeze(-1) + (out @ self.mix.T) / self._pwm
+        frac = thrust_frac.unsqueeze(-1) + (out @ self.mix.T) / num(PWM, out)
         one = num(1.0, frac)
         return frac.clamp(num(0.0, frac), one) * num(2.0, frac) - one
