@@ -25,11 +25,10 @@ from __future__ import annotations
 
 import math
 
+# scipy's submodules load on first use: every training process imports this module (its games keep
+# records), and scipy.stats alone takes about 1.6 s to import, paid only by those that rate
 import numpy as np
-from scipy.optimize import brentq, minimize
-from scipy.sparse.csgraph import connected_components
-from scipy.special import expit, log_expit
-from scipy.stats import chi2
+import scipy
 
 from volleybots.ratings.record import points
 
@@ -52,17 +51,17 @@ class _Objective:
         # the likelihood fixes strengths only up to a shift per connected group of competitors; the
         # projector onto each group's constant vector completes the Fisher information to full rank
         # without changing its determinant on what the data identify
-        _, group = connected_components(self.games > 0, directed=False)
+        _, group = scipy.sparse.csgraph.connected_components(self.games > 0, directed=False)
         same = group[:, None] == group[None, :]
         self.proj = same / same.sum(1, keepdims=True)
 
     def __call__(self, s: np.ndarray) -> tuple[float, np.ndarray]:
         x = s[:, None] - s[None, :]  # x[i, j] = s_i - s_j
-        loss = -np.sum(self.wins * log_expit(x)) + 0.5 * np.sum(s * s) / self.prior_var
-        g = self.wins * expit(-x)  # d(-log P(i beats j)) / d s_j, and minus that for s_i
+        loss = -np.sum(self.wins * scipy.special.log_expit(x)) + 0.5 * np.sum(s * s) / self.prior_var
+        g = self.wins * scipy.special.expit(-x)  # d(-log P(i beats j)) / d s_j, and minus that for s_i
         grad = g.sum(0) - g.sum(1) + s / self.prior_var
         if self.firth:
-            pq = np.exp(log_expit(x) + log_expit(-x))
+            pq = np.exp(scipy.special.log_expit(x) + scipy.special.log_expit(-x))
             w = np.maximum(self.games * pq, 1e-300 * (self.games > 0))  # underflow would make the information singular
             info = np.diag(w.sum(1)) - w + self.proj
             _, logdet = np.linalg.slogdet(info)
@@ -76,7 +75,7 @@ class _Objective:
 
 
 def _minimise(f, x0: np.ndarray) -> tuple[np.ndarray, float]:
-    res = minimize(f, x0, jac=True, method="BFGS", options={"maxiter": 2000, "gtol": 1e-9})
+    res = scipy.optimize.minimize(f, x0, jac=True, method="BFGS", options={"maxiter": 2000, "gtol": 1e-9})
     return res.x, float(res.fun)
 
 
@@ -110,7 +109,7 @@ def draw_dispersion(wdl, s) -> float:
     wdl = np.asarray(wdl, float)
     iu = np.triu_indices(wdl.shape[0], 1)
     x = (s[:, None] - s[None, :])[iu]
-    pq = np.exp(log_expit(x) + log_expit(-x))
+    pq = np.exp(scipy.special.log_expit(x) + scipy.special.log_expit(-x))
     binomial = float(np.sum(wdl[iu].sum(-1) * pq))
     draws = float(np.sum(wdl[iu][:, 1]))
     if draws == 0 or binomial <= 0:
@@ -132,7 +131,7 @@ def bradley_terry_intervals(wdl, confidence: float = 0.95, prior_sd: float = PRI
     theta = s_hat - s_hat.mean()
     lo, hi = theta.copy(), theta.copy()
     if n > 1:
-        limit = chi2.ppf(confidence, 1) / 2.0 * draw_dispersion(wdl, s_hat)
+        limit = scipy.stats.chi2.ppf(confidence, 1) / 2.0 * draw_dispersion(wdl, s_hat)
         for i in range(n):
             rest = np.arange(n) != i
             warm = [s_hat[rest]]
@@ -159,5 +158,5 @@ def bradley_terry_intervals(wdl, confidence: float = 0.95, prior_sd: float = PRI
                 if step > _MAX_LOGITS:
                     out[i] = theta[i] + sign * _MAX_LOGITS
                 else:
-                    out[i] = brentq(drop, *sorted((inside, theta[i] + sign * step)), xtol=1e-6)
+                    out[i] = scipy.optimize.brentq(drop, *sorted((inside, theta[i] + sign * step)), xtol=1e-6)
     return 1000.0 + ELO_SCALE * theta, 1000.0 + ELO_SCALE * lo, 1000.0 + ELO_SCALE * hi

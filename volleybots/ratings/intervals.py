@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.stats import binomtest
+import scipy  # scipy.stats loads on first use (about 1.6 s; bradley_terry.py says why that matters)
 
 from volleybots.errors import ConfigError
 
@@ -51,7 +51,7 @@ def wilson_interval(wins, games, confidence: float = 0.95):
     for idx in np.ndindex(wins_a.shape):
         n, k = int(games_a[idx]), int(wins_a[idx])
         if n > 0:
-            ci = binomtest(k, n).proportion_ci(confidence, method="wilson")
+            ci = scipy.stats.binomtest(k, n).proportion_ci(confidence, method="wilson")
             lo[idx], hi[idx] = ci.low, ci.high
     if lo.ndim == 0:
         return float(lo), float(hi)
