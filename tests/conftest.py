@@ -201,7 +201,7 @@ def rollout_first_episodes(env, policy, steps: int):
 
 
 @functools.cache  # several tests read the same episodes (nothing mutates them)
-def first_episodes(task, n=32, seed=2, action_space="prt", steps=SCRIPTED_STEPS):
+def first_episodes(task, n=16, seed=2, action_space="prt", steps=SCRIPTED_STEPS):
     """The stats of each env's first episode under the task's scripted policy, the rollout, and the
     mask [N, T] of each env's first done step."""
     import volleybots
