@@ -27,7 +27,7 @@ from __future__ import annotations
 from typing import Callable
 
 import numpy as np
-from scipy.optimize import linprog, minimize
+import scipy  # scipy.optimize loads on first use (volleybots.ratings.bradley_terry says why)
 
 ALPHARANK_ALPHA = 10.0  # selection intensity: large alpha ranks by who beats whom, not by how much
 ALPHARANK_POP = 50  # the population size m of alpha-rank's Moran process
@@ -66,7 +66,7 @@ def nash_with_value(payoffs) -> tuple[np.ndarray, float]:
     a_ub = np.hstack((-a.T, np.ones((n, 1))))  # v - (x^T A)_j <= 0
     a_eq = np.hstack((np.ones((1, n)), np.zeros((1, 1))))
     bounds = [(0.0, None)] * n + [(None, None)]
-    res = linprog(c, A_ub=a_ub, b_ub=np.zeros(n), A_eq=a_eq, b_eq=[1.0], bounds=bounds, method="highs")
+    res = scipy.optimize.linprog(c, A_ub=a_ub, b_ub=np.zeros(n), A_eq=a_eq, b_eq=[1.0], bounds=bounds, method="highs")
     if res.status != 0:
         raise RuntimeError(f"the Nash linear program failed: {res.message}")
     x = np.clip(res.x[:n], 0.0, None)
@@ -100,7 +100,7 @@ def max_entropy(a: np.ndarray, value: float, start: np.ndarray) -> np.ndarray:
     # the entropy's gradient is finite at the start
     uniform_ok = (a.T @ np.full(n, 1.0 / n)).min() >= value - NASH_TOL
     x0 = 0.5 * start + 0.5 / n if uniform_ok else start
-    res = minimize(neg_entropy, x0, jac=grad, bounds=[(0.0, 1.0)] * n, constraints=cons, method="SLSQP",
+    res = scipy.optimize.minimize(neg_entropy, x0, jac=grad, bounds=[(0.0, 1.0)] * n, constraints=cons, method="SLSQP",
                    options={"maxiter": 500, "ftol": 1e-12})
     x = np.where(res.x < NASH_ZERO, 0.0, res.x) if res.success else start
     if x.sum() <= 0 or (a.T @ (x / x.sum())).min() < value - 1e-6:
