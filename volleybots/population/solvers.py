@@ -101,7 +101,7 @@ def max_entropy(a: np.ndarray, value: float, start: np.ndarray) -> np.ndarray:
     uniform_ok = (a.T @ np.full(n, 1.0 / n)).min() >= value - NASH_TOL
     x0 = 0.5 * start + 0.5 / n if uniform_ok else start
     res = scipy.optimize.minimize(neg_entropy, x0, jac=grad, bounds=[(0.0, 1.0)] * n, constraints=cons, method="SLSQP",
-                   options={"maxiter": 500, "ftol": 1e-12})
+                                  options={"maxiter": 500, "ftol": 1e-12})
     x = np.where(res.x < NASH_ZERO, 0.0, res.x) if res.success else start
     if x.sum() <= 0 or (a.T @ (x / x.sum())).min() < value - 1e-6:
         return start
