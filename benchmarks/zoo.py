@@ -28,7 +28,7 @@ from volleybots.config import make_env, to_dict
 from volleybots.eval.crossplay import crossplay, match_config, resolve_all
 from volleybots.policies.store import load_learner, saved_config
 from volleybots.runs import RunDir, is_population_run, read_checkpoint, read_population, run_policy_checkpoint
-from volleybots.zoo import PREFIX, ZOO_DIR
+from volleybots.zoo import PREFIX, ZOO_DIR, lookup
 
 NOTE = "both sides equally; the seed was never used to choose a setting"
 
@@ -113,6 +113,18 @@ def figures(name: str, method: str, games: int, seed: int) -> dict:
     return out
 
 
+def start_fields(init: str | None, frames: int) -> dict:
+    """The card's record of what the run started from (its config's ``init=``): the start, and for a zoo
+    start the frames of both together (a zoo entry's card knows its own)."""
+    if not init:
+        return {}
+    start = lookup(init)
+    out = {"init": init}
+    if start is not None and isinstance(start.card.get("frames"), int):
+        out["frames_with_start"] = frames + start.card["frames"]
+    return out
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("run", type=Path)
@@ -122,7 +134,8 @@ def main(argv=None) -> int:
     p.add_argument("--command", default="", help="the command that trained the run, for the card")
     a = p.parse_args(argv)
     run = RunDir(a.run)
-    task = run.load_config().task.name
+    cfg = run.load_config()
+    task = cfg.task.name
     task_dir = ZOO_DIR / task
     fields = entry(run, task_dir, a.method)
     summary = json.loads(run.summary_path.read_text()) if run.summary_path.is_file() else {}
@@ -133,6 +146,7 @@ def main(argv=None) -> int:
         "algo": fields["algo"],
         "command": a.command or f"volleybots train task={task} algo={fields['algo']} seed={fields['seed']}",
         "frames": fields["frames"],
+        **start_fields(cfg.get("init"), fields["frames"]),
         "seed": fields["seed"],
         "wall_time_s": round(float(summary.get("wall_time_s", fields["wall_time"])), 1),
         **{k: fields[k] for k in ("iteration", "members", "mixture") if k in fields},

@@ -23,6 +23,13 @@ def test_the_zoo_ships_entries_with_cards():
             assert key in e.card, f"{name}'s card lacks {key!r}"
         for f in e.members:
             assert f.stat().st_size < 2_000_000, f"{name}'s {f.name} is {f.stat().st_size} bytes: not weights only"
+    # an entry trained on from another (init=zoo:...) records its start, and the frames of both together
+    started = {name: e for name, e in entries().items() if str(e.card["config"].get("init") or "").startswith(PREFIX)}
+    assert started, "no shipped entry continues another (zoo:1v1/sp_noanchor does)"
+    for name, e in started.items():
+        start = entries()[e.card["init"][len(PREFIX):]]
+        assert e.card["init"] == e.card["config"]["init"], name
+        assert e.card["frames_with_start"] == e.card["frames"] + start.card["frames"], name
 
 
 @pytest.mark.parametrize("name", ZOO)
