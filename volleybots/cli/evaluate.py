@@ -132,13 +132,14 @@ def crossplay_cmd(
 def exploitability_cmd(
     args: Optional[List[str]] = typer.Argument(
         None,
-        help="TARGET (a competitor), then budget=1000000 games=1000 seed=0 scenario=any|serve|receive init=RUN num_envs=N "
+        help="TARGET (a competitor), then budget=1000000 games=1000 seed=0 scenario=any|serve|receive|split init=RUN num_envs=N "
         "batch=256 task=1v1 env.action_space=prt, and algo.KEY=VALUE for the best response's MAPPO (with init=, "
         "a critic warm-up of algo.actor_freeze_updates=10 batches unless given).",
     ),
     as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of a line."),
     out: Optional[Path] = typer.Option(
-        None, "--out", help="Folder for the best response's run dir (br/) and exploitability.json (new or empty)."
+        None, "--out", help="Folder for the best response's run dir (br/; br_serve/ and br_receive/ with scenario=split) and "
+        "exploitability.json (new or empty)."
     ),
 ) -> None:
     """Train a best response with (MA)PPO against TARGET for a budget of frames, play it: 100 x (BR win rate - 0.5)."""
