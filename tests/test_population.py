@@ -135,6 +135,24 @@ def test_fsp_learner_starts_from_the_previous_one(tmp_path, monkeypatch):
     assert (w2 - w1).abs().mean() < 0.1 * w1.abs().mean()
 
 
+
+def test_a_learner_that_starts_from_a_clone_member_keeps_its_own_optimiser(tmp_path):
+    """learner_init=last with a clone as the newest member: the learner takes the clone's networks, not
+    its optimiser. Loading the clone's whole state once set the actor's learning rate to the clone's
+    1e-3 (PPO's is 5e-4), and a 1v1 oracle's first free update then moved its policy by a KL of 106
+    against 0.1 from init= (seed 3): it lost every game from there on."""
+    from volleybots import zoo
+
+    cfg = tiny("psro_nash", "algo.hidden=[256,128,128]", "algo.seed_members=[zoo:1v1/bc]", "algo.learner_init=last",
+               "algo.iterations=1", "algo.min_updates=2", "algo.max_updates=2", "total_frames=100000")
+    start(cfg, tmp_path / "p")
+    member = torch.load(tmp_path / "p" / "population" / "member_001.pt", weights_only=True)["algo"]
+    assert [g["lr"] for g in member["optim"]["param_groups"]] == [cfg.algo.actor_lr, cfg.algo.critic_lr] == [5e-4, 5e-4]
+    clone = torch.load(zoo.lookup("zoo:1v1/bc").members[0], weights_only=True)["algo"]["actor"]
+    w1, w2 = (next(v for k, v in a.items() if k.endswith("0.weight")) for a in (clone, member["actor"]))
+    assert (w2 - w1).abs().mean() < 0.1 * w1.abs().mean()  # two updates from the clone, not a fresh init
+
+
 def test_sp_run_is_one_member_with_full_weight(tmp_path):
     cfg = tiny("sp", "total_frames=1024")
     summary = start(cfg, tmp_path / "sp")

@@ -334,12 +334,18 @@ class PPO(Algorithm):
         actor = nn.ModuleDict({"actor": self.actor, **({"obs_norm": self.obs_norm} if self.obs_norm is not None else {})})
         return {"actor": actor, "critic": self.critic}
 
-    def load_state_dict(self, state: dict) -> None:
-        self.updates = int(state.get("updates", 0))
+    def load_networks(self, state: dict) -> None:
+        """The actor, critic and observation statistics of ``state`` (a PPO-family learner's or a
+        clone's), leaving this learner's optimiser, counters and random stream its own: another
+        run's optimiser would bring its learning rates (a clone's actor learns at 1e-3, PPO's at 5e-4)."""
         self.actor.load_state_dict(state["actor"])
         self.critic.load_state_dict(state["critic"])
         if self.obs_norm is not None:
             self.obs_norm.load_state_dict(state["obs_norm"])
+
+    def load_state_dict(self, state: dict) -> None:
+        self.updates = int(state.get("updates", 0))
+        self.load_networks(state)
         self.optim.load_state_dict(state["optim"])
         self.gen.set_state(state["gen"])
         if "anchor" in state:  # a resumed run keeps the anchor it started from, not the actor it resumes with

@@ -276,8 +276,8 @@ class PopulationLoop:
         else:
             tr.start_at(frames, updates, wall)
             learned = [p for p in population_members(self.run.path)[: k] if "algo" in read_checkpoint(p)]
-            if m.learner_init == "last" and learned:
-                tr.algo.load_state_dict(read_checkpoint(learned[-1], device=tr.env.device)["algo"])
+            if m.learner_init == "last" and learned:  # its networks only: the optimiser and counters stay the learner's
+                tr.algo.load_networks(read_checkpoint(learned[-1], device=tr.env.device)["algo"])
         tr.train_loop(stop=stop, row_extra={"pop_iteration": i}, note=self._note(i, stop))
         state = tr.state()
         label = "sp" if m.self_play else f"br{i}"
