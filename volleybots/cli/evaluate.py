@@ -153,7 +153,8 @@ def exploitability_cmd(
         typer.echo(json.dumps(report, indent=1, default=float))
         return
     typer.echo(format_line(report))
-    typer.echo(f"wrote {path / RESULTS} and the best response's run {path / 'br'}")
+    runs = report["br_run"] if isinstance(report["br_run"], list) else [report["br_run"]]
+    typer.echo(f"wrote {path / RESULTS} and the best response's run{'s' if len(runs) > 1 else ''} {' and '.join(runs)}")
 
 
 @eval_app.command("elo", context_settings=_PASS_THROUGH)
