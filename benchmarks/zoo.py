@@ -98,7 +98,14 @@ def entry(run: RunDir, task_dir: Path, method: str) -> dict:
         return single_entry(run_policy_checkpoint(run.path, what), task_dir, method)
     pop = read_population(run.path, what)
     playing = [p for p, w in zip(pop.members, pop.mixture, strict=True) if w > 0]
-    return mixture_entry(run, pop, task_dir, method) if len(playing) > 1 else single_entry(playing[0], task_dir, method)
+    if len(playing) > 1:
+        return mixture_entry(run, pop, task_dir, method)
+    # one member plays: its file ships alone, but the card is the run's (a member's config is its
+    # iteration's: seed + iteration x 1000, the oracle's own budget and time limit)
+    cfg = run.load_config()
+    label = pop.labels[pop.members.index(playing[0])]
+    return {**single_entry(playing[0], task_dir, method), "algo": cfg.algo.name, "seed": int(cfg.seed), "config": to_dict(cfg),
+            "iteration": pop.iteration, "member": label}
 
 
 def figures(name: str, method: str, games: int, seed: int) -> dict:
@@ -149,7 +156,7 @@ def main(argv=None) -> int:
         **start_fields(cfg.get("init"), fields["frames"]),
         "seed": fields["seed"],
         "wall_time_s": round(float(summary.get("wall_time_s", fields["wall_time"])), 1),
-        **{k: fields[k] for k in ("iteration", "members", "mixture") if k in fields},
+        **{k: fields[k] for k in ("iteration", "member", "members", "mixture") if k in fields},
         "evaluation": {"games_per_pair": a.games, "seed": a.seed, "note": NOTE},
     }
     card = task_dir / f"{a.method}.yaml"
