@@ -54,8 +54,8 @@ class Spec:
         return Path(self.target)
 
 
-# labels that are the verbs' own --options: NAME=TARGET with one of them is most likely a mistyped option
-OPTION_LIKE = ("out", "json", "still")
+# labels that are the verbs' own valued --options: NAME=TARGET with one of them is most likely a mistyped option
+OPTION_LIKE = ("out",)
 
 
 def parse_spec(spec: str, builtins=("scripted", "random", "hierarchical"), what: str = "competitor") -> Spec:
