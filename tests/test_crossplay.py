@@ -187,7 +187,7 @@ def _bad_cases(tmp, ckpt):
         (["eval", "crossplay", "scripted", str(tmp / "nowhere"), "task=1v1"], ["nowhere", "does not exist"]),
         (["eval", "crossplay", "scripted", "task=1v1"], ["at least 2 competitors", "got 1"]),
         # out=DIR reads as a competitor labelled 'out': the line says so and names the option
-        (["eval", "crossplay", "scripted", "random", "task=1v1", f"out={tmp / 'cp'}"], ["cp' does not exist", "named 'out'", "--out"]),
+        (["eval", "crossplay", "scripted", "random", "task=1v1", f"out={tmp / 'cp'}"], ["cp' does not exist", "named 'out'", "--out DIR"]),
         (["eval", "crossplay", "scripted", "random", "task=1v1", "games=0"], ["games=0", "even"]),
         (["eval", "crossplay", "scripted", "random", "task=1v1", "games=7"], ["games=7", "even"]),
         (["eval", "crossplay", "scripted", "random", "task=1v1", "games=many"], ["games='many'", "integer"]),

@@ -153,7 +153,7 @@ def exploitability_cmd(
         typer.echo(json.dumps(report, indent=1, default=float))
         return
     typer.echo(format_line(report))
-    runs = report["br_run"] if isinstance(report["br_run"], list) else [report["br_run"]]
+    runs = [p["br_run"] for p in (report.get("parts") or {"": report}).values()]
     typer.echo(f"wrote {path / RESULTS} and the best response's run{'s' if len(runs) > 1 else ''} {' and '.join(runs)}")
 
 

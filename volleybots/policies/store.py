@@ -54,10 +54,6 @@ class Spec:
         return Path(self.target)
 
 
-# labels that are the verbs' own valued --options: NAME=TARGET with one of them is most likely a mistyped option
-OPTION_LIKE = ("out",)
-
-
 def parse_spec(spec: str, builtins=("scripted", "random", "hierarchical"), what: str = "competitor") -> Spec:
     """Split ``[NAME=]TARGET`` and say what TARGET is; a missing file is one ``ConfigError`` line."""
     label, eq, target = str(spec).partition("=")
@@ -80,8 +76,8 @@ def parse_spec(spec: str, builtins=("scripted", "random", "hierarchical"), what:
     if not exists(path):
         # a very long name is cut in the middle: its end (the file's own name) is what tells it apart
         shown = target if len(target) <= 160 else f"{target[:40]}...{target[-117:]}"
-        # NAME=TARGET labels a competitor, so a mistyped option (out=DIR for --out DIR) lands here
-        named = f" (named {label!r} by {label}=...; options are written --{label} VALUE)" if label in OPTION_LIKE else ""
+        # NAME=TARGET labels a competitor, so the verbs' option --out DIR mistyped as out=DIR lands here
+        named = " (read as a competitor named 'out'; the output folder is --out DIR)" if label == "out" else ""
         raise ConfigError(f"{what} {shown!r} does not exist{named}; expected {allowed}")
     if path.is_file():
         return Spec(label, "drills" if path.suffix in (".yaml", ".yml") else "checkpoint", target)
