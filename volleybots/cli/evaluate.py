@@ -132,8 +132,8 @@ def crossplay_cmd(
 def exploitability_cmd(
     args: Optional[List[str]] = typer.Argument(
         None,
-        help="TARGET (a competitor), then budget=1000000 games=1000 seed=0 scenario=any|serve|receive|split init=RUN num_envs=N "
-        "batch=256 task=1v1 env.action_space=prt, and algo.KEY=VALUE for the best response's MAPPO (with init=, "
+        help="TARGET (a competitor), then budget=1000000 games=1000 seed=0 scenario=any|serve|receive|split until=converged|budget "
+        "init=RUN num_envs=N batch=256 task=1v1 env.action_space=prt, and algo.KEY=VALUE for the best response's MAPPO (with init=, "
         "a critic warm-up of algo.actor_freeze_updates=10 batches unless given).",
     ),
     as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of a line."),
