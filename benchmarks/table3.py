@@ -8,9 +8,12 @@ exploitability within that population, plus the heatmap and the ratings plot.
 Cross-play plays ``--games`` per pair (both sides equally), Elo runs ``--rounds`` rounds sampled from
 the cross-play counts with ``--k`` (the paper: 2000 rounds, K = 168 for 4 policies). The paper's
 exploitability column trains a best response against each competitor (``volleybots eval
-exploitability``) for ``--br-budget`` frames and plays ``--br-games`` games (0: the column reads "n/a");
-the within-population exploitability stands beside it. Writes ``table3.json``, ``table3.md``, ``table3_crossplay.png`` and
-``table3_ratings.png`` into ``--out`` (default docs/), each naming games, rounds, seed and competitors.
+exploitability``) for ``--br-budget`` frames and plays ``--br-games`` games (0: the column reads "n/a"),
+from ``--br-init`` if given, stopping at the convergence criterion or, with ``--br-until budget``, training
+the whole budget (equal budgets for every competitor, as the paper compares them); a figure whose BR did
+not meet the criterion is marked as a lower bound. The within-population exploitability stands beside it.
+Writes ``table3.json``, ``table3.md``, ``table3_crossplay.png`` and ``table3_ratings.png`` into ``--out``
+(default docs/), each naming games, rounds, seed and competitors.
 """
 
 from __future__ import annotations
@@ -38,6 +41,9 @@ def main(argv=None) -> int:
     p.add_argument("--br-budget", type=int, default=0, help="frames of best-response training per competitor (0: no BR column)")
     p.add_argument("--br-games", type=int, default=400, help="games of each best response against its target")
     p.add_argument("--br-envs", type=int, default=128, help="envs of best-response training")
+    p.add_argument("--br-init", default=None, help="policy every best response starts from (init=, e.g. zoo:1v1/bc)")
+    p.add_argument("--br-until", default="converged", choices=("converged", "budget"),
+                   help="stop each best response at the criterion, or train its whole budget")
     p.add_argument("--br-root", type=Path, default=ROOT / "outputs" / "table3_br", help="where the best responses' run dirs go")
     a = p.parse_args(argv)
 
@@ -73,11 +79,15 @@ def best_response(spec: str, a) -> dict:
         f"games={a.br_games}",
         f"num_envs={a.br_envs}",
         f"seed={a.seed}",
+        f"until={a.br_until}",
         "progress=false",
     ]
+    if a.br_init:
+        args.append(f"init={a.br_init}")
     report, _ = run_exploitability(args, out)
     print(f"  exploitability of {label}: {report['exploitability']:.1f} {report['exploitability_interval']}", flush=True)
-    return {k: report[k] for k in ("exploitability", "exploitability_interval", "br_run", "budget_frames", "games", "wdl")}
+    keys = ("exploitability", "exploitability_interval", "converged", "lower_bound", "br_run", "budget_frames", "br_frames", "games", "wdl")
+    return {k: report[k] for k in keys}
 
 
 def table(rep: dict, res, a, wall: float) -> str:
@@ -87,7 +97,8 @@ def table(rep: dict, res, a, wall: float) -> str:
         "",
         f"Task {a.task}: {a.games} games per pair (both sides equally), cross-play seed {a.seed}; Elo K={a.k:g} over "
         f"{a.rounds} rounds sampled from the counts; BT with 95 % profile-likelihood intervals; {wall:.0f} s of games; "
-        + (f"best responses: {a.br_budget:,} frames, {a.br_games} games each." if a.br_budget else "no best responses."),
+        + (f"best responses: {a.br_budget:,} frames ({'the whole budget' if a.br_until == 'budget' else 'or until converged'}"
+           f"{f', from {a.br_init}' if a.br_init else ''}), {a.br_games} games each." if a.br_budget else "no best responses."),
         "",
         "| competitor | exploitability (BR) | exploitability in population (pp) | avg win rate | Elo | Bradley-Terry "
         "[95 %] | Nash weight |",
@@ -107,7 +118,8 @@ def _br(r) -> str:
     if r is None:
         return "n/a"
     lo, hi = r["exploitability_interval"]
-    return f"{r['exploitability']:.1f} [{lo:.1f}, {hi:.1f}]"
+    bound = " (lower bound: the BR did not converge)" if r.get("lower_bound") else ""
+    return f"{r['exploitability']:.1f} [{lo:.1f}, {hi:.1f}]{bound}"
 
 
 if __name__ == "__main__":
