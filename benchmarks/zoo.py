@@ -80,7 +80,9 @@ def mixture_entry(run: RunDir, pop, task_dir: Path, method: str) -> dict:
             # a label that is no plain file name, or one two members share, names the file by its index
             plain = re.fullmatch(r"[A-Za-z0-9_.-]+", label) and pop.labels.count(label) == 1
             file = f"{method}/{label if plain else f'member_{k:03d}'}.pt"
-            save(slim_checkpoint(path), task_dir / file)
+            # the population's label, which the card lists: a seed member copied from a checkpoint
+            # (seed_members=[zoo:1v1/bc]) carries none of its own
+            save({**slim_checkpoint(path), "label": label}, task_dir / file)
             mixture.append({"file": file, "weight": float(weight)})
     cfg = run.load_config()
     last = pop.metas[-1]
