@@ -61,13 +61,16 @@ SPLIT = ("clone", "oracle_training", "payoff_games", "evaluations")  # the parts
 @dataclass
 class Convergence:
     """The oracle's stopping rule: the win rate over the last ``window`` batches has mean >= ``mean``
-    and std <= ``std`` after ``min_updates`` updates, or ``max_updates`` updates are done."""
+    and std <= ``std`` after ``min_updates`` updates, or ``max_updates`` updates are done. With
+    ``early=False`` the criterion never stops the run (a best response of a fixed budget); it is still
+    judged on the last window."""
 
     min_updates: int
     max_updates: int
     window: int
     mean: float
     std: float
+    early: bool = True
     updates: int = 0
     win_rates: list[float] = field(default_factory=list)
 
@@ -76,7 +79,7 @@ class Convergence:
         w = row.get("win", math.nan)
         if w is not None and not math.isnan(w):
             self.win_rates.append(float(w))
-        return self.updates >= self.max_updates or (self.updates >= self.min_updates and self.converged)
+        return self.updates >= self.max_updates or (self.early and self.updates >= self.min_updates and self.converged)
 
     @property
     def recent(self) -> np.ndarray:
@@ -94,7 +97,7 @@ class Convergence:
         total_frames or time_limit ran out first)."""
         r = self.recent
         win = float(r.mean()) if len(r) else None
-        stopped = "converged" if self.converged else "max_updates" if self.updates >= self.max_updates else "budget"
+        stopped = "converged" if self.early and self.converged else "max_updates" if self.updates >= self.max_updates else "budget"
         return {
             "updates": self.updates,
             "converged": bool(self.converged),
