@@ -29,6 +29,8 @@ sys.path.insert(0, str(ROOT))
 
 
 def main(argv=None) -> int:
+    from volleybots.eval.exploitability import UNTIL  # the stopping rules eval exploitability knows
+
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("competitors", nargs="+", help="run dirs, checkpoints, scripted, random; name=PATH labels one")
     p.add_argument("--task", default="1v1")
@@ -42,7 +44,7 @@ def main(argv=None) -> int:
     p.add_argument("--br-games", type=int, default=400, help="games of each best response against its target")
     p.add_argument("--br-envs", type=int, default=128, help="envs of best-response training")
     p.add_argument("--br-init", default=None, help="policy every best response starts from (init=, e.g. zoo:1v1/bc)")
-    p.add_argument("--br-until", default="converged", choices=("converged", "budget"),
+    p.add_argument("--br-until", default=UNTIL[0], choices=UNTIL,
                    help="stop each best response at the criterion, or train its whole budget")
     p.add_argument("--br-root", type=Path, default=ROOT / "outputs" / "table3_br", help="where the best responses' run dirs go")
     a = p.parse_args(argv)
