@@ -62,11 +62,16 @@ class _Match(MultiDroneTask):
     competitive = True
     default_algo = "sp"
     extra_stats = ("loss", "draw", "winner", "reason", "hits_team0", "hits_team1", "serve_team")
+    default_hit_reward: float = 10.0  # the paper's success_hit per legal touch (1 vs 1: 5)
 
-    def __init__(self, *args, serve: int | None = None, **kw):
+    def __init__(self, *args, serve: int | None = None, hit_reward: float | None = None, **kw):
+        """``hit_reward``: the shaping reward of a legal touch (None: the paper's, ``default_hit_reward``).
+        A win is worth 100, so at the paper's 5 a 1 vs 1 self-play learner is paid for a serve that ends
+        the point, not for keeping a rally going (docs/evaluation.md); a larger value pays returns."""
         if serve not in (None, 0, 1):
             raise ValueError(f"serve must be None (random), 0 or 1; got {serve!r}")
         self.fixed_serve = serve
+        self.hit_reward = self.default_hit_reward if hit_reward is None else float(hit_reward)
         super().__init__(*args, **kw)
         n, a = self.num_envs, self.n_drones
         dev = self.device
@@ -193,6 +198,7 @@ class OneVsOne(_Match):
     turn_mode = "alternate"  # strict alternation of hits
     out_at_any_height = True
     episode_len = 800
+    default_hit_reward = 5.0
     # anchor: drone minus anchor; ball: drone minus ball; other: other drone minus self; turn: (my turn, not); id within the team
     obs_parts = (("root", 23), ("anchor", 3), ("ball", 3), ("ball_vel", 3), ("other", 3), ("turn", 2), ("id", 2))
     reward_terms = ("win_or_lose", "drone_misbehave", "drone_out_of_court", "success_hit", "dist_to_ball")
@@ -223,7 +229,7 @@ class OneVsOne(_Match):
         horiz = (s.pos[..., :2] - s.ball_pos[:, None, :2]).norm(dim=-1)
         return {
             "drone_out_of_court": -0.2 * torch.sqrt(ex * ex + ey * ey),
-            "success_hit": 5.0 * self.legal_hits(ev).float(),
+            "success_hit": self.hit_reward * self.legal_hits(ev).float(),
             "dist_to_ball": turn.float() * 0.5 / (1.0 + horiz),
         }
 
@@ -263,7 +269,7 @@ class _TeamMatch(_Match):
         d_ball = (s.pos - s.ball_pos.unsqueeze(1)).norm(dim=-1)
         return {
             "drone_collision": collide.float() * MISBEHAVE,
-            "success_hit": 10.0 * team_hit[:, self.team_ids],
+            "success_hit": self.hit_reward * team_hit[:, self.team_ids],
             "dist_to_ball": self.referee.may_hit.float() * 0.5 / (1.0 + d_ball),
             "dist_to_anchor": 0.05 / (1.0 + self.anchor_distance()),
         }
