@@ -141,7 +141,11 @@ def main(argv=None) -> int:
     p.add_argument("--games", type=int, default=400)
     p.add_argument("--seed", type=int, default=9000)
     p.add_argument("--command", default="", help="the command that trained the run, for the card")
+    p.add_argument("--init", default="", help="the zoo name of the policy the run started from, when the run was "
+                   "trained from that policy's file before it shipped (its config names the file)")
     a = p.parse_args(argv)
+    if a.init and lookup(a.init) is None:
+        p.error(f"--init {a.init!r} is not a zoo entry")
     run = RunDir(a.run)
     cfg = run.load_config()
     task = cfg.task.name
@@ -155,12 +159,14 @@ def main(argv=None) -> int:
         "algo": fields["algo"],
         "command": a.command or f"volleybots train task={task} algo={fields['algo']} seed={fields['seed']}",
         "frames": fields["frames"],
-        **start_fields(cfg.get("init"), fields["frames"]),
+        **start_fields(a.init or cfg.get("init"), fields["frames"]),
         "seed": fields["seed"],
         "wall_time_s": round(float(summary.get("wall_time_s", fields["wall_time"])), 1),
         **{k: fields[k] for k in ("iteration", "member", "members", "mixture") if k in fields},
         "evaluation": {"games_per_pair": a.games, "seed": a.seed, "note": NOTE},
     }
+    if a.init:
+        fields["config"]["init"] = a.init
     card = task_dir / f"{a.method}.yaml"
     # the entry must be listed to be played by its name; until its figures are measured its card lacks them
     card.write_text(yaml.safe_dump({**head, "config": fields["config"]}, sort_keys=False))
