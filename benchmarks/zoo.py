@@ -151,6 +151,7 @@ def main(argv=None) -> int:
     task = cfg.task.name
     task_dir = ZOO_DIR / task
     fields = entry(run, task_dir, a.method)
+    init = fields["config"]["init"] = a.init or cfg.get("init")
     summary = json.loads(run.summary_path.read_text()) if run.summary_path.is_file() else {}
     name = f"{task}/{a.method}"
     head = {
@@ -159,14 +160,12 @@ def main(argv=None) -> int:
         "algo": fields["algo"],
         "command": a.command or f"volleybots train task={task} algo={fields['algo']} seed={fields['seed']}",
         "frames": fields["frames"],
-        **start_fields(a.init or cfg.get("init"), fields["frames"]),
+        **start_fields(init, fields["frames"]),
         "seed": fields["seed"],
         "wall_time_s": round(float(summary.get("wall_time_s", fields["wall_time"])), 1),
         **{k: fields[k] for k in ("iteration", "member", "members", "mixture") if k in fields},
         "evaluation": {"games_per_pair": a.games, "seed": a.seed, "note": NOTE},
     }
-    if a.init:
-        fields["config"]["init"] = a.init
     card = task_dir / f"{a.method}.yaml"
     # the entry must be listed to be played by its name; until its figures are measured its card lacks them
     card.write_text(yaml.safe_dump({**head, "config": fields["config"]}, sort_keys=False))
