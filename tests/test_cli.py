@@ -154,13 +154,14 @@ def test_eval_of_random_play(tmp_path):
 
 def test_eval_of_the_scripted_pair_on_a_multi_drone_task():
     # no algo named: the multi-drone task takes the multi-agent default, and a scripted policy needs none
-    # half an episode (400 of 800 steps): the pair still has to keep passing, about 7 hits at its full pace
-    res = runner.invoke(app, ["eval", "scripted", "task=bump_and_pass", "task.episode_len=400", "episodes=2", "--json"])
+    # a quarter of an episode (200 of 800 steps; each touch costs the pair a lookahead search): the pair
+    # still has to keep passing, 3 hits in each episode on seeds 0-2 (about 14 in a full episode)
+    res = runner.invoke(app, ["eval", "scripted", "task=bump_and_pass", "task.episode_len=200", "episodes=2", "--json"])
     assert res.exit_code == 0, res.output
     out = json.loads(res.stdout)
     assert out["task"] == "bump_and_pass" and out["config"]["algo"]["name"] == "mappo"
-    assert out["stats"]["hits"]["mean"] >= 5  # the pair keeps passing (about 14 hits in a full episode)
-    assert out["config"]["task"]["episode_len"] == 400
+    assert out["stats"]["hits"]["mean"] >= 3  # the opening bump, a pass and its answer
+    assert out["config"]["task"]["episode_len"] == 200
 
 
 def test_train_cfg_prints_the_config_without_training(tmp_path, monkeypatch):
