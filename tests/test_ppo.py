@@ -126,3 +126,25 @@ def test_ppo_improves_hover(tmp_path):
 
     rand = evaluate("random", ["task=hover", "episodes=16", "threads=1"])["stats"]["return"]["mean"]
     assert final > 5 * max(rand, 1.0), (final, rand)
+
+
+
+@pytest.mark.parametrize("name", ["mappo", "happo"])
+def test_target_kl_stops_an_update_once_the_actor_has_moved(name):
+    """``algo.target_kl``: an update ends before the first minibatch (from the second on) on which the
+    actor is already more than 1.5 x target_kl from the policy that collected the batch, by TorchRL's
+    approximate KL (the mean log-probability drop, which can be negative). With a target that any move
+    exceeds, fewer than the 2 x 4 steps are taken; with one no step can reach, all; without one, none is logged."""
+    over = ("task=bump_and_pass", f"algo={name}", "env.num_envs=8", "algo.steps_per_batch=16", "algo.minibatches=4", "algo.epochs=2")
+    *_, logs = _learns_one_batch(*over, "algo.target_kl=1e-12")
+    assert 1 / 8 <= logs["kl_steps"] < 1 and logs["kl_last"] > 1.5e-12  # what stopped it is logged
+    *_, logs = _learns_one_batch(*over, "algo.target_kl=1e9")
+    assert logs["kl_steps"] == 1.0
+    *_, logs = _learns_one_batch(*over)
+    assert "kl_steps" not in logs
+    # the rule itself: 1.5 x the target, never while the actor is frozen, never without a target
+    _, _, algo = _setup(*over, "algo.target_kl=0.02")
+    assert algo.kl_stop({"kl_approx": torch.tensor(0.031)}) and not algo.kl_stop({"kl_approx": torch.tensor(0.029)})
+    assert not algo.kl_stop({"kl_approx": torch.tensor(0.031)}, frozen=True)
+    _, _, algo = _setup(*over)
+    assert not algo.kl_stop({"kl_approx": torch.tensor(1e9)})

@@ -95,11 +95,17 @@ class HAPPO(MAPPO):
         """``epochs`` x ``minibatches`` clipped-surrogate steps of drone ``a``'s actor on ``td``."""
         params = list(self.actor.actors[a].parameters())
         sums: dict[str, float] = {}
+        steps, planned = 0, self.cfg.epochs * self.cfg.minibatches
         for idx in self.minibatches(td.numel()):
             out = self.agent_losses[a](td[idx])
+            if steps and self.kl_stop(out):  # this drone's actor stops; the next drone's is weighted by where it stopped
+                break
             (grad_norm,) = self.step(out["loss_objective"] + out["loss_entropy"], [params])
             add_logs(sums, {**{k: out[k] for k in ACTOR_LOGS}, "grad_norm_actor": grad_norm})
-        return sums
+            steps += 1
+        # update() divides every sum by the planned count: scaled so, these stay means over the steps taken,
+        # and kl_steps becomes the share taken (averaged over the drones)
+        return {**{k: v * planned / steps for k, v in sums.items()}, **{k: v * planned for k, v in self.kl_logs(steps, out).items()}}
 
     def ratio(self, a: int, td: TensorDictBase) -> torch.Tensor:
         """pi_new / pi_old of drone ``a``'s actions [B]."""

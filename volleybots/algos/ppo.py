@@ -64,6 +64,7 @@ class PPOConfig(PPONetConfig):
     actor_freeze_updates: int = ranged(0, ge=0)
     anchor_coeff: float = ranged(0.0, ge=0)
     anchor_updates: int = ranged(0, ge=0)
+    target_kl: float | None = ranged(None, gt=0)
 
 
 @dataclass
@@ -277,9 +278,12 @@ class PPO(Algorithm):
         # critic's advantages mean something
         frozen = self.updates < cfg.actor_freeze_updates
         anchor = 0.0 if frozen else self.anchor_weight()
+        steps = 0
         for idx in self.minibatches(flat.numel()):
             mb = flat[idx]
             out = self.loss(mb)
+            if steps and self.kl_stop(out, frozen):
+                break
             loss = out["loss_critic"] if frozen else out["loss_objective"] + out["loss_critic"] + out.get("loss_entropy", 0.0)
             # logged from the first batch whenever the anchor is on: metrics.csv's columns are its first row's
             logs = {"anchor_kl": 0.0} if cfg.anchor_coeff > 0 else {}
@@ -291,8 +295,27 @@ class PPO(Algorithm):
             logs.update({k: out[k] for k in LOSS_LOGS if k in out.keys()})
             logs.update(grad_norm_actor=gn_a, grad_norm_critic=gn_c)
             add_logs(sums, logs)
+            steps += 1
         self.updates += 1
-        return {**self.finish_update(batch, sums, cfg.epochs * cfg.minibatches), "actor_frozen": float(frozen), "anchor_weight": anchor}
+        return {**self.finish_update(batch, sums, steps), "actor_frozen": float(frozen), "anchor_weight": anchor,
+                **self.kl_logs(steps, out)}
+
+    def kl_stop(self, out, frozen: bool = False) -> bool:
+        """``target_kl``'s early stop (as in Stable-Baselines3 and CleanRL): the update ends before a
+        minibatch on which the actor has already moved more than 1.5 x ``target_kl`` from the policy that
+        collected the batch, by TorchRL's ``kl_approx`` (the minibatch's mean log-probability drop). Asked
+        from the second minibatch on: before the first, nothing has moved."""
+        limit = self.cfg.target_kl
+        return limit is not None and not frozen and "kl_approx" in out and float(out["kl_approx"]) > 1.5 * limit
+
+    def kl_logs(self, steps: int, out) -> dict[str, float]:
+        """With ``target_kl``: ``kl_steps``, the share of the update's planned minibatch steps taken (the
+        early stop cuts it below 1), and ``kl_last``, the approximate KL on the last minibatch looked at
+        (the one that stopped the update, if one did); ``kl_approx`` stays the mean before each step taken."""
+        if self.cfg.target_kl is None:
+            return {}
+        last = float(out["kl_approx"]) if "kl_approx" in out else 0.0
+        return {"kl_steps": steps / (self.cfg.epochs * self.cfg.minibatches), "kl_last": last}
 
     # ----------------------------------------------------------------- the anchor (fine-tuning a clone)
     def anchor_weight(self) -> float:
