@@ -118,6 +118,26 @@ def test_psro_run_grows_the_population_and_fills_the_payoffs(tmp_path):
     assert [m["iteration"] for m in meta] == [0, 1, 2, 3] and pay["members"] == ["random", "br1", "br2", "br3"]
 
 
+def test_an_oracle_the_budget_cuts_before_min_updates_does_not_join_and_a_resume_trains_it(tmp_path, capsys):
+    """Iteration 2's oracle gets one batch of total_frames (256 of its min_updates 2 x 256): it is no
+    response to anything, so the run ends with {random, br1}, naming the dropped oracle and its frames;
+    a resume with more frames trains iteration 2 again and br2 joins."""
+    cfg = tiny("psro_nash", "algo.iterations=3", "algo.max_updates=2", "total_frames=768")
+    summary = start(cfg, tmp_path / "run")
+    meta, pay, members = _read(tmp_path / "run")
+    assert pay["members"] == ["random", "br1"] and len(members) == 2 and [m["iteration"] for m in meta] == [0, 1]
+    assert summary["population"]["members"] == ["random", "br1"] and summary["frames"] == 512
+    assert summary["dropped_oracle"] == {"iteration": 2, "updates": 1, "frames": 256}
+    from volleybots.cli.train import _echo_summary
+
+    _echo_summary(summary, tmp_path / "run")  # what `volleybots train` prints at the end
+    assert "oracle 2 dropped: the budget ended it after 1 update(s) (256 frames)" in capsys.readouterr().out
+    summary = resume(tmp_path / "run", ["total_frames=1024"])
+    meta, pay, _ = _read(tmp_path / "run")
+    assert pay["members"] == ["random", "br1", "br2"] and meta[-1]["oracle"]["updates"] == 2
+    assert "dropped_oracle" not in summary and summary["frames"] == 1024
+
+
 def test_fsp_learner_starts_from_the_previous_one(tmp_path, monkeypatch):
     cfg = tiny("fsp", "algo.iterations=2", "algo.max_updates=2", "algo.min_updates=2", "total_frames=100000")
     seen = []

@@ -129,6 +129,9 @@ def _echo_summary(summary: dict, run_dir) -> None:
         oracles = [o for o in summary.get("oracles", []) if o and o.get("converged") is not None]
         if oracles:
             typer.echo("oracles: " + "; ".join(_oracle_text(i, o) for i, o in enumerate(oracles, 1)))
+        if d := summary.get("dropped_oracle"):
+            typer.echo(f"oracle {d['iteration']} dropped: the budget ended it after {d['updates']} update(s) ({d['frames']} frames), "
+                       f"before algo.min_updates; resume with more total_frames or time_limit to train it")
         return
     ev = summary["final_eval"]["stats"][summary["metric"]]
     typer.echo(

@@ -25,10 +25,8 @@ written are never rewritten.
 from __future__ import annotations
 
 import json
-import math
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -42,6 +40,7 @@ from volleybots.play.pool import head_to_heads
 from volleybots.play.seats import SelfPlay, Versus
 from volleybots.policies import BUILTIN, Competitor, checkpoint_member, member_path, population_members, resolve_competitor, single_policy
 from volleybots.population.clone import CLONE, clone_member, make_clone, needs_clone
+from volleybots.population.convergence import Convergence
 from volleybots.population.final import evaluate_mixture, log_final_eval
 from volleybots.population.payoffs import PayoffTable, payoff_reserve, plot
 from volleybots.population.solvers import SOLVERS
@@ -58,62 +57,6 @@ GAMES_SEED = 500_000  # payoff games of member k against j use seed + GAMES_SEED
 SPLIT = ("clone", "oracle_training", "payoff_games", "evaluations")  # the parts of a run's wall time it reports
 
 
-@dataclass
-class Convergence:
-    """The oracle's stopping rule: the win rate over the last ``window`` batches has mean >= ``mean``
-    and std <= ``std`` after ``min_updates`` updates, or ``max_updates`` updates are done. With
-    ``early=False`` the criterion never stops the run (a best response of a fixed budget); it is still
-    judged on the last window."""
-
-    min_updates: int
-    max_updates: int
-    window: int
-    mean: float
-    std: float
-    early: bool = True
-    updates: int = 0
-    win_rates: list[float] = field(default_factory=list)
-
-    def __call__(self, row: dict) -> bool:
-        self.updates += 1
-        w = row.get("win", math.nan)
-        if w is not None and not math.isnan(w):
-            self.win_rates.append(float(w))
-        return self.updates >= self.max_updates or (self.early and self.updates >= self.min_updates and self.converged)
-
-    @property
-    def recent(self) -> np.ndarray:
-        return np.asarray(self.win_rates[-self.window:], dtype=float)
-
-    @property
-    def converged(self) -> bool:
-        r = self.recent
-        return len(r) == self.window and r.mean() >= self.mean and r.std() <= self.std
-
-    def summary(self) -> dict:
-        """What the oracle reached: ``win_rate`` is its final win rate (the mean over the last ``window``
-        batches, the figure the criterion judges; ``win_mean`` the same, kept for older readers), and
-        ``stopped`` says why it stopped: ``converged``, ``max_updates``, or ``budget`` (the run's
-        total_frames or time_limit ran out first)."""
-        r = self.recent
-        win = float(r.mean()) if len(r) else None
-        stopped = "converged" if self.early and self.converged else "max_updates" if self.updates >= self.max_updates else "budget"
-        return {
-            "updates": self.updates,
-            "converged": bool(self.converged),
-            "stopped": stopped,
-            "win_rate": win,
-            "win_mean": win,
-            "win_std": float(r.std()) if len(r) else None,
-        }
-
-    def state_dict(self) -> dict:
-        return {"updates": self.updates, "win_rates": list(self.win_rates)}
-
-    def load_state_dict(self, state: dict) -> None:
-        self.updates, self.win_rates = int(state["updates"]), [float(w) for w in state["win_rates"]]
-
-
 class PopulationLoop:
     def __init__(self, cfg, run: RunDir):
         self.cfg, self.run, self.m = cfg, run, cfg.algo
@@ -121,6 +64,7 @@ class PopulationLoop:
         self.meta_path = self.dir / "meta.jsonl"
         self.payoffs_path = self.dir / "payoffs.json"
         self.wandb = None
+        self.dropped: dict | None = None  # the oracle the budget cut before min_updates, if one was
 
     # ---------------------------------------------------------------------------- disk state
     def metas(self) -> list[dict]:
@@ -173,6 +117,8 @@ class PopulationLoop:
                     evals = self._oracle(i, k, frames, updates, wall())
                 self.split["oracle_training"] -= evals  # the oracle's periodic evaluations are counted apart
                 self.split["evaluations"] += evals
+                if not member_path(self.run.path, k).is_file():  # cut short and dropped: the run ends here
+                    break
             member = read_checkpoint(member_path(self.run.path, k))
             with self._timed("payoff_games"):
                 self._play_payoffs()
@@ -283,6 +229,12 @@ class PopulationLoop:
                 tr.algo.load_networks(read_checkpoint(learned[-1], device=tr.env.device)["algo"])
         tr.train_loop(stop=stop, row_extra={"pop_iteration": i}, note=self._note(i, stop))
         state = tr.state()
+        if stop is not None and stop.updates < m.min_updates:
+            # the run's budget ended the oracle before the criterion could judge it: a policy a few updates
+            # from its start is no response to the mixture, so it does not join; its last periodic
+            # checkpoint (if one was written) lets a resume with more budget carry it on
+            self.dropped = {"iteration": i, "updates": stop.updates, "frames": int(state["frames"]) - frames}
+            return tr.eval_wall
         label = "sp" if m.self_play else f"br{i}"
         state.update(label=label, oracle=(stop.summary() if stop else {"updates": tr.iteration - updates, "converged": None}))
         self._save_member(k, state)
@@ -344,6 +296,8 @@ class PopulationLoop:
             **({"final_eval": final_eval} if final_eval is not None else {}),
             "population": {"members": last.get("members", []), "mixture": last.get("mixture", []), "solver": self.m.solver},
             "oracles": [m["oracle"] for m in metas if m["iteration"] >= 1],
+            # an oracle the budget cut before min_updates: its frames were spent, but it is not a member
+            **({"dropped_oracle": self.dropped} if self.dropped else {}),
             "version": __version__,
         }
         self.run.write_summary(summary)
