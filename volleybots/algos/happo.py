@@ -92,10 +92,11 @@ class HAPPO(MAPPO):
         return td
 
     def train_agent(self, a: int, td: TensorDictBase) -> dict[str, float]:
-        """``epochs`` x ``minibatches`` clipped-surrogate steps of drone ``a``'s actor on ``td``."""
+        """``epochs`` x ``minibatches`` clipped-surrogate steps of drone ``a``'s actor on ``td`` (fewer under
+        ``target_kl``); the means of their logs."""
         params = list(self.actor.actors[a].parameters())
         sums: dict[str, float] = {}
-        steps, planned = 0, self.cfg.epochs * self.cfg.minibatches
+        steps = 0
         for idx in self.minibatches(td.numel()):
             out = self.agent_losses[a](td[idx])
             if steps and self.kl_stop(out):  # this drone's actor stops; the next drone's is weighted by where it stopped
@@ -103,9 +104,7 @@ class HAPPO(MAPPO):
             (grad_norm,) = self.step(out["loss_objective"] + out["loss_entropy"], [params])
             add_logs(sums, {**{k: out[k] for k in ACTOR_LOGS}, "grad_norm_actor": grad_norm})
             steps += 1
-        # update() divides every sum by the planned count: scaled so, these stay means over the steps taken,
-        # and kl_steps becomes the share taken (averaged over the drones)
-        return {**{k: v * planned / steps for k, v in sums.items()}, **{k: v * planned for k, v in self.kl_logs(steps, out).items()}}
+        return {**{k: v / steps for k, v in sums.items()}, **self.kl_logs(steps, out)}
 
     def ratio(self, a: int, td: TensorDictBase) -> torch.Tensor:
         """pi_new / pi_old of drone ``a``'s actions [B]."""
@@ -120,21 +119,22 @@ class HAPPO(MAPPO):
         adv = flat["advantage"].squeeze(-1)  # [B, A]
         if cfg.normalize_advantage:
             adv = (adv - adv.mean(0)) / adv.std(0).clamp_min(1e-6)
-        sums: dict[str, float] = {}
+        actor: dict[str, float] = {}  # the drones' mean logs, averaged over the drones
         factor = torch.ones(n, device=self.device)
         order = torch.randperm(self.n_agents, generator=self.gen, device=self.gen.device).tolist()
         for a in order:
             td = self.agent_batch(flat, a, adv[:, a], factor)
             for k, v in self.train_agent(a, td).items():
-                sums[k] = sums.get(k, 0.0) + v / self.n_agents
+                actor[k] = actor.get(k, 0.0) + v / self.n_agents
             factor = factor * self.ratio(a, td)
+        sums: dict[str, float] = {}
         critic_params = list(self.critic.parameters())
         for idx in self.minibatches(n):
             loss, _, explained = self.loss.loss_critic(flat[idx])
             loss = loss.mean()  # the loss returns it per sample (its forward reduces)
             (grad_norm,) = self.step(loss, [critic_params])
             add_logs(sums, {"loss_critic": loss, "explained_variance": explained, "grad_norm_critic": grad_norm})
-        logs = self.finish_update(batch, sums, cfg.epochs * cfg.minibatches)
+        logs = {**actor, **self.finish_update(batch, sums, cfg.epochs * cfg.minibatches)}
         logs["factor_std"] = float(factor.std())  # spread of the weights M after the last drone
         if self.continuous:
             logs["action_std"] = float(torch.stack([s.state_independent_scale.detach().exp().mean() for s in self._stds]).mean())
