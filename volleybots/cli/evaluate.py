@@ -134,7 +134,8 @@ def exploitability_cmd(
         None,
         help="TARGET (a competitor), then budget=1000000 games=1000 seed=0 scenario=any|serve|receive|split until=converged|budget "
         "init=RUN num_envs=N batch=256 task=1v1 env.action_space=prt, and algo.KEY=VALUE for the best response's MAPPO (with init=, "
-        "a critic warm-up of algo.actor_freeze_updates=10 batches unless given).",
+        "a critic warm-up of algo.actor_freeze_updates=10 batches unless given); response=SPEC (repeatable) adds a fixed "
+        "candidate response (scripted, hierarchical, a run, zoo:...) and the figure is the best candidate's; budget=0 trains none.",
     ),
     as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of a line."),
     out: Optional[Path] = typer.Option(
@@ -153,8 +154,9 @@ def exploitability_cmd(
         typer.echo(json.dumps(report, indent=1, default=float))
         return
     typer.echo(format_line(report))
-    runs = [p["br_run"] for p in (report.get("parts") or {"": report}).values()]
-    typer.echo(f"wrote {path / RESULTS} and the best response's run{'s' if len(runs) > 1 else ''} {' and '.join(runs)}")
+    runs = [p["br_run"] for p in (report.get("parts") or {"": report}).values() if "br_run" in p]  # none with budget=0
+    also = f" and the best response's run{'s' if len(runs) > 1 else ''} {' and '.join(runs)}" if runs else ""
+    typer.echo(f"wrote {path / RESULTS}{also}")
 
 
 @eval_app.command("elo", context_settings=_PASS_THROUGH)

@@ -20,7 +20,7 @@ OPTION_RANGES = {
     "rounds": Range(low=1),
     "batch": Range(low=1),
     "episodes": Range(low=1),
-    "budget": Range(low=1),
+    "budget": Range(low=0),  # exploitability's budget=0: no trained BR, fixed responses only (checked there)
     "num_envs": Range(low=1),
 }
 OVERRIDE_KEYS = ("task", "threads")  # and every task.KEY / env.KEY
