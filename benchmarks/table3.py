@@ -10,8 +10,10 @@ the cross-play counts with ``--k`` (the paper: 2000 rounds, K = 168 for 4 polici
 exploitability column trains a best response against each competitor (``volleybots eval
 exploitability``) for ``--br-budget`` frames and plays ``--br-games`` games (0: the column reads "n/a"),
 from ``--br-init`` if given, stopping at the convergence criterion or, with ``--br-until budget``, training
-the whole budget (equal budgets for every competitor, as the paper compares them); a figure whose BR did
-not meet the criterion is marked as a lower bound. The within-population exploitability stands beside it.
+the whole budget (equal budgets for every competitor, as the paper compares them); ``--br-response SPEC``
+(repeatable) adds a fixed candidate response (``scripted``, ``hierarchical``, a run) beside the trained one,
+and the figure is the best candidate's (``--br-budget 0`` with a response: fixed candidates only). A
+figure that no candidate's criterion holds for is marked as a lower bound. The within-population exploitability stands beside it.
 Writes ``table3.json``, ``table3.md``, ``table3_crossplay.png`` and ``table3_ratings.png`` into ``--out``
 (default docs/), each naming games, rounds, seed and competitors.
 """
@@ -46,6 +48,8 @@ def main(argv=None) -> int:
     p.add_argument("--br-init", default=None, help="policy every best response starts from (init=, e.g. zoo:1v1/bc)")
     p.add_argument("--br-until", default=UNTIL[0], choices=UNTIL,
                    help="stop each best response at the criterion, or train its whole budget")
+    p.add_argument("--br-response", action="append", default=[], metavar="SPEC",
+                   help="a fixed candidate response beside the trained one (repeatable; eval exploitability's response=)")
     p.add_argument("--br-root", type=Path, default=ROOT / "outputs" / "table3_br", help="where the best responses' run dirs go")
     a = p.parse_args(argv)
 
@@ -58,7 +62,7 @@ def main(argv=None) -> int:
                     progress=lambda i, j, g: print(f"  {comps[i].label} vs {comps[j].label}: W/D/L {g.total.tolist()}", flush=True))
     wall = time.time() - t0
     rep = ratings(res, a.rounds, a.k, a.seed, sample=True)
-    rep["exploitability_br"] = [best_response(spec, a) for spec in specs] if a.br_budget else [None] * len(specs)
+    rep["exploitability_br"] = [best_response(spec, a) for spec in specs] if a.br_budget or a.br_response else [None] * len(specs)
     a.out.mkdir(parents=True, exist_ok=True)
     heatmap(res, a.out / "table3_crossplay.png")
     plot(rep, a.out / "table3_ratings.png")
@@ -86,10 +90,12 @@ def best_response(spec: str, a) -> dict:
     ]
     if a.br_init:
         args.append(f"init={a.br_init}")
+    args += [f"response={r}" for r in getattr(a, "br_response", [])]
     report, _ = run_exploitability(args, out)
     print(f"  exploitability of {label}: {report['exploitability']:.1f} {report['exploitability_interval']}", flush=True)
-    keys = ("exploitability", "exploitability_interval", "converged", "lower_bound", "br_run", "budget_frames", "br_frames", "games", "wdl")
-    return {k: report[k] for k in keys}
+    keys = ("exploitability", "exploitability_interval", "converged", "lower_bound", "br_run", "budget_frames", "br_frames", "games", "wdl",
+            "best")
+    return {k: report[k] for k in keys if k in report}  # (no br_run with --br-budget 0; "best" only beside fixed responses)
 
 
 def table(rep: dict, res, a, wall: float) -> str:
@@ -100,7 +106,8 @@ def table(rep: dict, res, a, wall: float) -> str:
         f"Task {a.task}: {a.games} games per pair (both sides equally), cross-play seed {a.seed}; Elo K={a.k:g} over "
         f"{a.rounds} rounds sampled from the counts; BT with 95 % profile-likelihood intervals; {wall:.0f} s of games; "
         + (f"best responses: {a.br_budget:,} frames ({'the whole budget' if a.br_until == 'budget' else 'or until converged'}"
-           f"{f', from {a.br_init}' if a.br_init else ''}), {a.br_games} games each." if a.br_budget else "no best responses."),
+           f"{f', from {a.br_init}' if a.br_init else ''}), {a.br_games} games each" if a.br_budget else "no best responses trained")
+        + (f"; fixed candidate responses: {', '.join(a.br_response)}." if getattr(a, "br_response", []) else "."),
         "",
         "| competitor | exploitability (BR) | exploitability in population (pp) | avg win rate | Elo | Bradley-Terry "
         "[95 %] | Nash weight |",
@@ -120,8 +127,9 @@ def _br(r) -> str:
     if r is None:
         return "n/a"
     lo, hi = r["exploitability_interval"]
-    bound = " (lower bound: the BR did not converge)" if r.get("lower_bound") else ""
-    return f"{r['exploitability']:.1f} [{lo:.1f}, {hi:.1f}]{bound}"
+    bound = " (lower bound: no response met the criterion)" if r.get("lower_bound") else ""
+    by = f", by {r['best']}" if r.get("best") else ""  # beside fixed responses: which candidate gave the figure
+    return f"{r['exploitability']:.1f} [{lo:.1f}, {hi:.1f}]{by}{bound}"
 
 
 if __name__ == "__main__":
