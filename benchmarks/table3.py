@@ -15,7 +15,8 @@ the whole budget (equal budgets for every competitor, as the paper compares them
 and the figure is the best candidate's (``--br-budget 0`` with a response: fixed candidates only). A
 figure that no candidate's criterion holds for is marked as a lower bound. The within-population exploitability stands beside it.
 Writes ``table3.json``, ``table3.md``, ``table3_crossplay.png`` and ``table3_ratings.png`` into ``--out``
-(default docs/), each naming games, rounds, seed and competitors.
+(default ``outputs/table3``; docs/table3.md is the written-up table, which a run never overwrites), each
+naming games, rounds, seed and competitors.
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ def main(argv=None) -> int:
     p.add_argument("--k", type=float, default=168.0, help="Elo K")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--batch", type=int, default=256, help="worlds per batch of games")
-    p.add_argument("--out", type=Path, default=ROOT / "docs")
+    p.add_argument("--out", type=Path, default=ROOT / "outputs" / "table3")
     p.add_argument("--br-budget", type=int, default=0, help="frames of best-response training per competitor (0: no BR column)")
     p.add_argument("--br-games", type=int, default=400, help="games of each best response against its target")
     p.add_argument("--br-envs", type=int, default=128, help="envs of best-response training")
