@@ -33,6 +33,15 @@ def test_every_method_accepts_matches_only():
         assert tiny(algo).algo.name == algo
         with pytest.raises(ConfigError, match="trains for matches"):
             load(["task=bump_and_pass", f"algo={algo}"])
+
+
+@pytest.mark.parametrize("init", ["bc", "scratch"])
+def test_fsp_refuses_a_learner_start_that_would_make_it_psro_uniform(init):
+    """A 3v3 run of algo=fsp algo.learner_init=bc repeated PSRO-uniform's run oracle for oracle: FSP's one
+    difference is that each learner continues from the newest member, so any other start is refused."""
+    with pytest.raises(ConfigError, match=f"algo=fsp continues .* not '{init}', which makes it algo=psro_uniform.*seed_members=\\[bc\\]"):
+        tiny("fsp", f"algo.learner_init={init}")
+    assert tiny("psro_uniform", f"algo.learner_init={init}").algo.learner_init == init
     with pytest.raises(ConfigError, match="unknown algo.solver 'best'; allowed: uniform, nash"):
         tiny("psro_nash", "algo.solver=best")
     # a match with no algo named trains self-play; a cooperative task MAPPO

@@ -109,6 +109,13 @@ class Preset:
                                     (cfg.payoff_pool, POOLS, "algo.payoff_pool")):
             if value not in allowed:
                 raise ConfigError(f"unknown {key} {value!r}; allowed: {', '.join(allowed)}")
+        if self.name == "fsp" and cfg.learner_init != "last":
+            # FSP is the uniform meta-solver with each learner continuing from the newest member; any
+            # other start makes it PSRO-uniform, run for run (a 3v3 run with learner_init=bc was)
+            raise ConfigError(
+                f"algo=fsp continues each learner from the newest member (algo.learner_init=last), not "
+                f"{cfg.learner_init!r}, which makes it algo=psro_uniform; to start FSP from the clone give "
+                "algo.seed_members=[bc] (its first learner continues from the clone)")
         if cfg.max_updates < cfg.min_updates:
             raise ConfigError(f"algo.max_updates={cfg.max_updates} is below algo.min_updates={cfg.min_updates}")
         if cfg.learner_init == CLONE or CLONE in [str(s) for s in cfg.seed_members]:
