@@ -158,5 +158,5 @@ def test_a_verbs_count_option_reads_an_integral_float_and_refuses_a_fraction():
     assert opts == {"budget": 4_000_000, "games": 400} and type(opts["budget"]) is int
     with pytest.raises(ConfigError, match=r"budget='2\.5' must be an integer"):
         split_args(["budget=2.5"], {"budget": int})
-    with pytest.raises(ConfigError, match="out of range"):
-        split_args(["budget=0e0"], {"budget": int})
+    with pytest.raises(ConfigError, match="out of range"):  # (budget=0 is exploitability's "no trained BR")
+        split_args(["budget=-1e0"], {"budget": int})
