@@ -91,7 +91,7 @@ def best_response(spec: str, a) -> dict:
     ]
     if a.br_init:
         args.append(f"init={a.br_init}")
-    args += [f"response={r}" for r in getattr(a, "br_response", [])]
+    args += [f"response={r}" for r in a.br_response]
     report, _ = run_exploitability(args, out)
     print(f"  exploitability of {label}: {report['exploitability']:.1f} {report['exploitability_interval']}", flush=True)
     keys = ("exploitability", "exploitability_interval", "converged", "lower_bound", "br_run", "budget_frames", "br_frames", "games", "wdl",
@@ -108,7 +108,7 @@ def table(rep: dict, res, a, wall: float) -> str:
         f"{a.rounds} rounds sampled from the counts; BT with 95 % profile-likelihood intervals; {wall:.0f} s of games; "
         + (f"best responses: {a.br_budget:,} frames ({'the whole budget' if a.br_until == 'budget' else 'or until converged'}"
            f"{f', from {a.br_init}' if a.br_init else ''}), {a.br_games} games each" if a.br_budget else "no best responses trained")
-        + (f"; fixed candidate responses: {', '.join(a.br_response)}." if getattr(a, "br_response", []) else "."),
+        + (f"; fixed candidate responses: {', '.join(a.br_response)}." if a.br_response else "."),
         "",
         "| competitor | exploitability (BR) | exploitability in population (pp) | avg win rate | Elo | Bradley-Terry "
         "[95 %] | Nash weight |",
