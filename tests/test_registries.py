@@ -12,6 +12,7 @@ import torch
 from omegaconf import OmegaConf
 
 from volleybots.algos import ALGOS
+from volleybots.algos.population import PRESETS
 from volleybots.config import compose, load, make_env, validate
 from volleybots.policies import PLAYERS, check_references, resolve_target
 from volleybots.population.solvers import SOLVERS
@@ -84,6 +85,27 @@ def _accepts(cls, task: str) -> bool:
     except ConfigError:
         return False
     return True
+
+
+@pytest.mark.parametrize("name", sorted(PRESETS))
+def test_every_population_preset_accepts_its_own_default_start_and_refuses_the_others_by_name(name):
+    """A preset that is defined by its learners' start (FSP: each continues the newest member) refuses
+    every other ``algo.learner_init`` with one line naming the value; the rest take every start."""
+    from volleybots.algos.population import INITS
+    from volleybots.config import ConfigError
+
+    preset = PRESETS[name]
+    assert set(preset.learner_inits) <= set(INITS) and bool(preset.learner_inits) == bool(preset.otherwise)
+    default = preset.config_cls().learner_init
+    base = OmegaConf.to_container(compose(["task=1v1", f"algo={name}", "env.num_envs=2", "threads=1"]))
+    for init in INITS:
+        raw = {**base, "algo": {**base["algo"], "learner_init": init}}
+        if not preset.learner_inits or init in preset.learner_inits:
+            assert validate(raw).algo.learner_init == init
+        else:
+            with pytest.raises(ConfigError, match=f"^algo={name} .*'{init}'"):
+                validate(raw)
+    assert not preset.learner_inits or default in preset.learner_inits
 
 
 @pytest.mark.parametrize("name", sorted(PLAYERS))

@@ -83,6 +83,10 @@ class Preset:
     population: bool = True  # what sends a run to the population loop
     multi_agent: bool = True
     task_kinds: tuple[str, ...] = ("competitive",)
+    # the learner starts (algo.learner_init) the method is defined by, and what any other start would
+    # make it instead; empty: every start in INITS
+    learner_inits: tuple[str, ...] = ()
+    otherwise: str = ""
 
     @property
     def action_spaces(self) -> tuple[str, ...]:
@@ -109,13 +113,8 @@ class Preset:
                                     (cfg.payoff_pool, POOLS, "algo.payoff_pool")):
             if value not in allowed:
                 raise ConfigError(f"unknown {key} {value!r}; allowed: {', '.join(allowed)}")
-        if self.name == "fsp" and cfg.learner_init != "last":
-            # FSP is the uniform meta-solver with each learner continuing from the newest member; any
-            # other start makes it PSRO-uniform, run for run (a 3v3 run with learner_init=bc was)
-            raise ConfigError(
-                f"algo=fsp continues each learner from the newest member (algo.learner_init=last), not "
-                f"{cfg.learner_init!r}, which makes it algo=psro_uniform; to start FSP from the clone give "
-                "algo.seed_members=[bc] (its first learner continues from the clone)")
+        if self.learner_inits and cfg.learner_init not in self.learner_inits:
+            raise ConfigError(f"algo={self.name} {self.otherwise.format(init=cfg.learner_init)}")
         if cfg.max_updates < cfg.min_updates:
             raise ConfigError(f"algo.max_updates={cfg.max_updates} is below algo.min_updates={cfg.min_updates}")
         if cfg.learner_init == CLONE or CLONE in [str(s) for s in cfg.seed_members]:
@@ -130,7 +129,13 @@ class Preset:
 
 
 SP = Preset("sp", SPConfig)
-FSP = Preset("fsp", FSPConfig)
+# FSP is the uniform meta-solver with each learner continuing from the newest member; any other start
+# makes it PSRO-uniform, run for run (a 3v3 run with learner_init=bc was)
+FSP = Preset(
+    "fsp", FSPConfig, learner_inits=("last",),
+    otherwise="continues each learner from the newest member (algo.learner_init=last), not {init!r}, which makes it "
+    "algo=psro_uniform; to start FSP from the clone give algo.seed_members=[bc] (its first learner continues from the clone)",
+)
 PSROUniform = Preset("psro_uniform", PSROUniformConfig)
 PSRONash = Preset("psro_nash", PopulationConfig)
 PRESETS = {p.name: p for p in (SP, FSP, PSROUniform, PSRONash)}
