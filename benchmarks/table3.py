@@ -13,7 +13,9 @@ from ``--br-init`` if given, stopping at the convergence criterion or, with ``--
 the whole budget (equal budgets for every competitor, as the paper compares them); ``--br-response SPEC``
 (repeatable) adds a fixed candidate response (``scripted``, ``hierarchical``, a run) beside the trained one,
 and the figure is the best candidate's (``--br-budget 0`` with a response: fixed candidates only). A
-figure that no candidate's criterion holds for is marked as a lower bound. The within-population exploitability stands beside it.
+figure that no candidate's criterion holds for is marked as a lower bound. ``--reuse FILE`` (an earlier
+table3.json or crossplay.json) copies the pairs it played with the same settings instead of playing them
+again, so adding a method to a table plays only its own pairs (``eval crossplay ... reuse=FILE``). The within-population exploitability stands beside it.
 Writes ``table3.json``, ``table3.md``, ``table3_crossplay.png`` and ``table3_ratings.png`` into ``--out``
 (default ``outputs/table3``; docs/table3.md is the written-up table, which a run never overwrites), each
 naming games, rounds, seed and competitors.
@@ -51,6 +53,8 @@ def main(argv=None) -> int:
                    help="stop each best response at the criterion, or train its whole budget")
     p.add_argument("--br-response", action="append", default=[], metavar="SPEC",
                    help="a fixed candidate response beside the trained one (repeatable; eval exploitability's response=)")
+    p.add_argument("--reuse", type=Path, default=None,
+                   help="an earlier crossplay.json or table3.json whose pairs (same settings, same order) are copied, not played")
     p.add_argument("--br-root", type=Path, default=ROOT / "outputs" / "table3_br", help="where the best responses' run dirs go")
     a = p.parse_args(argv)
 
@@ -58,13 +62,17 @@ def main(argv=None) -> int:
     from volleybots.eval.ranking import plot, ratings
 
     comps, specs, _, cfg = setup([*a.competitors, f"task={a.task}", f"games={a.games}"], OPTIONS)
+    a.out.mkdir(parents=True, exist_ok=True)
+    reuse = a.reuse
+    if reuse is not None and "crossplay" in json.loads(reuse.read_text()):  # a table3.json: its cross-play part
+        reuse = a.out / "reused_crossplay.json"
+        reuse.write_text(json.dumps(json.loads(a.reuse.read_text())["crossplay"]))
     t0 = time.time()
-    res = crossplay(cfg, comps, a.games, seed=a.seed, batch=a.batch, specs=specs,
+    res = crossplay(cfg, comps, a.games, seed=a.seed, batch=a.batch, specs=specs, reuse=reuse,
                     progress=lambda i, j, g: print(f"  {comps[i].label} vs {comps[j].label}: W/D/L {g.total.tolist()}", flush=True))
     wall = time.time() - t0
     rep = ratings(res, a.rounds, a.k, a.seed, sample=True)
     rep["exploitability_br"] = [best_response(spec, a) for spec in specs] if a.br_budget or a.br_response else [None] * len(specs)
-    a.out.mkdir(parents=True, exist_ok=True)
     heatmap(res, a.out / "table3_crossplay.png")
     plot(rep, a.out / "table3_ratings.png")
     (a.out / "table3.json").write_text(json.dumps({"crossplay": res.to_dict(), "ratings": rep, "wall_time_s": wall}, indent=1) + "\n")
@@ -105,7 +113,9 @@ def table(rep: dict, res, a, wall: float) -> str:
         f"# Competitive policies on {a.task} (paper table 3)",
         "",
         f"Task {a.task}: {a.games} games per pair (both sides equally), cross-play seed {a.seed}; Elo K={a.k:g} over "
-        f"{a.rounds} rounds sampled from the counts; BT with 95 % profile-likelihood intervals; {wall:.0f} s of games; "
+        f"{a.rounds} rounds sampled from the counts; BT with 95 % profile-likelihood intervals; {wall:.0f} s of games"
+        + (f" ({len(res.meta['reused'])} of {res.n * (res.n - 1) // 2} pairs copied from {a.reuse})" if res.meta.get("reused") else "")
+        + "; "
         + (f"best responses: {a.br_budget:,} frames ({'the whole budget' if a.br_until == 'budget' else 'or until converged'}"
            f"{f', from {a.br_init}' if a.br_init else ''}), {a.br_games} games each" if a.br_budget else "no best responses trained")
         + (f"; fixed candidate responses: {', '.join(a.br_response)}." if a.br_response else "."),

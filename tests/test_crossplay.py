@@ -225,3 +225,38 @@ def test_bad_input_exits_2_with_one_line_and_writes_nothing(tiny_ckpt, tmp_path)
     finally:
         os.chdir(cwd)
     assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
+
+
+def test_reuse_copies_the_pairs_an_earlier_crossplay_played_and_the_table_is_the_fresh_one(tmp_path):
+    """``reuse=FILE``: the pairs of an earlier results file, recognised by what plays (a relabelled
+    checkpoint is the same player), are copied and the table equals a fresh cross-play of everyone; a pair
+    in the other order is played again; other settings are refused before any game."""
+    common = ["task=1v1", "task.episode_len=16", "games=4", "seed=3", "batch=4"]  # short games: the copy is the point
+
+    def play(*specs, reuse=None):
+        comps = [resolve_competitor(s) for s in specs]
+        cfg = load(common[:2])
+        return crossplay(cfg, comps, 4, seed=3, batch=4, specs=list(specs), reuse=reuse)
+
+    first = tmp_path / "first.json"
+    play("bc=zoo:1v1/bc", "random").save(first)
+    fresh = play("bc=zoo:1v1/bc", "random", "sp=zoo:1v1/sp").to_dict()
+    res = runner.invoke(app, ["eval", "crossplay", "clone=zoo:1v1/bc", "random", "sp=zoo:1v1/sp", *common, f"reuse={first}",
+                              "--out", str(tmp_path / "grown")])
+    assert res.exit_code == 0, res.output
+    assert f"(reused from {first})" in res.stderr and "pair 0,2: W/D/L" in res.stderr and res.stderr.count("reused from") == 1
+    grown = json.loads((tmp_path / "grown" / "crossplay.json").read_text())
+    for key in ("wdl", "outcomes", "side_wdl", "content", "served", "average_win_rate"):
+        assert fresh[key] == grown[key], key
+    assert grown["reused"] == {"0,1": str(first)} and "reused" not in fresh
+    # the pair the other way round holds other games: played, not copied
+    assert "reused" not in play("random", "bc=zoo:1v1/bc", reuse=first).meta
+    # another seed, or no such file: one line, exit 2, no folder
+    bad = ["eval", "crossplay", "bc=zoo:1v1/bc", "random", *common, "seed=4", f"reuse={first}", "--out", str(tmp_path / "bad")]
+    res = runner.invoke(app, bad)
+    assert res.exit_code == 2 and res.stderr.strip() == (
+        f"error: reuse={str(first)!r} was played with seed=3, this cross-play with seed=4; only pairs played with the same "
+        "settings can be reused"), res.output
+    res = runner.invoke(app, ["eval", "crossplay", "bc=zoo:1v1/bc", "random", *common, f"reuse={tmp_path / 'none.json'}"])
+    assert res.exit_code == 2 and "is not a file" in res.stderr and len(res.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "bad").exists()

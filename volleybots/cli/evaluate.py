@@ -83,11 +83,13 @@ def compare_cmd(
 
 
 def _pair_progress(i: int, j: int, games) -> None:
+    from volleybots.eval.reuse import Reused
+
     c = games.content()
     t = c["touches"]
     typer.echo(
         f"  pair {i},{j}: W/D/L {'/'.join(map(str, games.total.tolist()))}, touches/game {t[0]:.2f}/{t[1]:.2f}, "
-        f"rally {c['rally_steps']:.0f} steps",
+        f"rally {c['rally_steps']:.0f} steps" + (f" (reused from {games.source})" if isinstance(games, Reused) else ""),
         err=True,
     )
 
@@ -109,7 +111,7 @@ def crossplay_cmd(
     args: Optional[List[str]] = typer.Argument(
         None,
         help=f"{_COMPETITORS}, then games=1000 seed=0 batch=256 scenario=any|serve|receive deterministic=false "
-        "task=1v1 env.action_space=prt.",
+        "task=1v1 env.action_space=prt; reuse=FILE copies the pairs an earlier crossplay.json played with the same settings.",
     ),
     as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of the table."),
     out: Optional[Path] = typer.Option(

@@ -25,6 +25,7 @@ from volleybots.config import load, make_env, to_dict
 from volleybots.config.args import split_args
 from volleybots.config.resources import check_play
 from volleybots.errors import ConfigError
+from volleybots.eval.reuse import Reuse, check_readable
 from volleybots.files import Fields, read_json, write_atomic, write_json
 from volleybots.keys import OBS
 from volleybots.play.games import DEFAULT_BATCH, check_scenario, play_games
@@ -149,7 +150,7 @@ def versions() -> dict:
 
 
 # options of the cross-play verbs (key=value on the command line) and their types
-OPTIONS = {"games": int, "seed": int, "batch": int, "scenario": str, "deterministic": bool}
+OPTIONS = {"games": int, "seed": int, "batch": int, "scenario": str, "deterministic": bool, "reuse": str}
 
 
 def resolve_all(specs) -> list:
@@ -194,7 +195,7 @@ def provenance(competitor, spec: str) -> dict:
 
 
 def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_BATCH, scenario: str = "any",
-              deterministic: bool = False, specs=None, progress=None) -> CrossPlay:
+              deterministic: bool = False, specs=None, progress=None, reuse=None) -> CrossPlay:
     """Play ``games`` games for every pair of ``competitors`` on the match task of ``cfg``.
 
     Args:
@@ -207,6 +208,7 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
         deterministic: competitors act with their mode instead of sampling.
         specs: the competitors as named on the command line, for the provenance.
         progress: called as ``progress(i, j, games)`` after each pair.
+        reuse: an earlier results file whose pairs are copied instead of played (``volleybots.eval.reuse``).
 
     Returns:
         The ``CrossPlay``: win / draw / loss counts per ordered pair, game-by-game outcomes and the
@@ -217,30 +219,32 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
         raise ConfigError(f"cross-play needs at least two competitors; got {n}")
     labels = [c.label for c in competitors]
     wdl = np.zeros((n, n, 3))
-    outcomes, sides, served, content = {}, {}, {}, {}
-    for i, j in combinations(range(n), 2):
-        g = play_games(cfg, competitors[i], competitors[j], games, seed=seed, batch=batch, scenario=scenario, deterministic=deterministic)
-        record.put(wdl, i, j, g.total)
-        outcomes[f"{i},{j}"] = g.outcomes
-        sides[f"{i},{j}"] = g.wdl.tolist()
-        served[f"{i},{j}"] = g.served
-        content[f"{i},{j}"] = g.content()
-        if progress is not None:
-            progress(i, j, g)
-    specs = specs or labels
+    outcomes, sides, served, content, reused = {}, {}, {}, {}, {}
     meta = {
-        "task": cfg.task.name,
-        "action_space": cfg.env.action_space,
-        "games_per_pair": games,
-        "seed": seed,
-        "batch": batch,
-        "scenario": scenario,
-        "deterministic": deterministic,
-        "competitors": [provenance(c, s) for c, s in zip(competitors, specs)],
+        "task": cfg.task.name, "action_space": cfg.env.action_space, "games_per_pair": games, "seed": seed, "batch": batch,
+        "scenario": scenario, "deterministic": deterministic,
+        "competitors": [provenance(c, s) for c, s in zip(competitors, specs or labels)],
         "served": served,  # "i,j" -> games in which i served
         "config": to_dict(cfg),
         "versions": versions(),
     }
+    earlier = Reuse(reuse, meta) if reuse is not None else None  # refused here, before any game, if it does not fit
+    for i, j in combinations(range(n), 2):
+        key = f"{i},{j}"
+        g = earlier.pair(meta["competitors"][i], meta["competitors"][j]) if earlier is not None else None
+        if g is not None:
+            reused[key] = g.source
+            sides[key], content[key] = g.side_wdl, g.content()
+        else:
+            g = play_games(cfg, competitors[i], competitors[j], games, seed=seed, batch=batch, scenario=scenario,
+                           deterministic=deterministic)
+            sides[key], content[key] = g.wdl.tolist(), g.content()
+        record.put(wdl, i, j, g.total)
+        outcomes[key], served[key] = g.outcomes, g.served
+        if progress is not None:
+            progress(i, j, g)
+    if reused:
+        meta["reused"] = reused  # "i,j" -> the results file the pair was copied from
     return CrossPlay(labels, wdl, outcomes, sides, meta, content)
 
 
@@ -353,6 +357,8 @@ def setup(args, options: dict, min_competitors: int = 2):
     games = opts.get("games", 1000)
     if "games" in options and (games < 2 or games % 2):
         raise ConfigError(f"games={games} must be an even number >= 2 (each side plays half of them)")
+    if "reuse" in opts:
+        check_readable(opts["reuse"])
     comps = resolve_all(specs)
     cfg = match_config(comps, overrides)
     check_scenario(opts.get("scenario", "any"), cfg)
@@ -387,6 +393,7 @@ def play_and_save(comps, specs, opts, cfg, path: Path, progress=None) -> CrossPl
     res = crossplay(
         cfg, comps, opts.get("games", 1000), seed=opts.get("seed", 0), batch=opts.get("batch", DEFAULT_BATCH),
         scenario=opts.get("scenario", "any"), deterministic=opts.get("deterministic", False), specs=specs, progress=progress,
+        reuse=opts.get("reuse"),
     )
     res.save(path / RESULTS)
     heatmap(res, path / HEATMAP)

@@ -1,0 +1,94 @@
+"""Pairs of an earlier cross-play played again for free (``reuse=FILE``).
+
+A pair's games depend only on its two competitors, in that order, and on the settings every pair
+shares (task, physics, games, seed, batch, scenario, deterministic, the package's version): the pair's
+index in the table does not seed anything. So a cross-play that adds a competitor to an earlier one
+need not replay the pairs the earlier one played: each such pair is copied from its results file
+(W/D/L, game-by-game outcomes, sides, serves, content), and the table comes out as a fresh cross-play
+of all of them would. A competitor is recognised by what plays, not by its label or path: its
+members' kinds and sha256 and its mixture. A pair whose two competitors stand in the other order
+is played again (the games from the other side are other games), so add new competitors at the end.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from volleybots.errors import ConfigError
+
+# what every pair of a cross-play shares, as its results file names it
+SETTINGS = ("task", "action_space", "games_per_pair", "seed", "batch", "scenario", "deterministic")
+CONFIG_PARTS = ("task", "env")  # the match config's sections that change a game
+
+
+def identity(provenance: dict) -> str:
+    """What plays, as a key: the members without their paths (a moved file is the same player)."""
+    members = [{k: v for k, v in m.items() if k != "path"} for m in provenance["members"]]
+    return json.dumps({"members": members, "mixture": [round(float(x), 12) for x in provenance["mixture"]]}, sort_keys=True)
+
+
+@dataclass
+class Reused:
+    """A pair copied from an earlier results file, shaped as ``play.games.Games`` is for a progress line."""
+
+    total: np.ndarray  # [3] W/D/L from the row's side
+    outcomes: str
+    side_wdl: list
+    served: int
+    pair_content: dict
+    source: str
+
+    def content(self) -> dict:
+        return self.pair_content
+
+
+class Reuse:
+    """An earlier cross-play whose pairs a new one copies; its settings must be the new one's."""
+
+    def __init__(self, path, meta: dict):
+        from volleybots.eval.crossplay import CrossPlay
+
+        self.path = str(path)
+        self.old = CrossPlay.load(path)
+        old = self.old.meta
+        for key in SETTINGS:
+            if old.get(key) != meta[key]:
+                raise ConfigError(
+                    f"reuse={self.path!r} was played with {key}={old.get(key)!r}, this cross-play with {key}={meta[key]!r}; "
+                    "only pairs played with the same settings can be reused")
+        for part in CONFIG_PARTS:
+            if (old.get("config") or {}).get(part) != meta["config"][part]:
+                raise ConfigError(f"reuse={self.path!r} was played with other {part}.* settings than this cross-play; "
+                                  "only pairs played with the same settings can be reused")
+        was, now = (old.get("versions") or {}).get("volleybots"), meta["versions"]["volleybots"]
+        if was != now:
+            raise ConfigError(f"reuse={self.path!r} was played by volleybots {was}, this is {now}; its games may differ, play them again")
+        self.index = {}
+        for k, prov in enumerate(old.get("competitors") or []):
+            self.index.setdefault(identity(prov), k)
+
+    def pair(self, a: dict, b: dict) -> Reused | None:
+        """The earlier games of competitor ``a`` (row) against ``b`` (provenances), if it played them in this order."""
+        i, j = self.index.get(identity(a)), self.index.get(identity(b))
+        if i is None or j is None or i >= j:
+            return None
+        key, old = f"{i},{j}", self.old
+        if key not in old.outcomes:
+            return None
+        return Reused(old.wdl[i, j].astype(int), old.outcomes[key], old.side_wdl[key], int(old.meta.get("served", {}).get(key, 0)),
+                      old.content.get(key, {}), self.path)
+
+
+def check_readable(path: str) -> None:
+    """Refuse a ``reuse=`` that names nothing before the output folder is claimed."""
+    if not path:
+        raise ConfigError("reuse= names no file; give reuse=PATH/crossplay.json (a cross-play results file)")
+    if not Path(path).is_file():
+        raise ConfigError(f"reuse={path!r} is not a file; give a cross-play results file (crossplay.json)")
+
+
+__all__ = ["Reuse", "Reused", "identity"]
