@@ -45,7 +45,7 @@ def test_a_ray_pool_plays_the_same_payoff_entries_as_serial_play(serial_run, tmp
     def here(*args):
         raise AssertionError("a match was played in this process, not in a Ray worker")
 
-    monkeypatch.setattr("volleybots.play.pool.head_to_head", here)  # Ray's workers import their own, unpatched
+    monkeypatch.setattr("volleybots.play.pool.play_row_chunk", here)  # Ray's workers import their own, unpatched
     try:
         PopulationLoop(cfg, RunDir(copy))._play_payoffs()
         assert ray.is_initialized()

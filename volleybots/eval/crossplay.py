@@ -228,7 +228,7 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
         "config": to_dict(cfg),
         "versions": versions(),
     }
-    earlier = Reuse(reuse, meta) if reuse is not None else None  # refused here, before any game, if it does not fit
+    earlier = Reuse(reuse, CrossPlay.load(reuse), meta) if reuse is not None else None  # refused here, before any game, if it does not fit
     for i, j in combinations(range(n), 2):
         key = f"{i},{j}"
         g = earlier.pair(meta["competitors"][i], meta["competitors"][j]) if earlier is not None else None

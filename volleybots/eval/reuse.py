@@ -49,12 +49,10 @@ class Reused:
 class Reuse:
     """An earlier cross-play whose pairs a new one copies; its settings must be the new one's."""
 
-    def __init__(self, path, meta: dict):
-        from volleybots.eval.crossplay import CrossPlay
-
-        self.path = str(path)
-        self.old = CrossPlay.load(path)
-        old = self.old.meta
+    def __init__(self, path, earlier, meta: dict):
+        """``earlier``: the ``CrossPlay`` read from ``path``; ``meta``: the new cross-play's settings."""
+        self.path, self.old = str(path), earlier
+        old = earlier.meta
         for key in SETTINGS:
             if old.get(key) != meta[key]:
                 raise ConfigError(

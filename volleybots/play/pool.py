@@ -1,10 +1,10 @@
-"""Many head-to-head matches at once: here one after another, or as tasks of a Ray pool.
+"""A payoff row's chunks of games (``volleybots.play.rows``): here one after another, or as tasks of a Ray pool.
 
-A match's games draw their random numbers from the match's own seed (``volleybots.play.games``), so
-its W/D/L counts do not depend on where or in which order it is played: the pool changes the wall
-time, never the results. ``ray`` connects to the cluster named by ``RAY_ADDRESS`` (``ray start
---head`` prints it), joins the cluster of the Ray task it runs in (a sweep job of
-``hydra/launcher=ray``), or else starts a local Ray instance for the rest of the process.
+A chunk's games draw their random numbers from the chunk's own seed, so its W/D/L counts do not
+depend on where or in which order it is played: the pool changes the wall time, never the results.
+``ray`` connects to the cluster named by ``RAY_ADDRESS`` (``ray start --head`` prints it), joins the
+cluster of the Ray task it runs in (a sweep job of ``hydra/launcher=ray``), or else starts a local
+Ray instance for the rest of the process.
 """
 
 from __future__ import annotations
@@ -15,7 +15,8 @@ import os
 from volleybots.algos.population import POOLS
 from volleybots.config import to_dict, validate
 from volleybots.errors import ConfigError
-from volleybots.play.games import head_to_head
+from volleybots.play.games import DEFAULT_BATCH
+from volleybots.play.rows import play_row_chunk, row_chunks
 
 EXTRA = "cluster"  # pip install 'volleybots[cluster]' installs ray
 
@@ -28,24 +29,25 @@ def check_pool(pool: str, key: str) -> None:
         raise ConfigError(f"{key}=ray needs the ray package: pip install 'volleybots[{EXTRA}]' (or use {key}=serial)")
 
 
-def head_to_heads(cfg, matches: list[tuple], pool: str = "serial") -> list:
-    """``head_to_head(cfg, a, b, games, seed)`` for each ``(a, b, games, seed)`` of ``matches``, in
-    order: one [3] record of wins, draws and losses each."""
-    if pool == "serial" or not matches:
-        return [head_to_head(cfg, *m) for m in matches]
+def payoff_row(cfg, a, opponents: list, games: int, seed: int, pool: str = "serial", batch: int = DEFAULT_BATCH) -> list:
+    """[3] wins, draws, losses of ``a`` against each of ``opponents``, ``games`` each, in order; the chunk
+    of opponents from index ``j`` on plays on seed ``seed + j``."""
+    chunks = [(a, [opponents[j] for j in r], games, seed + r.start) for r in row_chunks(len(opponents), games, batch)]
+    if pool == "serial" or not chunks:
+        return [w for c in chunks for w in play_row_chunk(cfg, *c)]
     check_pool(pool, "pool")
     import ray
 
     if not ray.is_initialized():
         ray.init(address=os.environ.get("RAY_ADDRESS"), include_dashboard=False, log_to_driver=False)
-    task = ray.remote(num_cpus=1)(_match)
+    task = ray.remote(num_cpus=1)(_chunk)
     data = ray.put(to_dict(cfg))
-    return ray.get([task.remote(data, *m) for m in matches])
+    return [w for part in ray.get([task.remote(data, *c) for c in chunks]) for w in part]
 
 
-def _match(cfg: dict, a, b, games: int, seed: int):
-    """One match in a Ray worker (one torch thread, as Ray's workers run with OMP_NUM_THREADS=1)."""
+def _chunk(cfg: dict, a, opponents: list, games: int, seed: int):
+    """One chunk in a Ray worker (one torch thread, as Ray's workers run with OMP_NUM_THREADS=1)."""
     import torch
 
     torch.set_num_threads(1)
-    return head_to_head(validate(cfg), a, b, games, seed)
+    return play_row_chunk(validate(cfg), a, opponents, games, seed)

@@ -116,6 +116,19 @@ class MixturePolicy:
         return td
 
 
+
+class AssignedPolicy(MixturePolicy):
+    """Acts for one team with a fixed member per env, never redrawn: env ``i`` plays ``policies[choice[i]]``
+    (a payoff row plays one competitor against every member at once, each member in its own envs)."""
+
+    def __init__(self, policies: list[Callable], choice: torch.Tensor):
+        self.policies, self.choice, self.generator = policies, choice, None
+        self.mixture = torch.full((len(policies),), 1.0 / len(policies), dtype=torch.float64)
+
+    def begin_episodes(self, starts: torch.Tensor) -> None:
+        pass
+
+
 def hierarchical_member(drills: dict | None = None, label: str = "hierarchical") -> Member:
     """The hierarchical team as a member; its source names the drills' checkpoints (with hashes)."""
     drills = {k: str(v) for k, v in (drills or {}).items()}
@@ -197,7 +210,7 @@ def single_policy(spec: str, what: str) -> Competitor:
 
 
 __all__ = [
-    "META_FILE", "POPULATION_DIR", "Competitor", "Member", "MixturePolicy", "builtin_member", "checkpoint_member", "hierarchical_member",
-    "member_path", "population_members", "read_meta", "resolve_competitor",
+    "META_FILE", "POPULATION_DIR", "AssignedPolicy", "Competitor", "Member", "MixturePolicy", "builtin_member", "checkpoint_member",
+    "hierarchical_member", "member_path", "population_members", "read_meta", "resolve_competitor",
     "single_policy",
 ]

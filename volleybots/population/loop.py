@@ -36,7 +36,7 @@ from volleybots.algos.ppo import MAPPO
 from volleybots.config import to_dict, validate
 from volleybots.errors import ConfigError
 from volleybots.files import write_atomic
-from volleybots.play.pool import head_to_heads
+from volleybots.play.pool import payoff_row
 from volleybots.play.seats import SelfPlay, Versus
 from volleybots.policies import BUILTIN, Competitor, checkpoint_member, member_path, population_members, resolve_competitor, single_policy
 from volleybots.population.clone import CLONE, clone_member, make_clone, needs_clone
@@ -165,11 +165,10 @@ class PopulationLoop:
         table = PayoffTable.load(self.payoffs_path)
         paths = population_members(self.run.path)
         for k in range(len(table), len(paths)):
-            new = checkpoint_member(paths[k])
+            new = Competitor("new", [checkpoint_member(paths[k])])
+            olds = [Competitor("old", [checkpoint_member(paths[j])]) for j in range(k)]
             seed = self.cfg.seed + GAMES_SEED + 1000 * k
-            matches = [(Competitor("new", [new]), Competitor("old", [checkpoint_member(paths[j])]), self.m.payoff_games, seed + j)
-                       for j in range(k)]
-            results = head_to_heads(self.cfg, matches, self.m.payoff_pool)
+            results = payoff_row(self.cfg, new, olds, self.m.payoff_games, seed, self.m.payoff_pool)
             table.add_member(self._label(paths[k]), results)
             table.save(self.payoffs_path)
 
