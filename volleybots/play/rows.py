@@ -5,7 +5,8 @@ before it. Played pair by pair, each pair's batch is small (50 worlds a side for
 as long as its longest game, so a row of ten pairs cost ten times one pair although a batch of 250
 worlds steps nearly as fast as one of 50 (3v3, CPU). A row is therefore played in chunks of opponents:
 a chunk's worlds are split among its opponents (``AssignedPolicy``: each world plays one of them, fixed
-for its game) and the chunk is one batch per side. A chunk holds as many opponents as fit in ``batch``
+for its game; a trained opponent's network acts on its own worlds only) and the chunk is one batch
+per side. A chunk holds as many opponents as fit in ``batch``
 worlds a side, and its games draw from ``seed + its first opponent's index`` alone, so the counts do
 not depend on where or in which order the chunks are played (``volleybots.play.pool`` plays them here
 or as Ray tasks).
@@ -42,9 +43,9 @@ def play_row_chunk(cfg, a, opponents: list, games: int, seed: int) -> list[np.nd
             if per == 0:
                 continue
             env = side_env(cfg, side, "any", per * len(opponents), seed)
-            choice = torch.arange(len(opponents), device=env.device).repeat_interleave(per)
             pa = a.team_policy(env, False, gen)
-            pb = AssignedPolicy([o.members[0].make(env, False) for o in opponents], choice)
+            members = [o.members[0] for o in opponents]
+            pb = AssignedPolicy([m.make(env, False) for m in members], per, [m.source["kind"] == "checkpoint" for m in members])
             winner = run_episodes(env, TeamPolicies(env, (pa, pb) if side == 0 else (pb, pa)))["winner"].round().long()
             for j in range(len(opponents)):
                 w = winner[j * per:(j + 1) * per]

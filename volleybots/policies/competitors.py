@@ -117,16 +117,27 @@ class MixturePolicy:
 
 
 
-class AssignedPolicy(MixturePolicy):
-    """Acts for one team with a fixed member per env, never redrawn: env ``i`` plays ``policies[choice[i]]``
-    (a payoff row plays one competitor against every member at once, each member in its own envs)."""
+class AssignedPolicy:
+    """Acts for one team with a fixed member per block of envs, never redrawn: envs ``[k * per, (k + 1) * per)``
+    play ``policies[k]`` (a payoff row plays one competitor against every member at once, each member in
+    its own envs). A member that keeps nothing per env (``stateless``: a trained network) acts on its own
+    envs alone; one that does (a scripted player keeps state for every env of the batch it was made
+    for) acts on the whole batch, and its block of actions is kept."""
 
-    def __init__(self, policies: list[Callable], choice: torch.Tensor):
-        self.policies, self.choice, self.generator = policies, choice, None
-        self.mixture = torch.full((len(policies),), 1.0 / len(policies), dtype=torch.float64)
+    def __init__(self, policies: list[Callable], per: int, stateless: list[bool]):
+        self.policies, self.per, self.stateless = policies, per, stateless
 
-    def begin_episodes(self, starts: torch.Tensor) -> None:
-        pass
+    def __call__(self, td: TensorDictBase) -> TensorDictBase:
+        parts = []
+        for k, (policy, alone) in enumerate(zip(self.policies, self.stateless)):
+            block = slice(k * self.per, (k + 1) * self.per)
+            if alone:
+                parts.append(acted(policy, td[block]).get(ACTION))
+            else:
+                whole = td.clone(recurse=False).set(AGENTS, td.get(AGENTS).clone(recurse=False))
+                parts.append(acted(policy, whole).get(ACTION)[block])
+        td.set(ACTION, torch.cat(parts, 0))
+        return td
 
 
 def hierarchical_member(drills: dict | None = None, label: str = "hierarchical") -> Member:
