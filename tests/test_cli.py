@@ -182,7 +182,8 @@ def test_bench_prints_the_speed_table():
 
 def test_multirun_sweeps_seeds(tmp_path):
     res = runner.invoke(app, ["train", "-m", "seed=0,1", *[o for o in TINY if not o.startswith("total_frames")], "total_frames=512",
-                              "evaluation.episodes=1", "evaluation.record=false", f"hydra.sweep.dir={tmp_path / 'sweep'}"])
+                              "evaluation.episodes=1", "evaluation.record=false", "algo.minibatches=1", "algo.epochs=1", "algo.hidden=[16]",
+                              f"hydra.sweep.dir={tmp_path / 'sweep'}"])
     assert res.exit_code == 0, res.output[-2000:]
     seeds = sorted(json.loads((p / "summary.json").read_text())["seed"] for p in (tmp_path / "sweep").iterdir() if p.is_dir())
     assert seeds == [0, 1]
