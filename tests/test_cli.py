@@ -22,6 +22,7 @@ TINY = [
     "task=hover", "env.num_envs=16", "algo.steps_per_batch=32", "total_frames=2048", "threads=1", "progress=false",
     "checkpoint.every=1024", "evaluation.every=1024", "evaluation.episodes=2",
     "task.episode_len=100",  # three evaluations and every `eval` of the run play 100-step episodes, not 500
+    "algo.minibatches=1", "algo.epochs=1", "algo.hidden=[16]",  # one small gradient step a batch: the run dir is what is read
 ]
 ENV = {**os.environ, "OMP_NUM_THREADS": "1"}
 runner = CliRunner()
@@ -182,8 +183,7 @@ def test_bench_prints_the_speed_table():
 
 def test_multirun_sweeps_seeds(tmp_path):
     res = runner.invoke(app, ["train", "-m", "seed=0,1", *[o for o in TINY if not o.startswith("total_frames")], "total_frames=512",
-                              "evaluation.episodes=1", "evaluation.record=false", "algo.minibatches=1", "algo.epochs=1", "algo.hidden=[16]",
-                              f"hydra.sweep.dir={tmp_path / 'sweep'}"])
+                              "evaluation.episodes=1", "evaluation.record=false", f"hydra.sweep.dir={tmp_path / 'sweep'}"])
     assert res.exit_code == 0, res.output[-2000:]
     seeds = sorted(json.loads((p / "summary.json").read_text())["seed"] for p in (tmp_path / "sweep").iterdir() if p.is_dir())
     assert seeds == [0, 1]
