@@ -89,7 +89,8 @@ def test_bc_on_solo_bump_lowers_the_imitation_loss_and_bumps(solo_bump_bc):
 @pytest.mark.slow
 def test_a_bc_run_dir_evaluates_and_starts_ppo(solo_bump_bc, tmp_path):
     path, summary = solo_bump_bc
-    res = evaluate(str(path), ["seed=1", "threads=1"], episodes=4)
+    # 200-step episodes (of 800): the clone bumps 3 times in each on average (5.5 in whole ones)
+    res = evaluate(str(path), ["seed=1", "threads=1", "task.episode_len=200"], episodes=4)
     assert res["target"].startswith("bc@") and res["stats"]["bumps"]["mean"] > 0
     saved = torch.load(path / "checkpoints" / "final.pt", weights_only=True)["algo"]
     cfg = load(["task=solo_bump", "algo=ppo", "env.num_envs=8", f"init={path}", *QUIET])

@@ -22,6 +22,7 @@ TINY = [
     "task=hover", "env.num_envs=16", "algo.steps_per_batch=32", "total_frames=2048", "threads=1", "progress=false",
     "checkpoint.every=1024", "evaluation.every=1024", "evaluation.episodes=2",
     "task.episode_len=100",  # three evaluations and every `eval` of the run play 100-step episodes, not 500
+    "algo.minibatches=1", "algo.epochs=1", "algo.hidden=[16]",  # one small gradient step a batch: the run dir is what is read
 ]
 ENV = {**os.environ, "OMP_NUM_THREADS": "1"}
 runner = CliRunner()
@@ -135,12 +136,13 @@ def test_eval_compare_pairs_the_episodes_and_tells_the_better_player(run_dir):
     assert (c["wins"], c["ties"], c["losses"]) == (8, 0, 0) and c["verdict"] == "better" and c["p"] < 0.01
     assert c["diff"] == pytest.approx(rand["mean"] - scripted["mean"]) and c["low"] > 0
     # a scripted baseline plays the run's task; a policy against itself ties every episode
-    res = runner.invoke(app, ["eval", "compare", "scripted", str(run_dir), str(run_dir), "episodes=3", "--json"])
+    # (50-step episodes of the run's 100: a tie and the task carried over hold at any length)
+    res = runner.invoke(app, ["eval", "compare", "scripted", str(run_dir), str(run_dir), "episodes=3", "task.episode_len=50", "--json"])
     assert res.exit_code == 0, res.output
     out = json.loads(res.stdout)
     assert out["task"] == "hover" and [t["target"] for t in out["targets"]] == ["scripted", str(run_dir), str(run_dir)]
     assert out["targets"][1]["per_episode"] == out["targets"][2]["per_episode"]
-    res = runner.invoke(app, ["eval", "compare", str(run_dir), str(run_dir), "episodes=3"])
+    res = runner.invoke(app, ["eval", "compare", str(run_dir), str(run_dir), "episodes=3", "task.episode_len=50"])
     assert res.exit_code == 0 and "level" in res.stdout and "0/3/0" in res.stdout
 
 

@@ -137,14 +137,15 @@ def test_a_match_replay_with_a_label_too_long_for_a_file_name_records(tmp_path, 
 
 def test_a_run_dir_named_with_comma_and_equals_is_usable(tiny_1v1_run, tmp_path):
     run = Path(shutil.copytree(tiny_1v1_run, tmp_path / "a,b=c", ignore=shutil.ignore_patterns(".lock")))
-    res = runner.invoke(app, ["eval", str(run), "episodes=1", "--json"])
+    # (20-step games: every verb only has to read the run dir and play)
+    res = runner.invoke(app, ["eval", str(run), "episodes=1", "task.episode_len=20", "--json"])
     assert res.exit_code == 0, res.output
     res = runner.invoke(app, ["eval", "crossplay", str(run), "random", "games=2", "task.episode_len=20", "--out", str(tmp_path / "o")])
     assert res.exit_code == 0, res.output
     assert (tmp_path / "o" / "crossplay.json").is_file()
-    res = runner.invoke(app, ["eval", "compare", str(run), "random", "episodes=2"])
+    res = runner.invoke(app, ["eval", "compare", str(run), "random", "episodes=2", "task.episode_len=20"])
     assert res.exit_code == 0, res.output
-    res = runner.invoke(app, ["replay", str(run), "--no-viewer", "--out", str(tmp_path / "r.rrd")])
+    res = runner.invoke(app, ["replay", str(run), "--no-viewer", "--out", str(tmp_path / "r.rrd"), "task.episode_len=20"])
     assert res.exit_code == 0, res.output
 
 

@@ -186,6 +186,10 @@ def test_trained_drills_from_a_yaml_file(tmp_path, monkeypatch):
             "evaluation.every=0",
             "evaluation.episodes=2",  # the final evaluation is not under test: 2 unrecorded episodes, not 16 recorded
             "evaluation.record=false",
+            "task.episode_len=50",  # ... of 50 steps
+            "algo.minibatches=1",  # the run dir is what the team reads: one small gradient step
+            "algo.epochs=1",
+            "algo.hidden=[16]",
             "checkpoint.every=0",
         ],
     )

@@ -153,7 +153,7 @@ def test_best_pt_holds_the_policy_of_the_best_evaluation(tmp_path):
             "evaluation.every=128",
             "checkpoint.every=128",
             "checkpoint.keep=100",
-            "task.episode_len=60",  # 8 evaluations of 2 episodes: 60 steps each instead of 500
+            "task.episode_len=30",  # 8 evaluations of 2 episodes: 30 steps each instead of 500
         ]
     )
     summary = train(cfg, tmp_path / "run")

@@ -19,9 +19,13 @@ pytestmark = [pytest.mark.slow, pytest.mark.subprocess]
 SWEEP = [
     "seed=0,1",
     "task=hover",
-    "task.episode_len=50",
+    "task.episode_len=20",
     "env.num_envs=4",
     "algo.steps_per_batch=16",
+    # one small gradient step per batch: the jobs are here for what the launchers do with them
+    "algo.minibatches=1",
+    "algo.epochs=1",
+    "algo.hidden=[16]",
     "total_frames=128",
     "threads=1",
     "progress=false",

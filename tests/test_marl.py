@@ -38,6 +38,7 @@ def tiny(name: str) -> list[str]:
     small = {
         "minibatches": 2, "hidden": "[16,16]", "batch_size": 8, "buffer_size": 512, "warmup_batches": 1,
         "embed_dim": 16, "n_heads": 2, "n_blocks": 1, "mixing_embed_dim": 8, "checkpoint_buffer": "true",
+        "teacher_replan": STEPS,  # bc's lookahead teacher searches once a batch, not every step
     }
     keys = {f.name for f in dataclasses.fields(ALGOS[name].config_cls)}
     return [f"algo.{k}={v}" for k, v in small.items() if k in keys]
