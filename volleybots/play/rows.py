@@ -2,14 +2,13 @@
 
 A population run adds a row to its payoff table per new member: ``games`` games against each member
 before it. Played pair by pair, each pair's batch is small (50 worlds a side for 100 games) and lasts
-as long as its longest game, so a row of ten pairs cost ten times one pair although a batch of 250
-worlds steps nearly as fast as one of 50 (3v3, CPU). A row is therefore played in chunks of opponents:
-a chunk's worlds are split among its opponents (``AssignedPolicy``: each world plays one of them, fixed
-for its game; a trained opponent's network acts on its own worlds only) and the chunk is one batch
-per side. A chunk holds as many opponents as fit in ``batch``
-worlds a side, and its games draw from ``seed + its first opponent's index`` alone, so the counts do
-not depend on where or in which order the chunks are played (``volleybots.play.pool`` plays them here
-or as Ray tasks).
+as long as its longest game, and at that size stepping is overhead-bound: a row of ten pairs cost
+about ten times one pair (3v3, CPU). A row is therefore played in chunks of opponents: a chunk's
+worlds are split among its opponents (``AssignedPolicy``: each world plays one of them, fixed for its
+game; a trained opponent's network acts on its own worlds only) and the chunk is one batch per side.
+A chunk holds as many opponents as fit in ``batch`` worlds a side, and its games draw from ``seed +
+its first opponent's index`` alone, so the counts do not depend on where or in which order the chunks
+are played (``volleybots.play.pool`` plays them here or as Ray tasks).
 """
 
 from __future__ import annotations
