@@ -13,9 +13,10 @@ from ``--br-init`` if given, stopping at the convergence criterion or, with ``--
 the whole budget (equal budgets for every competitor, as the paper compares them); ``--br-response SPEC``
 (repeatable) adds a fixed candidate response (``scripted``, ``hierarchical``, a run) beside the trained one,
 and the figure is the best candidate's (``--br-budget 0`` with a response: fixed candidates only). A
-figure that no candidate's criterion holds for is marked as a lower bound. ``--reuse FILE`` (an earlier
-table3.json or crossplay.json) copies the pairs it played with the same settings instead of playing them
-again, so adding a method to a table plays only its own pairs (``eval crossplay ... reuse=FILE``). The within-population exploitability stands beside it.
+figure that no candidate's criterion holds for is marked as a lower bound. The within-population
+exploitability stands beside it. ``--reuse FILE`` (an earlier table3.json or crossplay.json) copies the
+pairs it played with the same settings instead of playing them again, so adding a method to a table
+plays only its own pairs (``eval crossplay ... reuse=FILE``).
 Writes ``table3.json``, ``table3.md``, ``table3_crossplay.png`` and ``table3_ratings.png`` into ``--out``
 (default ``outputs/table3``; docs/table3.md is the written-up table, which a run never overwrites), each
 naming games, rounds, seed and competitors.
