@@ -232,15 +232,13 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
     for i, j in combinations(range(n), 2):
         key = f"{i},{j}"
         g = earlier.pair(meta["competitors"][i], meta["competitors"][j]) if earlier is not None else None
-        if g is not None:
-            reused[key] = g.source
-            sides[key], content[key] = g.side_wdl, g.content()
-        else:
+        if g is None:
             g = play_games(cfg, competitors[i], competitors[j], games, seed=seed, batch=batch, scenario=scenario,
                            deterministic=deterministic)
-            sides[key], content[key] = g.wdl.tolist(), g.content()
+        else:
+            reused[key] = g.source
         record.put(wdl, i, j, g.total)
-        outcomes[key], served[key] = g.outcomes, g.served
+        outcomes[key], served[key], sides[key], content[key] = g.outcomes, g.served, g.wdl.tolist(), g.content()
         if progress is not None:
             progress(i, j, g)
     if reused:

@@ -35,12 +35,15 @@ def identity(provenance: dict) -> str:
 class Reused:
     """A pair copied from an earlier results file, shaped as ``play.games.Games`` is for a progress line."""
 
-    total: np.ndarray  # [3] W/D/L from the row's side
+    wdl: np.ndarray  # [2, 3] W/D/L from the row's side, the row on team 0 / on team 1
     outcomes: str
-    side_wdl: list
     served: int
     pair_content: dict
     source: str
+
+    @property
+    def total(self) -> np.ndarray:
+        return self.wdl.sum(0)
 
     def content(self) -> dict:
         return self.pair_content
@@ -77,7 +80,7 @@ class Reuse:
         key, old = f"{i},{j}", self.old
         if key not in old.outcomes:
             return None
-        return Reused(old.wdl[i, j].astype(int), old.outcomes[key], old.side_wdl[key], int(old.meta.get("served", {}).get(key, 0)),
+        return Reused(np.asarray(old.side_wdl[key], dtype=int), old.outcomes[key], int(old.meta.get("served", {}).get(key, 0)),
                       old.content.get(key, {}), self.path)
 
 

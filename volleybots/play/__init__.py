@@ -5,10 +5,10 @@ Floor: above ``policies`` (what plays), below ``replay``, ``train``, ``populatio
 """
 
 from volleybots.play.episodes import collect, finished_stats, run_episodes, stat_keys, summarize
-from volleybots.play.games import Games, head_to_head, play_games
+from volleybots.play.games import Games, play_games
 from volleybots.play.seats import AllAgents, SelfPlay, Versus, default_seat, team_slice
 
 __all__ = [
-    "AllAgents", "Games", "SelfPlay", "Versus", "collect", "default_seat", "finished_stats", "head_to_head", "play_games", "run_episodes",
+    "AllAgents", "Games", "SelfPlay", "Versus", "collect", "default_seat", "finished_stats", "play_games", "run_episodes",
     "stat_keys", "summarize", "team_slice",
 ]

@@ -170,12 +170,6 @@ def play_games(
                  np.array(touches, dtype=int).reshape(-1, 2), np.array(steps, dtype=int))
 
 
-def head_to_head(cfg, a, b, games: int, seed: int, deterministic: bool = False) -> np.ndarray:
-    """[3] wins, draws, losses from ``a``'s side of ``games`` games, each side played half the time
-    (the payoff table of a population run uses these)."""
-    return play_games(cfg, a, b, games, seed, deterministic=deterministic).total
-
-
 class _Side:
     """One side's env (built once, reused by every batch) and the two team policies in it."""
 
@@ -193,6 +187,11 @@ class _Side:
         winner, reason, serve, h0, h1, length = (res[k][:size].round().long().tolist() for k in keys)
         a = self.side
         return [
-            ("D" if w < 0 else "W" if w == a else "L", r, s == a, (t0, t1) if a == 0 else (t1, t0), n)
+            (outcome(w, a), r, s == a, (t0, t1) if a == 0 else (t1, t0), n)
             for w, r, s, t0, t1, n in zip(winner, reason, serve, h0, h1, length)
         ]
+
+
+def outcome(winner: int, side: int) -> str:
+    """A game's outcome letter from the side of the team ``side``: the referee's winner is -1 for a draw."""
+    return "D" if winner < 0 else "W" if winner == side else "L"

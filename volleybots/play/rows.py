@@ -18,8 +18,9 @@ import torch
 
 from volleybots.errors import ConfigError
 from volleybots.play.episodes import run_episodes
-from volleybots.play.games import DEFAULT_BATCH, side_env
+from volleybots.play.games import DEFAULT_BATCH, outcome, side_env
 from volleybots.policies.competitors import AssignedPolicy
+from volleybots.ratings import record
 from volleybots.tasks.multi import TeamPolicies
 
 
@@ -45,10 +46,9 @@ def play_row_chunk(cfg, a, opponents: list, games: int, seed: int) -> list[np.nd
             pa = a.team_policy(env, False, gen)
             members = [o.members[0] for o in opponents]
             pb = AssignedPolicy([m.make(env, False) for m in members], per, [m.source["kind"] == "checkpoint" for m in members])
-            winner = run_episodes(env, TeamPolicies(env, (pa, pb) if side == 0 else (pb, pa)))["winner"].round().long()
+            winner = run_episodes(env, TeamPolicies(env, (pa, pb) if side == 0 else (pb, pa)))["winner"].round().long().tolist()
             for j in range(len(opponents)):
-                w = winner[j * per:(j + 1) * per]
-                out[j] += [int((w == side).sum()), int((w < 0).sum()), int(((w >= 0) & (w != side)).sum())]
+                out[j] += record.tally("".join(outcome(w, side) for w in winner[j * per:(j + 1) * per]))
     return list(out)
 
 
