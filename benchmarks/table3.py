@@ -65,9 +65,10 @@ def main(argv=None) -> int:
     comps, specs, _, cfg = setup([*a.competitors, f"task={a.task}", f"games={a.games}"], OPTIONS)
     a.out.mkdir(parents=True, exist_ok=True)
     reuse = a.reuse
-    if reuse is not None and "crossplay" in json.loads(reuse.read_text()):  # a table3.json: its cross-play part
+    earlier = json.loads(reuse.read_text()) if reuse is not None else {}
+    if "crossplay" in earlier:  # a table3.json: its cross-play part, as the file crossplay() reads
         reuse = a.out / "reused_crossplay.json"
-        reuse.write_text(json.dumps(json.loads(a.reuse.read_text())["crossplay"]))
+        reuse.write_text(json.dumps(earlier["crossplay"]))
     t0 = time.time()
     res = crossplay(cfg, comps, a.games, seed=a.seed, batch=a.batch, specs=specs, reuse=reuse,
                     progress=lambda i, j, g: print(f"  {comps[i].label} vs {comps[j].label}: W/D/L {g.total.tolist()}", flush=True))
