@@ -76,15 +76,14 @@ def one_line_exit_2(res, *words) -> str:
     return err
 
 
-# Seconds each of the heaviest test modules took on the 2-core machine (xdist, 2 workers, 2026-11-27, main 9cfec76).
+# Seconds each of the heaviest test modules took on the 2-core machine (xdist, 2 workers, 2026-11-28, main 904c7e0).
 # Only the order of scheduling reads them; no test is selected or skipped by them.
 MODULE_SECONDS = {
-    "test_offpolicy_learning": 146, "test_cli": 119, "test_population": 118, "test_scripted_set_and_spike": 109,
-    "test_reliability": 96, "test_marl": 91, "test_launchers": 89, "test_ppo": 82, "test_scripted_set_and_spike_ctbr": 76,
-    "test_bc": 63, "test_scripted_bump_and_pass": 56, "test_crossplay": 51, "test_payoff_pool": 42, "test_wandb": 40,
-    "test_lookahead": 40, "test_scripted_set_and_spike_hard": 37, "test_hierarchical": 37, "test_registries": 36,
-    "test_scripted": 34, "test_env": 33, "test_exploitability": 33, "test_config": 31, "test_docs": 30, "test_compiled_step": 28,
-    "test_sac_init": 26, "test_zoo": 23,
+    "test_offpolicy_learning": 142, "test_population": 102, "test_reliability": 88, "test_cli": 83, "test_scripted_set_and_spike": 70,
+    "test_launchers": 70, "test_marl": 64, "test_scripted_set_and_spike_ctbr": 63, "test_crossplay": 61, "test_ppo": 59, "test_zoo": 58,
+    "test_exploitability": 55, "test_scripted_bump_and_pass": 47, "test_bc": 44, "test_docs": 36, "test_registries": 32,
+    "test_payoff_pool": 29, "test_scripted": 28, "test_sac_init": 25, "test_lookahead": 24, "test_wandb": 23, "test_hierarchical": 23,
+    "test_config": 23, "test_compiled_step": 22, "test_env": 21,
 }
 
 
