@@ -163,3 +163,15 @@ def test_the_leaves_load_scipy_where_they_use_it():
             elif isinstance(node, ast.Import):
                 eager += [(name, node.lineno, a.name) for a in node.names if a.name.startswith("scipy.")]
     assert eager == []
+
+
+def test_every_config_error_is_imported_from_errors():
+    """``ConfigError`` lives in the leaf ``volleybots.errors``; a module that takes it from ``config`` (which
+    re-exports it for users) climbs a floor for nothing, and once reopened an import cycle (algos -> config)."""
+    elsewhere = []
+    for name, path in modules().items():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and any(a.name == "ConfigError" for a in node.names):
+                if node.level or node.module != "volleybots.errors":
+                    elsewhere.append((name, node.lineno, node.module))
+    assert elsewhere == []
