@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ from volleybots.config import load
 from volleybots.eval.crossplay import CrossPlay, crossplay
 from volleybots.play.games import play_games
 from volleybots.policies import resolve_competitor
+from volleybots.version import play_code
 
 runner = CliRunner()
 
@@ -260,3 +262,30 @@ def test_reuse_copies_the_pairs_an_earlier_crossplay_played_and_the_table_is_the
     res = runner.invoke(app, ["eval", "crossplay", "bc=zoo:1v1/bc", "random", *common, f"reuse={tmp_path / 'none.json'}"])
     assert res.exit_code == 2 and "is not a file" in res.stderr and len(res.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "bad").exists()
+    # games played by other game code (the version string does not change between commits; the code's
+    # fingerprint does), or by a build that did not record one: refused
+    assert json.loads(first.read_text())["versions"]["play_code"] == play_code()
+    for code in ("0123456789abcdef", None):
+        other = json.loads(first.read_text())
+        other["versions"]["play_code"] = code
+        (tmp_path / "other.json").write_text(json.dumps(other))
+        res = runner.invoke(app, ["eval", "crossplay", "bc=zoo:1v1/bc", "random", *common, f"reuse={tmp_path / 'other.json'}",
+                                  "--out", str(tmp_path / "bad")])
+        assert res.exit_code == 2 and res.stderr.strip() == (
+            f"error: reuse={str(tmp_path / 'other.json')!r} was played by the game code (volleybots.version.play_code) "
+            f"{code or 'unrecorded'}, this is {play_code()}; its games may differ, play them again"), res.output
+        assert not (tmp_path / "bad").exists()
+
+
+def test_the_game_code_fingerprint_covers_the_floors_that_play_and_no_others():
+    """``play_code`` hashes the physics, referee, tasks, scripted players, networks, policy store, game loop
+    and config, and not the verbs that only record or read games (a results file's reuse would otherwise
+    be refused after every change to a report)."""
+    import volleybots
+    from volleybots.version import play_sources
+
+    root = Path(volleybots.__file__).parent
+    floors = {p.relative_to(root).parts[0] for p in play_sources()}
+    assert floors == {"physics", "rules", "tasks", "scripted", "algos", "policies", "play", "config", "keys.py"}
+    assert (root / "physics" / "torch_backend.py") in play_sources() and (root / "scripted" / "lookahead.py") in play_sources()
+    assert len(play_code()) == 16 and int(play_code(), 16) >= 0

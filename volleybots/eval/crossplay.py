@@ -136,10 +136,11 @@ def versions() -> dict:
     import torch
     import torchrl
 
-    from volleybots.version import __version__
+    from volleybots.version import __version__, play_code
 
     return {
         "volleybots": __version__,
+        "play_code": play_code(),
         "python": platform.python_version(),
         "torch": torch.__version__,
         "torchrl": torchrl.__version__,

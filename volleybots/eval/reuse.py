@@ -1,13 +1,14 @@
 """Pairs of an earlier cross-play played again for free (``reuse=FILE``).
 
 A pair's games depend only on its two competitors, in that order, and on the settings every pair
-shares (task, physics, games, seed, batch, scenario, deterministic, the package's version): the pair's
-index in the table does not seed anything. So a cross-play that adds a competitor to an earlier one
-need not replay the pairs the earlier one played: each such pair is copied from its results file
-(W/D/L, game-by-game outcomes, sides, serves, content), and the table comes out as a fresh cross-play
-of all of them would. A competitor is recognised by what plays, not by its label or path: its
-members' kinds and sha256 and its mixture. A pair whose two competitors stand in the other order
-is played again (the games from the other side are other games), so add new competitors at the end.
+shares (task, physics, games, seed, batch, scenario, deterministic, the package's version and the
+fingerprint of its game code, ``version.play_code``): the pair's index in the table seeds nothing.
+So a cross-play that adds a competitor to an earlier one need not replay the pairs the earlier one
+played: each such pair is copied from its results file (W/D/L, game-by-game outcomes, sides, serves,
+content), and the table comes out as a fresh cross-play of all of them would. A competitor is
+recognised by what plays, not by its label or path: its members' kinds and sha256 and its mixture. A
+pair whose two competitors stand in the other order is played again (the games from the other side
+are other games), so add new competitors at the end.
 """
 
 from __future__ import annotations
@@ -65,9 +66,11 @@ class Reuse:
             if (old.get("config") or {}).get(part) != meta["config"][part]:
                 raise ConfigError(f"reuse={self.path!r} was played with other {part}.* settings than this cross-play; "
                                   "only pairs played with the same settings can be reused")
-        was, now = (old.get("versions") or {}).get("volleybots"), meta["versions"]["volleybots"]
-        if was != now:
-            raise ConfigError(f"reuse={self.path!r} was played by volleybots {was}, this is {now}; its games may differ, play them again")
+        for key, what in (("volleybots", "volleybots"), ("play_code", "the game code (volleybots.version.play_code)")):
+            was, now = (old.get("versions") or {}).get(key), meta["versions"][key]
+            if was != now:
+                raise ConfigError(f"reuse={self.path!r} was played by {what} {was or 'unrecorded'}, this is {now}; "
+                                  "its games may differ, play them again")
         self.index = {}
         for k, prov in enumerate(old.get("competitors") or []):
             self.index.setdefault(identity(prov), k)
