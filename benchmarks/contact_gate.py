@@ -1,0 +1,59 @@
+"""What skipping the contact tests saves: eager env steps with ``physics.torch_backend.may_touch`` as it is
+and with it answering "yes" every time (every sub-step runs the contact tests, as before the gate).
+
+    python benchmarks/contact_gate.py                      # 32 envs, random actions, five tasks
+    python benchmarks/contact_gate.py --num-envs 256 --tasks hover,1v1
+
+Both ways give the same numbers (tests/test_physics.py); only the time differs. The two ways take
+turns within one process, so the machine's load falls on both alike; each figure is the mean of the
+faster half of the rounds (ms per env step, one torch thread). Print the machine's load beside it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import torch
+
+import volleybots
+import volleybots.physics.torch_backend as tb
+
+
+def step_ms(env, td, steps: int) -> tuple[float, object]:
+    t = time.perf_counter()
+    for _ in range(steps):
+        td.update(env.full_action_spec.rand())
+        _, td = env.step_and_maybe_reset(td)
+    return (time.perf_counter() - t) / steps * 1e3, td
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--tasks", default="hover,back_and_forth,solo_bump,1v1,3v3")
+    p.add_argument("--num-envs", type=int, default=32)
+    p.add_argument("--rounds", type=int, default=8)
+    p.add_argument("--steps", type=int, default=25, help="env steps per round and way")
+    a = p.parse_args()
+    torch.set_num_threads(1)
+    gate, always = tb.may_touch, (lambda *args: True)
+    print("| task | envs | gated (ms/step) | always tested (ms/step) | speed-up |\n|---|---|---|---|---|")
+    for task in a.tasks.split(","):
+        env = volleybots.make_env(task, num_envs=a.num_envs, seed=0)
+        td = env.reset()
+        times: dict[str, list[float]] = {"gated": [], "always": []}
+        for _ in range(a.rounds):
+            for name, fn in (("gated", gate), ("always", always)):
+                tb.may_touch = fn
+                try:
+                    ms, td = step_ms(env, td, a.steps)
+                finally:
+                    tb.may_touch = gate
+                times[name].append(ms)
+        g, w = (sorted(times[k])[: max(1, a.rounds // 2)] for k in ("gated", "always"))
+        g, w = sum(g) / len(g), sum(w) / len(w)
+        print(f"| {task} | {a.num_envs} | {g:.2f} | {w:.2f} | {w / g:.2f}x |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
