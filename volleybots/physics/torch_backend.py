@@ -135,7 +135,7 @@ def may_touch(c: Constants, hgt0: torch.Tensor, hgt1: torch.Tensor, off: Vec3) -
     first two of the racket test's conditions in ``touch``) or comes within the body's reach of a drone's
     centre (the body box's half-diagonal plus the ball's radius, and a millimetre for rounding: a ball
     nearer the box than its radius is nearer the centre than that). Where neither holds ``touch`` finds no
-    contact, so skipping it changes no number and saves a quarter of the sub-step's torch calls and nearly
+    contact, so skipping it changes no number and saves 40 % of the sub-step's torch calls and nearly
     half its time: most sub-steps of a game, and every one of Hover's. A compiled sub-step always touches
     (its graph has no data-dependent branch), and so does one on an accelerator, where reading the answer
     back would stall the queue of kernels every sub-step. The near test comes first: in a game it is the one
