@@ -6,26 +6,35 @@ and with it answering "yes" every time (every sub-step runs the contact tests, a
 
 Both ways give the same numbers (tests/test_physics.py); only the time differs. The two ways take
 turns within one process, so the machine's load falls on both alike; each figure is the mean of the
-faster half of the rounds (ms per env step, one torch thread). Print the machine's load beside it.
+faster half of the rounds (CPU ms per env step, ``profile_step.cpu_ms``, one torch thread). Print the
+machine's load beside it.
 """
 
 from __future__ import annotations
 
 import argparse
-import time
+import sys
+from pathlib import Path
 
 import torch
 
 import volleybots
 import volleybots.physics.torch_backend as tb
 
+sys.path.insert(0, str(Path(__file__).parent))
+from bench import _csv  # noqa: E402  (the other benchmarks' helpers)
+from profile_step import cpu_ms  # noqa: E402
 
-def step_ms(env, td, steps: int) -> tuple[float, object]:
-    t = time.perf_counter()
-    for _ in range(steps):
-        td.update(env.full_action_spec.rand())
-        _, td = env.step_and_maybe_reset(td)
-    return (time.perf_counter() - t) / steps * 1e3, td
+
+def random_steps(env):
+    """A function that steps ``env`` once with random actions (the rollout's tensordict kept between calls)."""
+    held = {"td": env.reset()}
+
+    def step():
+        held["td"].update(env.full_action_spec.rand())
+        _, held["td"] = env.step_and_maybe_reset(held["td"])
+
+    return step
 
 
 def main() -> None:
@@ -38,18 +47,16 @@ def main() -> None:
     torch.set_num_threads(1)
     gate, always = tb.may_touch, (lambda *args: True)
     print("| task | envs | gated (ms/step) | always tested (ms/step) | speed-up |\n|---|---|---|---|---|")
-    for task in a.tasks.split(","):
-        env = volleybots.make_env(task, num_envs=a.num_envs, seed=0)
-        td = env.reset()
+    for task in _csv(a.tasks):
+        step = random_steps(volleybots.make_env(task, num_envs=a.num_envs, seed=0))
         times: dict[str, list[float]] = {"gated": [], "always": []}
         for _ in range(a.rounds):
             for name, fn in (("gated", gate), ("always", always)):
                 tb.may_touch = fn
                 try:
-                    ms, td = step_ms(env, td, a.steps)
+                    times[name].append(cpu_ms(step, a.steps))
                 finally:
                     tb.may_touch = gate
-                times[name].append(ms)
         g, w = (sorted(times[k])[: max(1, a.rounds // 2)] for k in ("gated", "always"))
         g, w = sum(g) / len(g), sum(w) / len(w)
         print(f"| {task} | {a.num_envs} | {g:.2f} | {w:.2f} | {w / g:.2f}x |", flush=True)

@@ -261,19 +261,28 @@ def test_a_physics_sub_step_makes_few_torch_calls():
     # at the tests' and the lookahead's batch sizes an eager sub-step costs its number of torch calls; with
     # the ball on a racket (every test runs) 657 on 2026-11-28, 654 before the contact check and 1,064 before
     # numbers became 0-d tensors: a regression guard, not a timing
+    n = substep_calls(ball_on_racket(world(32, 2)))
+    assert n <= 700, n
+
+
+def substep_calls(ph) -> int:
+    """The aten calls of one eager sub-step of ``ph``'s state (after a first one, which makes its numbers: ``num``)."""
     from torch.profiler import profile
 
     from volleybots.physics.torch_backend import substep
 
-    ph = world(32, 2)
-    ph.state.ball_pos[:] = ph.state.pos[:, 0] + torch.tensor([0.0, 0.0, RACKET_TOP])
-    cmd = torch.zeros(32, 2, 4)
+    cmd = torch.zeros(ph.state.pos.shape[:2] + (4,))
     with torch.inference_mode():
-        substep(ph.consts, ph.state, cmd)  # the first call makes the sub-step's numbers (``num``)
+        substep(ph.consts, ph.state, cmd)
     with torch.inference_mode(), profile() as prof:
         substep(ph.consts, ph.state, cmd)
-    n = sum(1 for e in prof.events() if e.name.startswith("aten::"))
-    assert n <= 700, n
+    return sum(1 for e in prof.events() if e.name.startswith("aten::"))
+
+
+def ball_on_racket(ph):
+    """``ph`` with each env's ball resting on its first drone's racket."""
+    ph.state.ball_pos[:] = ph.state.pos[:, 0] + torch.tensor([0.0, 0.0, RACKET_TOP])
+    return ph
 
 
 def _random_state(g, n, d):
@@ -302,6 +311,7 @@ def test_skipping_the_contacts_where_no_drone_can_meet_the_ball_changes_no_numbe
     def counted(*args):
         answers.append(gate(*args))
         return answers[-1]
+
     for n, d in ((1, 1), (16, 2), (8, 6)):
         for _ in range(8):
             a = b = _random_state(g, n, d)
@@ -322,17 +332,5 @@ def test_skipping_the_contacts_where_no_drone_can_meet_the_ball_changes_no_numbe
 def test_a_sub_step_far_from_the_ball_skips_the_contact_tests():
     # Hover's ball is parked far away: its sub-steps skip the contact tests, 380 aten calls against 657 with the
     # ball on a racket (2026-11-28; a regression guard on the count, not a timing: docs/performance.md has those)
-    from torch.profiler import profile
-
-    from volleybots.physics.torch_backend import substep
-
-    def calls(ph):
-        with torch.inference_mode():
-            substep(ph.consts, ph.state, torch.zeros(32, 2, 4))  # the first call makes the sub-step's numbers
-        with torch.inference_mode(), profile() as prof:
-            substep(ph.consts, ph.state, torch.zeros(32, 2, 4))
-        return sum(1 for e in prof.events() if e.name.startswith("aten::"))
-
-    far, near = world(32, 2), world(32, 2)
-    near.state.ball_pos[:] = near.state.pos[:, 0] + torch.tensor([0.0, 0.0, RACKET_TOP])
-    assert calls(far) <= 0.65 * calls(near), (calls(far), calls(near))
+    far, near = substep_calls(world(32, 2)), substep_calls(ball_on_racket(world(32, 2)))
+    assert far <= 0.65 * near, (far, near)

@@ -214,7 +214,8 @@ def substep(
     racket0 = pos0 + up0.scale(k(c.racket_off))
     bpos0, bvel0 = Vec3.of(s.ball_pos), Vec3.of(s.ball_vel)
     ball0 = bpos0.unsqueeze(1)
-    hgt0 = (ball0 - racket0).dot(up0)  # [N, D] ball height above each racket plane
+    rel0 = ball0 - racket0
+    hgt0 = rel0.dot(up0)  # [N, D] ball height above each racket plane
 
     # rotors: first-order lag toward the commanded throttle, thrust ~ throttle^2
     throttle = s.throttle + (throttle_target(cmd) - s.throttle) * k(c.lag)
@@ -255,7 +256,7 @@ def substep(
     off = ball1 - pos
     if may_touch(c, hgt0, hgt1, off):
         racket_hit, body_hit, ball_pos, ball_vel, vel = touch(
-            c, q1, pos, vel, omega, ball_pos, ball_vel, ball0 - racket0, rel1, hgt0, hgt1, up1, racket1, off)
+            c, q1, pos, vel, omega, ball_pos, ball_vel, rel0, rel1, hgt0, hgt1, up1, racket1, off)
     else:
         racket_hit = body_hit = torch.zeros_like(hgt1, dtype=torch.bool)
 
