@@ -125,6 +125,7 @@ def train_sp(a, root: Path) -> dict:
     overrides = [
         "task=3v3",
         "algo=sp",
+        "algo.start=scratch",  # the run the hierarchical page measured: self-play from scratch
         f"total_frames={a.sp_frames}",
         f"env.num_envs={a.sp_envs}",
         f"seed={a.train_seed}",

@@ -16,7 +16,7 @@ from volleybots.runs import RunDir
 pytestmark = pytest.mark.slow
 
 TINY = [
-    "task=1v1", "algo=psro_uniform", "algo.iterations=1", "algo.seed_members=[random,scripted]", "env.num_envs=16",
+    "task=1v1", "algo=psro_uniform", "algo.start=scratch", "algo.iterations=1", "algo.seed_members=[random,scripted]", "env.num_envs=16",
     "algo.steps_per_batch=16", "algo.minibatches=2", "algo.epochs=1", "algo.hidden=[32,32]", "algo.min_updates=2",
     "algo.max_updates=2", "algo.payoff_games=8", "evaluation.episodes=2", "evaluation.every=0", "evaluation.record=false",
     "checkpoint.every=100000", "total_frames=100000", "progress=false", "threads=1", "seed=4",
