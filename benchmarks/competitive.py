@@ -57,7 +57,7 @@ def main() -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--root", default="outputs/benchmarks/competitive")
-    p.add_argument("--out", default="docs")
+    p.add_argument("--out", default="results/competitive", help="folder of competitive.json and the payoff heatmaps")
     p.add_argument("overrides", nargs="*", help="further config overrides")
     args = p.parse_args()
     root = Path(args.root)
