@@ -58,7 +58,8 @@ def test_a_time_limited_run_prints_lines_and_stops_before_a_batch_would_overshoo
 
 
 def test_a_population_run_reports_progress_final_eval_curves_and_its_wall_time_split(tmp_path, capsys):
-    cfg = load([*TINY, "algo=psro_uniform", "algo.start=scratch", "algo.iterations=1", "algo.min_updates=2", "algo.max_updates=2", "algo.payoff_games=2",
+    cfg = load([*TINY, "algo=psro_uniform", "algo.start=scratch",
+                "algo.iterations=1", "algo.min_updates=2", "algo.max_updates=2", "algo.payoff_games=2",
                 "total_frames=100000", "progress=true"])
     summary = start(cfg, tmp_path / "pop")
     lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("train ")]
