@@ -16,7 +16,7 @@ MAX_LINES = 400
 FLOORS = {
     "volleybots.errors": 0, "volleybots.files": 0, "volleybots.paths": 0, "volleybots.version": 0, "volleybots.ratings": 0,
     "volleybots.population.solvers": 0, "volleybots.zoo": 0, "volleybots.population.payoffs": 0, "volleybots.tasks.layout": 0,
-    "volleybots.keys": 0,
+    "volleybots.keys": 0, "volleybots.overrides": 0,
     "volleybots.physics": 1,
     "volleybots.rules": 2,
     "volleybots.tasks": 3,

@@ -15,7 +15,7 @@ from conftest import flat
 from tensordict import TensorDict
 from typer.testing import CliRunner
 
-from volleybots.algos import ALGOS
+from volleybots.algos import ALGOS, is_population
 from volleybots.algos.base import TASK_KINDS
 from volleybots.cli import app
 from volleybots.config import ConfigError, load
@@ -280,7 +280,7 @@ def test_qmix_mixer_is_monotonic_in_every_drones_q():
 def test_every_algorithm_trains_every_task_kind_it_claims_and_refuses_the_others(name, tmp_path):
     cls = ALGOS[name]
     for kind in TASK_KINDS:
-        if kind in cls.supported_kinds() and getattr(cls, "population", False):
+        if kind in cls.supported_kinds() and is_population(cls):
             continue  # trained by the population loop, not `train`: tests/test_population.py runs it
         overrides = [f"algo={name}", f"task={TASK_OF_KIND[kind]}", *RUN, *tiny(name), "checkpoint.every=0", f"total_frames={2 * FPB}"]
         if kind == "competitive" and getattr(cls, "needs_seat_on_matches", False):

@@ -11,7 +11,7 @@ import pytest
 import torch
 from omegaconf import OmegaConf
 
-from volleybots.algos import ALGOS
+from volleybots.algos import ALGOS, is_population
 from volleybots.algos.population import PRESETS
 from volleybots.config import compose, load, make_env, validate
 from volleybots.policies import PLAYERS, check_references, resolve_target
@@ -63,8 +63,8 @@ def test_every_algorithm_composes_validates_and_builds_on_a_task_it_accepts(name
     cfg = load([f"task={task}", f"algo={name}", f"env.action_space={cls.action_spaces[0]}", "env.num_envs=2", "threads=1"])
     assert validate(OmegaConf.to_container(cfg)).algo == cfg.algo  # validation is idempotent
     env = make_env(cfg, num_envs=2)
-    n = len(env.team_index(0)) if getattr(cls, "population", False) else env.n_drones
-    learner = learner_class(name)(cfg.algo, AgentSpec.of(env, n), seed=0)
+    n = len(env.team_index(0)) if is_population(cls) else env.n_drones
+    learner = learner_class(cfg.algo)(cfg.algo, AgentSpec.of(env, n), seed=0)
     if hasattr(learner, "attach"):
         learner.attach(env)
     td = env.reset()

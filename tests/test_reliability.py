@@ -21,7 +21,7 @@ import torch
 from conftest import CLI_ENV, cli_cmd, snapshot, train_rows
 from typer.testing import CliRunner
 
-from volleybots.algos import ALGOS
+from volleybots.algos import ALGOS, is_population
 from volleybots.algos.base import class_attr
 from volleybots.cli import app
 from volleybots.config import BenchOptions, Config, ConfigError, compose, task_schema, to_dict, validate
@@ -63,7 +63,7 @@ def _schemas():
 
 def _fits(algo_cls, task_cls) -> bool:
     competitive = bool(getattr(task_cls, "competitive", False))
-    if getattr(algo_cls, "population", False):
+    if is_population(algo_cls):
         return competitive
     return (algo_cls.multi_agent or class_attr(task_cls, "n_drones") == 1) and not competitive
 

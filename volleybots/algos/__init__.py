@@ -11,13 +11,13 @@ from volleybots.algos.dqn import DQN
 from volleybots.algos.happo import HAPPO
 from volleybots.algos.maddpg import MADDPG
 from volleybots.algos.mat import MAT
-from volleybots.algos.population import FSP, PRESETS, SP, Preset, PSRONash, PSROUniform
+from volleybots.algos.population import FSP, LEARNERS, PRESETS, SP, Preset, PSRONash, PSROUniform, is_population
 from volleybots.algos.ppo import MAPPO, PPO
 from volleybots.algos.qmix import QMIX
 from volleybots.algos.sac import SAC
 from volleybots.algos.td3 import TD3
 
-# the learners, then the population presets (configs the population loop trains MAPPO learners with)
+# the learners, then the population presets (configs of the population loop, which trains one of LEARNERS)
 ALGOS: dict[str, type[Algorithm] | Preset] = {
     **{cls.name: cls for cls in (PPO, MAPPO, DQN, DDPG, TD3, SAC, QMIX, MADDPG, HAPPO, MAT)},
     **PRESETS,
@@ -25,6 +25,6 @@ ALGOS: dict[str, type[Algorithm] | Preset] = {
 }
 
 __all__ = [
-    "ALGOS", "Algorithm", "BC", "PRESETS", "Preset", "DDPG", "DQN", "FSP", "HAPPO", "MADDPG", "MAPPO", "MAT", "PPO",
-    "PSRONash", "PSROUniform", "QMIX", "SAC", "SP", "TD3",
+    "ALGOS", "Algorithm", "BC", "LEARNERS", "PRESETS", "Preset", "DDPG", "DQN", "FSP", "HAPPO", "MADDPG", "MAPPO", "MAT", "PPO",
+    "PSRONash", "PSROUniform", "QMIX", "SAC", "SP", "TD3", "is_population",
 ]

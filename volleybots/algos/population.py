@@ -1,17 +1,23 @@
 """The population presets of the registry: ``sp``, ``fsp``, ``psro_uniform``, ``psro_nash``.
 
-They are one loop (``volleybots.population.loop``) with a swappable meta-solver and learner
-initialisation; here live only their configs and what they accept. The learner is MAPPO with a critic
-over its own team (for one drone a side that is PPO: a critic over one agent) with the paper's PPO
-hyperparameters, which the config inherits (``algo.actor_lr=...`` sets the learner's).
+They are one loop (``volleybots.population.loop``); a preset names its three parts: a meta-solver, a
+learner (``algo.learner``: MAPPO with a critic over its own team by default, PPO for one drone a side;
+HAPPO or MAT on teams of several drones) and its loop settings (``LoopConfig``). ``algo.*`` holds the
+learner's keys and the loop's flat, so ``algo.actor_lr=...`` sets the learner's and ``algo.iterations=...``
+the loop's; ``Preset.config_class`` joins the two dataclasses. ``is_population`` is the one question
+that sends a config to the loop.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import copy
+import functools
+from dataclasses import dataclass, field, make_dataclass
 
 from volleybots.algos.base import class_attr
-from volleybots.algos.ppo import MAPPO, MAPPOConfig
+from volleybots.algos.happo import HAPPO
+from volleybots.algos.mat import MAT
+from volleybots.algos.ppo import MAPPO
 from volleybots.errors import ConfigError, ranged
 from volleybots.population.solvers import SOLVERS  # a leaf module (numpy and scipy only)
 
@@ -21,13 +27,20 @@ INITS = ("scratch", "last", CLONE)
 # "clone" is the default because learners from scratch do not hit the ball within a default budget:
 # a bare `train task=3v3 algo=psro_nash` from scratch ended with the Nash mixture on `random` alone
 STARTS = ("clone", "scratch")
+# the learners an oracle may train (algo.learner): those that learn one team of a match with a critic
+# over their own team; HAPPO and MAT only where the team has several drones (3v3, 6v6)
+LEARNERS = {cls.name: cls for cls in (MAPPO, HAPPO, MAT)}
 POOLS = ("serial", "ray")  # where payoff games are played: here, or as tasks of a Ray pool (volleybots.play.pool)
 
 
 @dataclass
-class PopulationConfig(MAPPOConfig):
+class LoopConfig:
+    """The population loop's own keys (``algo.solver``, ``algo.iterations``, ...); the learner's (``algo.actor_lr``,
+    ``algo.hidden``, ...) are its config class's. ``algo.*`` holds both flat: ``Preset.config_class`` joins them."""
+
     name: str = "psro_nash"
     solver: str = "nash"
+    learner: str = "mappo"  # the oracle's learner (LEARNERS): what trains every best response
     start: str = "clone"
     # None: from algo.start (Preset.starts); saved configs hold the resolved value
     learner_init: str | None = None
@@ -35,10 +48,6 @@ class PopulationConfig(MAPPOConfig):
     # the clone's fit: Adam steps per teacher frame sampled (bc's replay_ratio); a small bc_frames
     # wants a high one (4096 frames at 8 are 8 steps: a clone that serves into play half the time)
     bc_replay_ratio: float = ranged(8.0, gt=0)
-    # the fine-tuning recipe of docs/imitation.md (critic warm-up, KL anchor at 0.3); they act on learners
-    # that start from a policy (the clone, or init=); the loop sets both to 0 for a learner from scratch
-    actor_freeze_updates: int = ranged(10, ge=0)
-    anchor_coeff: float = ranged(0.3, ge=0)
     self_play: bool = False
     iterations: int = ranged(5, ge=1)
     min_updates: int = ranged(10, ge=1)
@@ -54,35 +63,39 @@ class PopulationConfig(MAPPOConfig):
 
 
 @dataclass
-class SPConfig(PopulationConfig):
-    name: str = "sp"
-    solver: str = "last"
+class SelfPlayLoop(LoopConfig):
     self_play: bool = True
     iterations: int = 1
 
 
-@dataclass
-class FSPConfig(PopulationConfig):
-    name: str = "fsp"
-    solver: str = "uniform"
+# the learner keys whose population defaults differ from the learner's own: the fine-tuning recipe of
+# docs/imitation.md (critic warm-up, KL anchor at 0.3); they act on learners that start from a policy (the
+# clone, or init=); the loop sets both to 0 for a learner from scratch
+FINE_TUNING = (("actor_freeze_updates", int, ranged(10, ge=0)), ("anchor_coeff", float, ranged(0.3, ge=0)))
 
 
-@dataclass
-class PSROUniformConfig(PopulationConfig):
-    name: str = "psro_uniform"
-    solver: str = "uniform"
+@functools.cache
+def population_config(loop_cls: type, learner_cls: type, name: str, solver: str, learner: str) -> type:
+    """The flat ``algo.*`` dataclass of a preset: the learner's config, the fine-tuning defaults, the loop's keys."""
+    own = [*FINE_TUNING, ("name", str, field(default=name)), ("solver", str, field(default=solver)),
+           ("learner", str, field(default=learner))]
+    cls_name = f"{name.title().replace('_', '')}{learner_cls.__name__}Config"
+    cls = make_dataclass(cls_name, own, bases=(loop_cls, learner_cls.config_cls))
+    cls.__module__ = __name__
+    return cls
 
 
 @dataclass(frozen=True)
 class Preset:
-    """A population method: its config and what it accepts. Not an algorithm of its own: ``algo=NAME``
-    selects it like one, and ``volleybots.population.run.start`` hands its config to the population loop,
-    which trains ``learner_cls`` learners as its oracle and the preset's meta-solver over them."""
+    """A population method in three parts: its meta-solver, its learner and its loop settings. Not an
+    algorithm of its own: ``algo=NAME`` selects it like one, and ``volleybots.population.run.start`` hands
+    its config to the population loop, which trains the named learner as its oracle (``algo.learner``)
+    and the meta-solver over the members."""
 
     name: str
-    config_cls: type
-    learner_cls: type = MAPPO
-    population: bool = True  # what sends a run to the population loop
+    solver: str  # the meta-solver (volleybots.ratings.solvers.SOLVERS) over the payoff table
+    loop: type = LoopConfig  # the loop settings' dataclass
+    learner: str = "mappo"  # the default learner (LEARNERS); algo.learner picks another
     multi_agent: bool = True
     task_kinds: tuple[str, ...] = ("competitive",)
     # the learner starts (algo.learner_init) the method is defined by, and what any other start would
@@ -91,6 +104,26 @@ class Preset:
     otherwise: str = ""
     # algo.start -> (learner_init, seed_members) where the config leaves them unset
     starts: tuple = (("clone", CLONE, (CLONE,)), ("scratch", "scratch", ("random",)))
+
+    def config_class(self, data=None) -> type:
+        """The ``algo.*`` dataclass for the composed ``data``: the loop's keys and those of the learner
+        ``data`` names (saved configs name none: theirs was MAPPO)."""
+        learner = (data or {}).get("learner") or self.learner
+        if learner not in LEARNERS:
+            raise ConfigError(f"unknown algo.learner {learner!r}; allowed: {', '.join(LEARNERS)}")
+        return population_config(self.loop, LEARNERS[learner], self.name, self.solver, learner)
+
+    @property
+    def config_cls(self) -> type:
+        return self.config_class()
+
+    @property
+    def learner_cls(self) -> type:
+        return LEARNERS[self.learner]
+
+    def learner_of(self, cfg) -> type:
+        """The class of the learner the config ``cfg.algo`` trains (what its member checkpoints hold)."""
+        return LEARNERS[cfg.get("learner") or self.learner]
 
     def resolve(self, cfg) -> None:
         """Fill ``learner_init`` and ``seed_members`` the config leaves unset (None) from ``algo.start``,
@@ -118,12 +151,15 @@ class Preset:
 
             matches = [n for n, t in TASKS.items() if class_attr(t, "competitive")]
             raise ConfigError(f"algo {self.name!r} trains for matches, not task {task_cls.name!r}; allowed tasks: {', '.join(matches)}")
-        if env_cfg.action_space not in self.action_spaces:
-            raise ConfigError(
-                f"algo {self.name!r} does not support env.action_space={env_cfg.action_space!r}; "
-                f"allowed: {', '.join(self.action_spaces)}"
-            )
-        self.learner_cls.check(cfg, task_cls, env_cfg)
+        learner_cls = self.learner_of(cfg)
+        if cfg.learner_init == CLONE and learner_cls is not MAPPO:
+            raise ConfigError(f"algo.learner={cfg.learner} cannot start from the clone (algo.learner_init=bc: its networks are "
+                              "MAPPO's); give algo.start=scratch or algo.learner_init=scratch")
+        view = cfg
+        if cfg.learner_init != CLONE:  # the loop gives a learner from scratch no fine-tuning (_iteration_cfg)
+            view = copy.deepcopy(cfg)
+            view.actor_freeze_updates, view.anchor_coeff = 0, 0.0
+        check_team_learner(learner_cls, view, task_cls, env_cfg, f"algo={self.name} algo.learner={cfg.learner}")
         for value, allowed, key in ((cfg.solver, SOLVERS, "algo.solver"), (cfg.learner_init, INITS, "algo.learner_init"),
                                     (cfg.payoff_pool, POOLS, "algo.payoff_pool")):
             if value not in allowed:
@@ -143,15 +179,37 @@ class Preset:
             raise ConfigError(f"algo {self.name!r} needs a first opponent: algo.seed_members=[random] (or scripted, or checkpoint paths)")
 
 
+def check_team_learner(learner_cls: type, cfg, task_cls, env_cfg, what: str) -> None:
+    """Raise ``ConfigError`` unless ``learner_cls`` can learn one team of the match ``task_cls``: a team of one
+    drone is a single-drone problem, a larger one a cooperative one (HAPPO and MAT learn only those)."""
+    size = class_attr(task_cls, "team_size")
+    kind = "single" if size == 1 else "cooperative"
+    if kind not in learner_cls.supported_kinds():
+        able = [n for n, c in LEARNERS.items() if kind in c.supported_kinds()]
+        raise ConfigError(f"{what} cannot learn a team of {size} drone(s) (task {task_cls.name!r}); allowed learners: {', '.join(able)}")
+    team = type(f"{task_cls.name}_team", (), {"name": f"{task_cls.name} (one team)", "n_drones": size, "competitive": False})
+    learner_cls.check(cfg, team, env_cfg)
+
+
+def is_population(algo) -> bool:
+    """Whether ``algo`` (a name, an ``algo`` config or a registry entry) is a population preset: the one
+    question that sends a run to the population loop instead of the trainer alone."""
+    name = algo if isinstance(algo, str) else getattr(algo, "name", None)
+    if name is None and hasattr(algo, "get"):
+        name = algo.get("name")
+    return isinstance(name, str) and name in PRESETS
+
+
 # self-play has no frozen members: its one learner starts from the clone or from scratch
-SP = Preset("sp", SPConfig, starts=(("clone", CLONE, ()), ("scratch", "scratch", ())))
+SP = Preset("sp", "last", SelfPlayLoop, starts=(("clone", CLONE, ()), ("scratch", "scratch", ())))
 # FSP is the uniform meta-solver with each learner continuing from the newest member; any other start
 # makes it PSRO-uniform, run for run (a 3v3 run with learner_init=bc was)
 FSP = Preset(
-    "fsp", FSPConfig, learner_inits=("last",), starts=(("clone", "last", (CLONE,)), ("scratch", "last", ("random",))),
+    "fsp", "uniform", learner_inits=("last",), starts=(("clone", "last", (CLONE,)), ("scratch", "last", ("random",))),
     otherwise="continues each learner from the newest member (algo.learner_init=last), not {init!r}, which makes it "
     "algo=psro_uniform; to start FSP from the clone give algo.seed_members=[bc] (its first learner continues from the clone)",
 )
-PSROUniform = Preset("psro_uniform", PSROUniformConfig)
-PSRONash = Preset("psro_nash", PopulationConfig)
+PSROUniform = Preset("psro_uniform", "uniform")
+PSRONash = Preset("psro_nash", "nash")
 PRESETS = {p.name: p for p in (SP, FSP, PSROUniform, PSRONash)}
+PopulationConfig = PSRONash.config_cls  # psro_nash's algo.* with its default learner (MAPPO)

@@ -7,11 +7,14 @@ same way everywhere.
 
 from __future__ import annotations
 
+import dataclasses
+
 from omegaconf import DictConfig, OmegaConf
 
 from volleybots.config.schema import GROUPS, group_options, to_dict
 from volleybots.config.validate import OPPONENT_LEARNERS, validate
 from volleybots.errors import ConfigError
+from volleybots.overrides import names_key, override_key, override_value, split_arg
 from volleybots.paths import conf_dir
 
 
@@ -41,7 +44,7 @@ def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = Fals
     from hydra import initialize_config_dir
     from hydra.errors import HydraException
 
-    overrides = list(overrides)
+    overrides = learner_keys(list(overrides))
     _check_overrides(overrides)
     with initialize_config_dir(config_dir=str(conf_dir()), version_base="1.3"):
         try:
@@ -55,18 +58,31 @@ def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = Fals
             raise ConfigError(f"bad override: {_one_line(e)}") from None
 
 
+def learner_keys(overrides: list[str]) -> list[str]:
+    """A population's ``algo.learner=happo`` / ``mat`` brings keys of its own that the preset's file (MAPPO's
+    keys) lacks: an override of one (``algo.embed_dim=64``) adds it, as ``+algo.embed_dim=64`` would."""
+    from volleybots.algos import LEARNERS, PRESETS
+
+    learner = LEARNERS.get(str(override_value(overrides, "algo.learner")))
+    if learner is None:
+        return overrides
+    base = {f.name for f in dataclasses.fields(PRESETS["psro_nash"].config_cls)}
+    extra = {f"algo.{f.name}" for f in dataclasses.fields(learner.config_cls)} - {f"algo.{k}" for k in base}
+    return [f"+{o}" if split_arg(o)[0] in extra else o for o in overrides]
+
+
 def _explain_unknown_key(overrides: list[str], hydra_compose) -> None:
     """After a failed composition: raise a ConfigError naming an override's key that does not exist,
     with the keys allowed beside it (Hydra's own message lists none)."""
     from hydra.errors import HydraException
 
     try:
-        base = hydra_compose("config", overrides=[o for o in overrides if o.split("=", 1)[0].lstrip("~+") in GROUPS])
+        base = hydra_compose("config", overrides=[o for o in overrides if override_key(o) in GROUPS])
     except HydraException:
         return
     for o in overrides:
-        key = o.split("=", 1)[0]
-        if "=" not in o or key.startswith(("+", "~", "hydra.")) or key in GROUPS:
+        key, value = split_arg(o)
+        if value is None or key.startswith(("+", "~", "hydra.")) or key in GROUPS:
             continue
         if OmegaConf.select(base, key, default=_ABSENT) is _ABSENT:
             parent = key.rpartition(".")[0]
@@ -87,7 +103,7 @@ def _task_default_algo(cfg: DictConfig, overrides) -> str | None:
     from volleybots.algos.base import class_attr
     from volleybots.tasks import TASKS
 
-    if any(o.split("=", 1)[0].lstrip("+~") == "algo" for o in overrides):
+    if names_key(overrides, "algo"):
         return None
     task_cls = TASKS.get(OmegaConf.select(cfg, "task.name", default=None))
     if task_cls is None:
@@ -101,7 +117,7 @@ def algo_action_space(cfg: DictConfig, overrides) -> DictConfig:
     first one, unless the command line names ``env.action_space`` (then ``validate`` rejects a bad one)."""
     from volleybots.algos import ALGOS
 
-    if any(o.split("=", 1)[0].lstrip("+~") == "env.action_space" for o in overrides):
+    if names_key(overrides, "env.action_space"):
         return cfg
     algo_cls = ALGOS.get(OmegaConf.select(cfg, "algo.name", default=None))
     if algo_cls is not None and cfg.env.action_space not in algo_cls.action_spaces:
@@ -113,12 +129,12 @@ def population_budget(cfg: DictConfig, overrides) -> DictConfig:
     """A population run that the command line gives no ``total_frames`` gets the frames its iterations
     take at most (``iterations x max_updates`` batches), so that it trains every iteration it announces;
     the clone's ``bc_frames`` come on top. Self-play keeps ``total_frames``: its one learner is the budget."""
-    from volleybots.algos import PRESETS
+    from volleybots.algos import is_population
 
-    if any(o.split("=", 1)[0].lstrip("+~") == "total_frames" for o in overrides):
+    if names_key(overrides, "total_frames"):
         return cfg
     m = OmegaConf.select(cfg, "algo")
-    if m is None or m.get("name") not in PRESETS or m.get("self_play"):
+    if m is None or not is_population(m) or m.get("self_play"):
         return cfg
     try:
         cfg.total_frames = int(m.iterations) * int(m.max_updates) * int(cfg.env.num_envs) * int(m.steps_per_batch)
@@ -155,8 +171,8 @@ def apply_overrides(base: dict, overrides, allowed: tuple[str, ...], what: str) 
     sections) in ``allowed``: a run or checkpoint keeps the task, algorithm and env it was made with."""
     data = OmegaConf.create(base)
     for o in overrides:
-        key, eq, value = o.partition("=")
-        if not eq:
+        key, value = split_arg(o)
+        if value is None:
             raise ConfigError(f"bad override {o!r}: expected key=value")
         if not any(key == a or key.startswith(a + ".") for a in allowed):
             raise ConfigError(f"cannot change {key!r} of {what}; allowed: {', '.join(allowed)}")

@@ -21,7 +21,7 @@ def validate(cfg) -> DictConfig:
     """Check a composed config (DictConfig or dict) against the schemas and the registries.
 
     Returns a typed, resolved DictConfig without the ``hydra`` node. Raises ``ConfigError``."""
-    from volleybots.algos import ALGOS
+    from volleybots.algos import ALGOS, is_population
     from volleybots.algos.base import class_attr
     from volleybots.physics import ACTION_SPACES, BACKENDS
     from volleybots.tasks import TASKS
@@ -44,15 +44,16 @@ def validate(cfg) -> DictConfig:
     task_cls_schema = task_schema(task["name"])
     typed_task = _typed(task_cls_schema, task, "task.")
     algo_cls = ALGOS[algo["name"]]
-    typed_algo = _typed(algo_cls.config_cls, algo, "algo.")
-    if hasattr(algo_cls, "resolve"):  # a population preset fills what algo.start leaves to it
+    algo_schema = algo_cls.config_class(algo)
+    typed_algo = _typed(algo_schema, algo, "algo.")
+    if is_population(algo_cls):  # a population preset fills what algo.start leaves to it
         algo_cls.resolve(typed_algo)
     rest = _typed(Config, {k: v for k, v in data.items() if k not in ("task", "algo")}, "")
     rest.task, rest.algo = typed_task, typed_algo
 
     check_values(Config, rest, "")
     check_values(task_cls_schema, typed_task, "task.")
-    check_values(algo_cls.config_cls, typed_algo, "algo.")
+    check_values(algo_schema, typed_algo, "algo.")
     env = rest.env
     for value, allowed, what in (
         (env.action_space, ACTION_SPACES, "env.action_space"),
@@ -87,12 +88,12 @@ OPPONENT_LEARNERS = ("mappo", "bc")  # learners that can play one team (MAPPO ov
 def _check_opponent(cfg, task_cls, algo_cls) -> None:
     """``opponent=``: a match and a learner that plays one team (whether the competitor it names
     exists and fits is ``volleybots.policies.check_references``'s: this opens no file)."""
-    from volleybots.algos import PRESETS
+    from volleybots.algos import is_population
     from volleybots.algos.base import class_attr
 
     if not class_attr(task_cls, "competitive"):
         raise ConfigError(f"opponent={cfg.opponent!r} is for matches (1v1, 3v3, 6v6), not task {task_cls.name!r}")
-    if algo_cls.name in PRESETS:
+    if is_population(algo_cls):
         raise ConfigError(f"algo {algo_cls.name!r} chooses its own opponents; give it algo.seed_members=[...] instead of opponent=")
     if algo_cls.name not in OPPONENT_LEARNERS:
         raise ConfigError(f"algo {algo_cls.name!r} cannot learn one team against opponent=; allowed: {', '.join(OPPONENT_LEARNERS)}")

@@ -92,12 +92,14 @@ def sha256(path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def learner_class(algo_name: str):
-    """The class whose networks a checkpoint of ``algo_name`` holds (a population preset trains MAPPO)."""
-    from volleybots.algos import ALGOS
+def learner_class(algo_cfg):
+    """The class whose networks a checkpoint of the ``algo`` config holds (a population preset's: the
+    learner its ``algo.learner`` names; MAPPO for configs saved before there was a choice)."""
+    from volleybots.algos import ALGOS, PRESETS, is_population
 
-    cls = ALGOS[algo_name]
-    return getattr(cls, "learner_cls", cls)
+    if is_population(algo_cfg):
+        return PRESETS[algo_cfg.name].learner_of(algo_cfg)
+    return ALGOS[algo_cfg.name]
 
 
 def saved_config(state: dict, what: str):
@@ -120,7 +122,7 @@ def build_learner(state: dict, spec, what: str, cfg=None, side: str = "run"):
     # the initial weights are overwritten at once: drawing them must not move the caller's random
     # stream (a resumed run builds its opponents after restoring that stream)
     with torch.random.fork_rng(devices=[]):
-        algo = learner_class(saved.algo.name)(saved.algo, spec, seed=saved.seed)
+        algo = learner_class(saved.algo)(saved.algo, spec, seed=saved.seed)
     load_algo_state(algo, state, what, cfg if cfg is not None else saved, side=side)
     return algo
 

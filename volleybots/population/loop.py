@@ -32,7 +32,6 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from volleybots.algos.ppo import MAPPO
 from volleybots.config import to_dict, validate
 from volleybots.errors import ConfigError
 from volleybots.files import write_atomic
@@ -42,12 +41,13 @@ from volleybots.policies import BUILTIN, Competitor, checkpoint_member, member_p
 from volleybots.population.clone import CLONE, clone_member, make_clone, needs_clone
 from volleybots.population.convergence import Convergence
 from volleybots.population.final import evaluate_mixture, log_final_eval
+from volleybots.population.oracle import Oracle
 from volleybots.population.payoffs import PayoffTable, payoff_reserve, plot
 from volleybots.population.solvers import SOLVERS
 from volleybots.replay import write_curves
 from volleybots.runs import CKPT_FORMAT, POPULATION_DIR, RunDir, check_writable, locked, read_checkpoint, read_metas, read_population
 from volleybots.train import RESUME_KEYS as TRAIN_RESUME_KEYS
-from volleybots.train import Trainer, resume_config
+from volleybots.train import resume_config
 from volleybots.train.progress import hms
 from volleybots.train.wandb import WandbLogger
 from volleybots.version import __version__
@@ -58,8 +58,12 @@ SPLIT = ("clone", "oracle_training", "payoff_games", "evaluations")  # the parts
 
 
 class PopulationLoop:
-    def __init__(self, cfg, run: RunDir):
+    """Grows the population of ``cfg`` in ``run``; ``oracle`` trains each best response (default: the
+    learner the preset names, ``Oracle.of(cfg)``)."""
+
+    def __init__(self, cfg, run: RunDir, oracle: Oracle | None = None):
         self.cfg, self.run, self.m = cfg, run, cfg.algo
+        self.oracle = oracle or Oracle.of(cfg)
         self.dir = run.path / POPULATION_DIR
         self.meta_path = self.dir / "meta.jsonl"
         self.payoffs_path = self.dir / "payoffs.json"
@@ -228,15 +232,14 @@ class PopulationLoop:
             stop = Convergence(m.min_updates, m.max_updates, m.win_window, m.win_mean, m.win_std)
         extra = lambda: {"population": {"iteration": i, "oracle": stop.state_dict() if stop else None}}  # noqa: E731
         ckpt = self._checkpoint_of(i)
-        tr = Trainer(cfg, self.run, checkpoint=ckpt, seat=seat, learner_cls=MAPPO, extra_state=extra, logger=self.wandb)
+        tr = self.oracle.trainer(cfg, self.run, ckpt, seat, extra, self.wandb)
         if ckpt is not None:
             if stop is not None:
                 stop.load_state_dict(tr.checkpoint_state["population"]["oracle"])
         else:
             tr.start_at(frames, updates, wall)
-            learned = [p for p in population_members(self.run.path)[: k] if "algo" in read_checkpoint(p)]
-            if m.learner_init == "last" and learned:  # its networks only: the optimiser and counters stay the learner's
-                tr.algo.load_networks(read_checkpoint(learned[-1], device=tr.env.device)["algo"])
+            if m.learner_init == "last":
+                self.oracle.continue_from(tr, population_members(self.run.path)[:k])
         tr.train_loop(stop=stop, row_extra={"pop_iteration": i}, note=self._note(i, stop))
         state = tr.state()
         if stop is not None and stop.updates < m.min_updates:

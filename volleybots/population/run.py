@@ -3,12 +3,12 @@ loop over the trainer; any other algorithm the trainer alone."""
 
 from __future__ import annotations
 
-from volleybots.algos import PRESETS
+from volleybots.algos import is_population as _is_population
 from volleybots.runs import RunDir
 
 
 def is_population(cfg) -> bool:
-    return cfg.algo.name in PRESETS
+    return _is_population(cfg.algo)
 
 
 def start(cfg, run_dir, checked: bool = False) -> dict:

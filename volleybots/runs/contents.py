@@ -42,7 +42,7 @@ def population_members(run_path) -> list[Path]:
 
 def is_population_run(run_path) -> bool:
     """Whether the run's config names a population preset (``sp``, ``fsp``, ``psro_*``) or it holds a population."""
-    from volleybots.algos.population import PRESETS
+    from volleybots.algos.population import is_population
 
     path = Path(run_path)
     if (path / POPULATION_DIR).is_dir():
@@ -51,8 +51,7 @@ def is_population_run(run_path) -> bool:
         algo = (yaml.safe_load((path / "config.yaml").read_text()) or {}).get("algo") or {}
     except (OSError, yaml.YAMLError, AttributeError):
         return False
-    name = algo.get("name") if isinstance(algo, dict) else None
-    return isinstance(name, str) and name in PRESETS
+    return isinstance(algo, dict) and is_population(algo)
 
 
 def read_metas(run_path) -> list[dict]:

@@ -101,9 +101,9 @@ def _init_info(path: Path, state: dict, src, loaded: list[str], skipped: list[st
 
 def learner_spec(cfg, env) -> AgentSpec:
     """What the learner of ``cfg`` is built for (a population method's learner plays one team)."""
-    from volleybots.algos import PRESETS
+    from volleybots.algos import is_population
 
-    if cfg.algo.name in PRESETS:
+    if is_population(cfg.algo):
         return SelfPlay().spec(env)
     return default_seat(cfg).spec(env)
 
@@ -115,7 +115,7 @@ def check_init(cfg) -> None:
     env = make_env(cfg, num_envs=1)
     spec = learner_spec(cfg, env)
     with torch.random.fork_rng(devices=[]):
-        algo = learner_class(cfg.algo.name)(cfg.algo, spec, seed=cfg.seed)
+        algo = learner_class(cfg.algo)(cfg.algo, spec, seed=cfg.seed)
     apply_init(algo, cfg, spec)
 
 
