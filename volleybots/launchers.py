@@ -11,6 +11,7 @@ from __future__ import annotations
 import importlib.util
 
 from volleybots.errors import ConfigError
+from volleybots.overrides import override_key, split_arg
 
 EXTRA = "cluster"  # pip install 'volleybots[cluster]' installs every plugin below
 
@@ -42,7 +43,7 @@ def check_launcher(overrides: list[str]) -> None:
 
     A name this module does not know is left to Hydra, which lists the launchers it has."""
     for o in overrides:
-        key, _, value = o.partition("=")
-        if key.lstrip("+") == "hydra/launcher" and value in LAUNCHERS and not installed(value):
+        value = split_arg(o)[1]
+        if override_key(o) == "hydra/launcher" and value in LAUNCHERS and not installed(value):
             package = LAUNCHERS[value][0].rpartition(".")[2].replace("_", "-")
             raise ConfigError(f"hydra/launcher={value} needs the {package} plugin: pip install 'volleybots[{EXTRA}]'")

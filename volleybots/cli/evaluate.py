@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 from typing import List, Optional
 
@@ -11,7 +10,6 @@ import typer
 from typer.core import TyperGroup
 
 from volleybots.cli.app import _PASS_THROUGH, _refuse_flags, _user_errors, app
-from volleybots.errors import ConfigError
 
 
 class _EvalGroup(TyperGroup):
@@ -194,58 +192,10 @@ def replay(
 ) -> None:
     """Record one episode to a rerun file: court, net, drones, ball trail, hits / violations, rewards; for two
     competitors, one match with each team's colour, the touches and the fault that ended the rally."""
+    from volleybots.eval.replays import replay_verb
     from volleybots.replay import has_display
-    from volleybots.runs import check_writable
 
     _refuse_flags(args, "--out FILE.rrd, --still FILE.png, --no-viewer, --help")
-    for opt, path, suffix in (("--out", out, ".rrd"), ("--still", still, ".png")):
-        if path is not None and path.suffix != suffix:
-            raise ConfigError(f"{opt} {str(path)!r} must end in {suffix}")
-        if path is not None and len(path.name.encode()) > 255:  # the limit of most file systems (NAME_MAX)
-            raise ConfigError(f"{opt} {path.name[:40]!r}... is too long for a file name ({len(path.name.encode())} bytes, at most 255)")
-        if path is not None and (path.exists() or path.is_symlink()):
-            raise ConfigError(f"{opt} {str(path)!r} exists; choose another file (replays never overwrite)")
-        if path is not None:
-            check_writable(path.parent, f"the folder of {opt}")
-    viewer = not no_viewer and has_display()
-    from volleybots.eval.replays import is_competitor_spec, replay_match
-
-    if sum(map(is_competitor_spec, args)) >= 2:
-        if still is not None:
-            raise ConfigError("--still draws one policy's episode (replay TARGET ...); a match replay takes --out and --no-viewer only")
-        stats, out, labels = replay_match(args, out, viewer)
-        where = str(out) if out is not None else "the viewer"
-        who = {0: f"{labels[0]} (blue) won", 1: f"{labels[1]} (red) won", -1: "a draw"}[int(stats["winner"])]
-        typer.echo(f"recorded one match of {labels[0]} (blue) against {labels[1]} (red) to {where}: {who}")
-        return
-    _replay_one(args[0], args[1:], out, viewer, still)
-
-
-def _replay_one(target: str, overrides: list[str], out: Path | None, viewer: bool, still: Path | None = None) -> None:
-    from volleybots.config import make_env
-    from volleybots.eval.replays import replay_file, replay_name
-    from volleybots.policies import resolve_target
-    from volleybots.replay import record_episode
-
-    t = resolve_target(target, overrides)
-    default = None
-    if out is None and not viewer:
-        base = Path(target) if Path(target).is_dir() else Path("outputs") / "replays"
-        default = base / replay_name(t.cfg.task.name, [t.label], time.strftime("%Y%m%d-%H%M%S"))
-    env = make_env(t.cfg, num_envs=1, seed=t.cfg.seed)
-    policy = t.make_policy(env)
-    out = replay_file(out, default)
-    try:
-        stats = record_episode(env, policy, out, viewer=viewer, still=still)
-    except BaseException:
-        if out is not None and out.is_file() and out.stat().st_size == 0:
-            out.unlink()
-        raise
-    where = str(out) if out is not None else "the viewer"
-    where += f" and {still}" if still is not None else ""
-    typer.echo(
-        f"recorded one episode of {t.label} on {t.cfg.task.name} to {where}: "
-        f"{env.metric} {stats[env.metric]:.4g}, return {stats['return']:.4g}"
-    )
+    typer.echo(replay_verb(list(args), out, not no_viewer and has_display(), still))
 
 

@@ -10,6 +10,7 @@ import typer
 
 from volleybots.cli.app import _PASS_THROUGH, _refuse_flags, _user_errors, app
 from volleybots.errors import ConfigError
+from volleybots.overrides import names_key, override_key, override_value, split_arg
 
 
 def _jobs(overrides: list[str], multirun: bool) -> list[list[str]]:
@@ -38,9 +39,11 @@ def _quote_hint(overrides: list[str]) -> str:
     """A hint for a value Hydra's grammar reads only quoted (non-ASCII letters, ',', '=', spaces): a
     directory name may hold them when written as KEY='VALUE'."""
     for o in overrides:
-        key, eq, value = o.partition("=")
-        pathlike = "/" in value or key.lstrip("+").endswith(("dir", "resume", "init", "opponent"))
-        if eq and pathlike and not value.startswith(("'", '"')) and (not value.isascii() or any(c in value for c in ",= ()[]{}")):
+        key, value = split_arg(o)
+        if value is None:
+            continue
+        pathlike = "/" in value or override_key(o).endswith(("dir", "resume", "init", "opponent"))
+        if pathlike and not value.startswith(("'", '"')) and (not value.isascii() or any(c in value for c in ",= ()[]{}")):
             return f" (if {key} is one value, quote it for Hydra: \"{key}={_hydra_quote(value)}\")"
     return ""
 
@@ -52,8 +55,8 @@ _NONEMPTY = ("resume", "hydra.run.dir", "hydra.sweep.dir", "hydra.sweep.subdir",
 def _refuse_empty(overrides: list[str]) -> None:
     """``resume=`` or ``hydra.run.dir=`` with nothing after the '=' would silently mean "none" / "here"."""
     for o in overrides:
-        key, eq, value = o.partition("=")
-        if eq and key.lstrip("+") in _NONEMPTY and not value.strip():
+        key, value = split_arg(o)
+        if value is not None and override_key(o) in _NONEMPTY and not value.strip():
             raise ConfigError(f"{key}= is empty; give it a value ({key}=DIR) or leave it out")
 
 
@@ -68,7 +71,7 @@ def _claim_dir(job: list[str], overrides: list[str], multirun: bool) -> str:
     path = str(cfg.hydra.sweep.dir if multirun else cfg.hydra.run.dir)
     if not path.strip():
         raise ConfigError(f"{key} is empty; give it a directory")
-    explicit = any(o.partition("=")[0].lstrip("+") == key for o in overrides)
+    explicit = names_key(overrides, key)
     return str(claim_run_dir(path, unique=not explicit, sweep=multirun))
 
 
@@ -162,7 +165,7 @@ def train(
     from volleybots.launchers import check_launcher
 
     check_launcher(overrides)
-    resume_dir = next((o.partition("=")[2] for o in overrides if o.startswith("resume=")), None)
+    resume_dir = override_value([o for o in overrides if o.startswith("resume=")], "resume")
     if resume_dir is not None and resume_dir != "null":
         from volleybots.population.run import resume
 
@@ -175,6 +178,7 @@ def train(
         _single_run(overrides)
         return
     from volleybots.config import compose, validate
+    from volleybots.config.compose import pin_default_algo
     from volleybots.train import preflight
 
     jobs = _jobs(overrides, multirun)
@@ -182,12 +186,7 @@ def train(
     if show is None:
         for c in cfgs:
             preflight(c)  # memory, opponent= / seed_members / init= files: before Hydra writes any run dir
-    if not any(o.split("=", 1)[0].lstrip("+~") == "algo" for o in overrides):
-        # the task's own default (MAPPO for cooperative tasks, SP for matches) when no algo is named
-        algos = sorted({c.algo.name for c in cfgs})
-        if len(algos) > 1:
-            raise ConfigError(f"the swept tasks train with different default algorithms ({', '.join(algos)}); name one with algo=NAME")
-        overrides = [*overrides, f"algo={algos[0]}"]
+    overrides = [*overrides, *pin_default_algo(cfgs, overrides)]
     if show is not None:
         _run_hydra(overrides, multirun, ["--cfg", show])
         return
@@ -196,7 +195,7 @@ def train(
     key = _DIR_KEYS[multirun]
     run_dir = _claim_dir(_jobs(overrides, multirun)[0], overrides, multirun)
     try:
-        pinned = [o for o in overrides if o.partition("=")[0].lstrip("+") != key]
+        pinned = [o for o in overrides if override_key(o) != key]
         _run_hydra([*pinned, f"{key}={_hydra_quote(run_dir)}"], multirun, [])
     finally:
         unlock(run_dir)
@@ -239,7 +238,7 @@ def _single_run(overrides: list[str]) -> None:
 
     cfg = validate(OmegaConf.masked_copy(full, [k for k in full if k != "hydra"]))
     preflight(cfg)
-    explicit = any(o.partition("=")[0].lstrip("+") == key for o in overrides)
+    explicit = names_key(overrides, key)
     run_dir = claim_run_dir(Path(path).absolute(), unique=not explicit)  # absolute, as Hydra's output_dir is
     try:
         _write_hydra_record(run_dir, full, overrides)

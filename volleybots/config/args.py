@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from volleybots.config.compose import parse_value
 from volleybots.errors import ConfigError, Range
+from volleybots.overrides import split_arg
 
 # The ranges of the verbs' count options, checked as they are read (memory is checked later, against
 # the match: ``volleybots.config.resources.check_play``). A seed leaves room for the offsets the verbs
@@ -50,10 +51,10 @@ def split_args(args, options: dict, override_keys=OVERRIDE_KEYS) -> tuple[list[s
     override is a name, ``name=PATH`` included."""
     specs, opts, overrides = [], {}, []
     for arg in args:
-        key, eq, value = arg.partition("=")
-        if eq and key in options:
+        key, value = split_arg(arg)
+        if value is not None and key in options:
             opts[key] = typed_option(key, value, options[key])
-        elif eq and (key in override_keys or key.startswith(OVERRIDE_PREFIXES)):
+        elif value is not None and (key in override_keys or key.startswith(OVERRIDE_PREFIXES)):
             overrides.append(arg)
         else:
             specs.append(arg)
@@ -64,8 +65,8 @@ def parse_options(args, allowed, what: str) -> dict:
     """Only ``key=value`` options (``bench``): each key one of ``allowed``, values as Hydra reads them."""
     out = {}
     for o in args:
-        key, eq, value = o.partition("=")
-        if not eq or key not in allowed:
+        key, value = split_arg(o)
+        if value is None or key not in allowed:
             raise ConfigError(f"unknown {what} option {key!r}; allowed: {', '.join(allowed)}")
         out[key] = parse_value(value)
     return out

@@ -112,6 +112,18 @@ def _task_default_algo(cfg: DictConfig, overrides) -> str | None:
     return None if default == OmegaConf.select(cfg, "algo.name", default=None) else default
 
 
+def pin_default_algo(cfgs, overrides) -> list[str]:
+    """The ``algo=`` override that pins the default algorithm the composed ``cfgs`` took (each task's own,
+    ``_task_default_algo``) for a launcher that composes again, or none when the command line names one;
+    swept tasks of different defaults are one ``ConfigError`` line."""
+    if names_key(overrides, "algo"):
+        return []
+    algos = sorted({c.algo.name for c in cfgs})
+    if len(algos) > 1:
+        raise ConfigError(f"the swept tasks train with different default algorithms ({', '.join(algos)}); name one with algo=NAME")
+    return [f"algo={algos[0]}"]
+
+
 def algo_action_space(cfg: DictConfig, overrides) -> DictConfig:
     """An algorithm that cannot act in the default action space (``dqn``: discrete only) gets its own
     first one, unless the command line names ``env.action_space`` (then ``validate`` rejects a bad one)."""

@@ -24,6 +24,7 @@ from volleybots.errors import ConfigError
 from volleybots.eval import play
 from volleybots.files import exists
 from volleybots.keys import OBS
+from volleybots.overrides import split_arg
 from volleybots.policies import BUILTIN as POLICY_NAMES
 from volleybots.policies import EVAL_KEYS, resolve_target
 
@@ -99,9 +100,9 @@ def split(args) -> tuple[list[str], list[str]]:
     grammar (``volleybots.config.args``)."""
     targets, _, overrides = split_args(args, {}, OVERRIDES)
     for t in targets:
-        key, eq, _ = t.partition("=")
+        key, value = split_arg(t)
         # a path whose name holds '=' (an existing run dir or checkpoint) is a target; any other key=value is a typo
-        if eq and not exists(t):
+        if value is not None and not exists(t):
             raise ConfigError(f"{t!r}: eval compare has no option {key!r} (and no run or checkpoint has that name); "
                               "options: " + ", ".join(k for k in OVERRIDES if "." not in k) + ", task.KEY=, env.KEY=")
     if len(targets) < 2:
@@ -113,7 +114,7 @@ def _resolve(targets: list[str], overrides: list[str]):
     """Trained targets first; a built-in player (scripted, random) plays their task and action space
     unless the command line names them."""
     trained = {t: resolve_target(t, overrides) for t in targets if t not in POLICY_NAMES}
-    named = {o.partition("=")[0] for o in overrides}
+    named = {split_arg(o)[0] for o in overrides}
     implied = []
     if trained:
         first = next(iter(trained.values())).cfg

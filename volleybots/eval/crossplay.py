@@ -28,6 +28,7 @@ from volleybots.errors import ConfigError
 from volleybots.eval.reuse import Reuse, check_readable
 from volleybots.files import Fields, read_json, write_atomic, write_json
 from volleybots.keys import OBS
+from volleybots.overrides import split_arg
 from volleybots.play.games import DEFAULT_BATCH, check_scenario, play_games
 from volleybots.ratings import record
 
@@ -170,7 +171,7 @@ def match_config(competitors, overrides=()):
     """The validated config of the match every competitor plays: the task and action space of the
     trained competitors unless ``task=`` / ``env.action_space=`` say (then they must fit), and the
     overrides; each competitor builds its team policy once here, so a bad one fails before any game."""
-    keys = {o.partition("=")[0] for o in overrides}
+    keys = {split_arg(o)[0] for o in overrides}
     trained = [m for c in competitors for m in c.members if m.task is not None]
     extra = []
     if "task" not in keys:

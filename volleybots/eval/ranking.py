@@ -26,6 +26,7 @@ from volleybots.errors import ConfigError, Range
 from volleybots.eval.content import by_competitor
 from volleybots.eval.crossplay import CrossPlay, _nan_to_none
 from volleybots.files import write_atomic, write_json
+from volleybots.overrides import split_arg
 from volleybots.population.solvers import exploitability, member_exploitability, nash
 from volleybots.ratings import ELO_K, ELO_START, bradley_terry_intervals, elo_history, record, round_robin, sample_round_robin
 
@@ -176,7 +177,7 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
     from volleybots.eval.crossplay import HEATMAP, OPTIONS, RESULTS, default_out, heatmap, play_and_save, resolve_all, setup, split_args
     from volleybots.runs import output_dir
 
-    if any(a.partition("=")[0] == "bootstrap" for a in args):
+    if any(split_arg(a)[0] == "bootstrap" for a in args):
         raise ConfigError(
             "bootstrap= is no longer an option of eval elo: Bradley-Terry's intervals are profile-likelihood intervals, "
             "which draw no resamples; leave it out"
@@ -200,7 +201,7 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
         if rounds % 2:
             raise ConfigError(f"rounds={rounds} must be even: the games of every pair are played half on each side")
         check_rounds(rounds, max(2, len(specs)))  # before the competitors load: rounds are the games per pair
-        play = [a for a in args if a.partition("=")[0] not in ELO_OPTIONS] + [f"games={rounds}"]
+        play = [a for a in args if split_arg(a)[0] not in ELO_OPTIONS] + [f"games={rounds}"]
         comps, specs, play_opts, cfg = setup(play, OPTIONS)
         task, sample = cfg.task.name, opts.get("sample", False)
     with output_dir(out, default_out(task, "elo")) as path:  # claimed and locked before any game

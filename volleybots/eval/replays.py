@@ -1,5 +1,7 @@
-"""Match replays (``volleybots replay A B``): one match between two competitors recorded to rerun, and
-the file a replay writes, reserved so that two replays never write one file."""
+"""The ``volleybots replay`` verb: one policy's episode (``replay TARGET``) or one match between two
+competitors (``replay A B``) recorded to rerun, the outputs checked before anything plays, and the file
+a replay writes reserved so that two replays never write one file. (``volleybots.replay`` is the
+recorder it drives; the CLI only parses the command line.)"""
 
 from __future__ import annotations
 
@@ -8,6 +10,7 @@ from pathlib import Path
 from volleybots.config.args import split_args
 from volleybots.errors import ConfigError
 from volleybots.eval.crossplay import setup
+from volleybots.overrides import split_arg
 
 REPLAY_OPTIONS = {"seed": int, "scenario": str, "deterministic": bool}
 
@@ -15,12 +18,70 @@ REPLAY_OPTIONS = {"seed": int, "scenario": str, "deterministic": bool}
 def is_competitor_spec(arg: str) -> bool:
     """A replay argument names a competitor (rather than a config override) when it has no ``=`` or
     labels a built-in player or an existing path: ``replay A B`` records a match, ``replay A k=v`` one policy."""
+    from volleybots.files import exists
     from volleybots.policies import BUILTIN
 
-    label, eq, value = arg.partition("=")
-    from volleybots.files import exists
+    value = split_arg(arg)[1]
+    return value is None or value in BUILTIN or (bool(value) and exists(value)) or exists(arg)
 
-    return not eq or value in BUILTIN or (bool(value) and exists(value)) or exists(arg)
+
+def check_outputs(out: Path | None, still: Path | None) -> None:
+    """``--out FILE.rrd`` and ``--still FILE.png``: the right suffix, a file name the file system takes, a
+    file that does not exist yet (replays never overwrite) in a folder this process can write."""
+    from volleybots.runs import check_writable
+
+    for opt, path, suffix in (("--out", out, ".rrd"), ("--still", still, ".png")):
+        if path is None:
+            continue
+        if path.suffix != suffix:
+            raise ConfigError(f"{opt} {str(path)!r} must end in {suffix}")
+        if len(path.name.encode()) > 255:  # the limit of most file systems (NAME_MAX)
+            raise ConfigError(f"{opt} {path.name[:40]!r}... is too long for a file name ({len(path.name.encode())} bytes, at most 255)")
+        if path.exists() or path.is_symlink():
+            raise ConfigError(f"{opt} {str(path)!r} exists; choose another file (replays never overwrite)")
+        check_writable(path.parent, f"the folder of {opt}")
+
+
+def replay_verb(args: list[str], out: Path | None, viewer: bool, still: Path | None = None) -> str:
+    """``volleybots replay ARGS``: record a match when two arguments name competitors, else one episode
+    of the policy the first names; returns the line saying what was recorded where."""
+    check_outputs(out, still)
+    if sum(map(is_competitor_spec, args)) >= 2:
+        if still is not None:
+            raise ConfigError("--still draws one policy's episode (replay TARGET ...); a match replay takes --out and --no-viewer only")
+        stats, out, labels = replay_match(args, out, viewer)
+        where = str(out) if out is not None else "the viewer"
+        who = {0: f"{labels[0]} (blue) won", 1: f"{labels[1]} (red) won", -1: "a draw"}[int(stats["winner"])]
+        return f"recorded one match of {labels[0]} (blue) against {labels[1]} (red) to {where}: {who}"
+    return replay_one(args[0], args[1:], out, viewer, still)
+
+
+def replay_one(target: str, overrides: list[str], out: Path | None, viewer: bool, still: Path | None = None) -> str:
+    """One episode of the policy ``target`` names (with config ``overrides``) recorded to rerun."""
+    import time
+
+    from volleybots.config import make_env
+    from volleybots.policies import resolve_target
+    from volleybots.replay import record_episode
+
+    t = resolve_target(target, overrides)
+    default = None
+    if out is None and not viewer:
+        base = Path(target) if Path(target).is_dir() else Path("outputs") / "replays"
+        default = base / replay_name(t.cfg.task.name, [t.label], time.strftime("%Y%m%d-%H%M%S"))
+    env = make_env(t.cfg, num_envs=1, seed=t.cfg.seed)
+    policy = t.make_policy(env)
+    out = replay_file(out, default)
+    try:
+        stats = record_episode(env, policy, out, viewer=viewer, still=still)
+    except BaseException:
+        if out is not None and out.is_file() and out.stat().st_size == 0:
+            out.unlink()
+        raise
+    where = str(out) if out is not None else "the viewer"
+    where += f" and {still}" if still is not None else ""
+    return (f"recorded one episode of {t.label} on {t.cfg.task.name} to {where}: "
+            f"{env.metric} {stats[env.metric]:.4g}, return {stats['return']:.4g}")
 
 
 def replay_match(args, out: Path | None, viewer: bool) -> tuple[dict, Path | None, list[str]]:

@@ -15,13 +15,13 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import re
 import time
 from pathlib import Path
 
 from volleybots.config import to_dict
 from volleybots.errors import ConfigError
+from volleybots.files import write_atomic
 from volleybots.runs import RunDir, note
 
 IDENTITY_FILE = "wandb_run.json"
@@ -63,9 +63,7 @@ def run_identity(run_dir: Path, resume: bool) -> dict:
         "group": sweep_group(run_dir),
         "created_ns": created,
     }
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(identity, indent=1) + "\n")
-    os.replace(tmp, path)
+    write_atomic(path, json.dumps(identity, indent=1) + "\n", "the W&B run's identity")
     return identity
 
 
