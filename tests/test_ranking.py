@@ -105,7 +105,7 @@ def test_elo_is_reported_with_its_spread_over_seeded_game_orders():
     assert e["orders"] == 50 and all(abs(m - 1000) < 40 for m in e["order_mean"])
     widths = np.asarray(e["order_high"]) - np.asarray(e["order_low"])
     assert (widths > 150).all(), widths  # the order alone moves each rating by more than the players differ
-    assert all(lo <= r <= hi for lo, r, hi in zip(e["order_low"], e["order_mean"], e["order_high"]))
+    assert all(lo <= r <= hi for lo, r, hi in zip(e["order_low"], e["order_mean"], e["order_high"], strict=False))
     again = ratings(even, rounds=200, seed=0, orders=50, resamples=5)["elo"]
     assert again["order_low"] == e["order_low"] and again["order_high"] == e["order_high"]
     small = ratings(even, rounds=200, k=8, seed=0, orders=50, resamples=5)["elo"]

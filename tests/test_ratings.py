@@ -112,7 +112,7 @@ def test_a_drawing_player_that_never_wins_cannot_outrank_the_players_that_beat_i
     assert half[3] > half[1] and half[3] > half[2]  # the inversion the half-win rule makes
     r, lo, hi = bradley_terry_intervals(wdl)
     for beaten_by in (0, 1, 2):
-        assert r[3] < r[beaten_by], dict(zip(labels, r))
+        assert r[3] < r[beaten_by], dict(zip(labels, r, strict=False))
 
 
 def test_bradley_terry_is_finite_when_one_side_wins_everything():
