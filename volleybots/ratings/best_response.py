@@ -127,7 +127,7 @@ def estimate(candidates: list[Candidate], games: int, select_games: int, seed: i
         fig["exploitability_interval"] = [max(x, 0.0) for x in fig["exploitability_interval"]]
         fig["chosen_points"] = raw
     groups: dict[str, float] = {}
-    for name, s in selection.items():
+    for s in selection.values():
         if s["kind"] == "trained":
             groups[s["group"]] = max(groups.get(s["group"], -math.inf), s["exploitability"])
     spread = {"points": groups}
