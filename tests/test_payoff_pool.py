@@ -80,3 +80,24 @@ def test_a_ray_pool_plays_the_same_crossplay_table_as_serial_play(tmp_path, monk
     with pytest.raises(ConfigError, match="unknown pool 'dask'; allowed: serial, ray"):
         run_crossplay([*args, "pool=dask"], tmp_path / "never")
     assert not (tmp_path / "never").exists()
+
+
+def test_best_responses_on_two_seeds_train_the_same_as_ray_tasks(tmp_path, monkeypatch):
+    """``eval exploitability ... seeds=2 pool=ray``: each seed's response a Ray task, the same weights."""
+    import torch
+
+    ray = pytest.importorskip("ray", reason="ray comes with the cluster extra of the test install")
+    monkeypatch.setenv("RAY_AUTH_MODE", "disabled")
+    from volleybots.eval.exploitability import run_exploitability
+
+    args = ["random", "task=1v1", "budget=512", "num_envs=8", "games=4", "select_games=4", "seeds=2", "seed=5", "progress=false",
+            "threads=1"]
+    serial, a = run_exploitability(args, tmp_path / "serial")
+    try:
+        pooled, b = run_exploitability([*args, "pool=ray"], tmp_path / "ray")
+    finally:
+        ray.shutdown()
+    for name in ("br", "br_s1"):
+        x, y = (torch.load(p / name / "checkpoints" / "final.pt", weights_only=True)["algo"]["actor"] for p in (a, b))
+        assert x.keys() == y.keys() and all(torch.equal(x[k], y[k]) for k in x)
+    assert pooled["selection"] == serial["selection"] and pooled["exploitability"] == serial["exploitability"]
