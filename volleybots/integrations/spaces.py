@@ -8,7 +8,9 @@ its observation or action changes its Gymnasium and PettingZoo spaces with it.
 
 Observation bounds. A part of the observation is bounded where its construction bounds it: the
 attitude quaternion (a unit quaternion), the heading and up axes (unit vectors) and the rotor
-throttles (mapped to [-1, 1]) lie in [-1, 1]; the turn, id, may-hit and side parts are one-hots or
+throttles (mapped to [-1, 1]) lie in [-1, 1], up to float32 rounding (a unit vector's component
+computed from a renormalised quaternion comes out as 1.0000002): their boxes allow ``UNIT_SLACK``
+more. The turn, id, may-hit and side parts are one-hots or
 flags in [0, 1]. Positions, velocities and angular velocities have no hard limit in the physics (a
 drone may leave the court, and nothing clamps its speed), so they stay unbounded.
 """
@@ -30,7 +32,8 @@ STATS_KEY = "final_stats"  # the info key of the episode statistics: "episode" b
 SEED_MAX = 2**63 - 1  # torch.Generator.manual_seed takes a signed 64-bit integer
 BOOL_KEYS = ("reward_shaping", "downwash", "compile", "compile_physics")  # task keywords that are switches
 UNIT_PARTS = ("quat", "heading", "up", "throttle")  # root parts in [-1, 1] by construction
-FLAG_PARTS = ("turn", "id", "may_hit", "side")  # one-hots and flag pairs, in [0, 1]
+FLAG_PARTS = ("turn", "id", "may_hit", "side")  # one-hots and flag pairs, in [0, 1] exactly
+UNIT_SLACK = 1e-4  # float32 rounding of the unit parts: hundreds of ulps at 1.0, far below any physical change
 
 
 def check_seed(seed) -> int | None:
@@ -75,7 +78,8 @@ def observation_bounds(env: VolleyEnv) -> tuple[np.ndarray, np.ndarray]:
     for name, size in env.layout.parts:
         parts = root_layout(env.with_throttle).parts if name == ROOT else ((name, size),)
         for sub, k in parts:
-            bound = (-1.0, 1.0) if name == ROOT and sub in UNIT_PARTS else (0.0, 1.0) if sub in FLAG_PARTS else (-np.inf, np.inf)
+            unit = 1.0 + UNIT_SLACK
+            bound = (-unit, unit) if name == ROOT and sub in UNIT_PARTS else (0.0, 1.0) if sub in FLAG_PARTS else (-np.inf, np.inf)
             low += [bound[0]] * k
             high += [bound[1]] * k
     return np.array(low, np.float32), np.array(high, np.float32)
