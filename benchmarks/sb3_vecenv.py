@@ -10,6 +10,9 @@ Three rates on one task and world count, each the median of ``--repeats``:
 - ``--dummy N``: for comparison, SB3's ``DummyVecEnv`` over N single ``gym.make`` envs (each world a
   torch step of its own), collection only.
 
+Each rate is given per second of wall time and per second of the process's CPU time (one torch
+thread): on a shared machine the second is the steadier, the three are measured in turn each repeat.
+
     OMP_NUM_THREADS=1 python benchmarks/sb3_vecenv.py                     # solo_bump, 64 worlds
     OMP_NUM_THREADS=1 python benchmarks/sb3_vecenv.py --num-envs 256 --dummy 8 --json out.json
 
@@ -33,13 +36,14 @@ def sb3_rates(make_env, args, learn: bool) -> dict:
     class Clock(BaseCallback):
         def __init__(self):
             super().__init__()
-            self.collect_s, self.t0 = 0.0, 0.0
+            self.collect_s = self.collect_cpu_s = self.t0 = self.c0 = 0.0
 
         def _on_rollout_start(self):
-            self.t0 = time.perf_counter()
+            self.t0, self.c0 = time.perf_counter(), time.process_time()
 
         def _on_rollout_end(self):
             self.collect_s += time.perf_counter() - self.t0
+            self.collect_cpu_s += time.process_time() - self.c0
 
         def _on_step(self):
             return True
@@ -51,7 +55,7 @@ def sb3_rates(make_env, args, learn: bool) -> dict:
                 n_epochs=args.n_epochs)
     total = rollout * args.rollouts
     clock = Clock()
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     if learn:
         model.learn(total, callback=clock)
     else:  # collection only: one rollout per repeat, no update
@@ -59,15 +63,15 @@ def sb3_rates(make_env, args, learn: bool) -> dict:
         cb = model._init_callback(clock)
         for _ in range(args.rollouts):
             model.collect_rollouts(model.env, cb, model.rollout_buffer, args.n_steps)
-    wall = time.perf_counter() - start
+    wall, cpu = time.perf_counter() - start, time.process_time() - cpu_start
     env.close()
-    out = {"sb3_collect_steps_per_s": total / clock.collect_s}
+    out = {"sb3_collect_steps_per_s": total / clock.collect_s, "sb3_collect_steps_per_cpu_s": total / clock.collect_cpu_s}
     if learn:
-        out["sb3_learn_steps_per_s"] = total / wall
+        out["sb3_learn_steps_per_s"], out["sb3_learn_steps_per_cpu_s"] = total / wall, total / cpu
     return out
 
 
-def adapter_rate(args) -> float:
+def adapter_rate(args) -> tuple[float, float]:
     import numpy as np
 
     from volleybots.integrations import VolleySB3VecEnv
@@ -78,12 +82,13 @@ def adapter_rate(args) -> float:
     env.reset()
     for i in range(5):
         env.step(actions[i % 8])
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     for i in range(args.steps):
         env.step(actions[i % 8])
-    rate = args.num_envs * args.steps / (time.perf_counter() - start)
+    n = args.num_envs * args.steps
+    rates = n / (time.perf_counter() - start), n / (time.process_time() - cpu_start)
     env.close()
-    return rate
+    return rates
 
 
 def main(argv=None) -> dict:
@@ -108,16 +113,21 @@ def main(argv=None) -> dict:
     from volleybots.integrations import VolleySB3VecEnv
 
     torch.set_num_threads(args.threads)
-    env_rate = measure(args.task, "torch", args.num_envs, steps=args.steps, repeats=args.repeats, seed=args.seed)["env_steps_per_s"]
-    adapter = statistics.median(adapter_rate(args) for _ in range(args.repeats))
-    runs = [sb3_rates(lambda: VolleySB3VecEnv(args.task, args.num_envs, seed=args.seed), args, learn=True) for _ in range(args.repeats)]
-    row = {
-        "task": args.task, "num_envs": args.num_envs, "threads": args.threads, "load": os.getloadavg(),
-        "env_steps_per_s": env_rate, "adapter_steps_per_s": adapter,
-        "sb3_collect_steps_per_s": statistics.median(r["sb3_collect_steps_per_s"] for r in runs),
-        "sb3_learn_steps_per_s": statistics.median(r["sb3_learn_steps_per_s"] for r in runs),
-        "ppo": {"n_steps": args.n_steps, "batch_size": args.batch_size, "n_epochs": args.n_epochs, "rollouts": args.rollouts},
-    }
+    # the three measured in turn, repeat by repeat, so that a shared machine's load falls on all alike; per
+    # second of wall time and per second of this process's CPU time (one thread: what it would reach on a core
+    # of its own, the steadier figure on a loaded machine)
+    rows, load = [], [os.getloadavg()[0]]
+    for _ in range(args.repeats):
+        m = measure(args.task, "torch", args.num_envs, steps=args.steps, repeats=1, seed=args.seed)
+        a = adapter_rate(args)
+        r = sb3_rates(lambda: VolleySB3VecEnv(args.task, args.num_envs, seed=args.seed), args, learn=True)
+        rows.append({"env_steps_per_s": m["env_steps_per_s"], "env_steps_per_cpu_s": m["env_steps_per_cpu_s"],
+                     "adapter_steps_per_s": a[0], "adapter_steps_per_cpu_s": a[1], **r})
+        load.append(os.getloadavg()[0])
+    row = {"task": args.task, "num_envs": args.num_envs, "threads": args.threads, "load_1min": load, "repeats": rows,
+           "ppo": {"n_steps": args.n_steps, "batch_size": args.batch_size, "n_epochs": args.n_epochs, "rollouts": args.rollouts}}
+    for k in rows[0]:
+        row[k] = statistics.median(r[k] for r in rows)
     if args.dummy:
         import gymnasium as gym
         from stable_baselines3.common.vec_env import DummyVecEnv
@@ -128,16 +138,18 @@ def main(argv=None) -> dict:
         one = argparse.Namespace(**{**vars(args), "rollouts": 1})
         dummy = sb3_rates(lambda: DummyVecEnv([lambda: gym.make(env_id)] * args.dummy), one, learn=False)
         row["dummy_num_envs"], row["dummy_collect_steps_per_s"] = args.dummy, dummy["sb3_collect_steps_per_s"]
-    for k in ("adapter_steps_per_s", "sb3_collect_steps_per_s", "sb3_learn_steps_per_s"):
-        row[k.replace("_steps_per_s", "_vs_env")] = row[k] / env_rate
-    print("| what | env-steps/s | x env |\n|---|---:|---:|")
-    print(f"| env (batched, random actions) | {env_rate:,.0f} | 1.00 |")
-    for label, k in (("adapter step", "adapter"), ("SB3 PPO collection", "sb3_collect"), ("SB3 PPO learn", "sb3_learn")):
-        print(f"| {label} | {row[k + '_steps_per_s']:,.0f} | {row[k + '_vs_env']:.2f} |")
+        row["dummy_collect_steps_per_cpu_s"] = dummy["sb3_collect_steps_per_cpu_s"]
+    print("| what | env-steps/s (wall) | x env | env-steps per CPU-s | x env |\n|---|---:|---:|---:|---:|")
+    for label, k in (("env (batched, random actions)", "env"), ("adapter step", "adapter"), ("SB3 PPO collection", "sb3_collect"),
+                     ("SB3 PPO learn", "sb3_learn")):
+        wall, cpu = row[k + "_steps_per_s"], row[k + "_steps_per_cpu_s"]
+        row[k + "_vs_env"], row[k + "_cpu_vs_env"] = wall / row["env_steps_per_s"], cpu / row["env_steps_per_cpu_s"]
+        print(f"| {label} | {wall:,.0f} | {row[k + '_vs_env']:.2f} | {cpu:,.0f} | {row[k + '_cpu_vs_env']:.2f} |")
     if args.dummy:
+        d = row["dummy_collect_steps_per_cpu_s"]
         print(f"| SB3 PPO collection, DummyVecEnv of {args.dummy} single envs | {row['dummy_collect_steps_per_s']:,.0f} | "
-              f"{row['dummy_collect_steps_per_s'] / env_rate:.2f} |")
-    print(f"{args.task}, {args.num_envs} worlds, {args.threads} thread(s), load {row['load'][0]:.2f}")
+              f"{row['dummy_collect_steps_per_s'] / row['env_steps_per_s']:.2f} | {d:,.0f} | {d / row['env_steps_per_cpu_s']:.2f} |")
+    print(f"{args.task}, {args.num_envs} worlds, {args.threads} thread(s), 1-min load over the repeats {load}")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(row, f, indent=1)
