@@ -68,3 +68,19 @@ def test_sb3_ppo_trains_through_the_vecenv_on_solo_bump():
         assert np.isfinite(info["final_stats"]["bumps"])
     action, _ = model.predict(env.reset(), deterministic=True)
     assert action.shape == (4, 4) and np.isfinite(action).all()
+
+
+@pytest.mark.slow
+def test_supersuit_vector_conversion_trains_sb3_on_a_match():
+    """docs/integrations.md's SuperSuit snippet: the type-only indicator, one SB3 world per agent."""
+    ss = pytest.importorskip("supersuit")
+    from volleybots.integrations import VolleyParallelEnv
+
+    env = ss.agent_indicator_v0(VolleyParallelEnv("1v1", episode_len=50), type_only=True)
+    vec = ss.concat_vec_envs_v1(ss.pettingzoo_env_to_vec_env_v1(env), 2, base_class="stable_baselines3")
+    assert vec.num_envs == 4 and vec.observation_space.shape == (41,)
+    # no PPO(seed=): SuperSuit's ConcatVecEnv has no seed() for SB3 to call
+    model = PPO("MlpPolicy", vec, n_steps=64, batch_size=64, n_epochs=1, device="cpu").learn(total_timesteps=512)
+    assert model.num_timesteps == 512
+    obs = vec.reset()
+    np.testing.assert_array_equal(obs[:, -2:], [[1, 0], [0, 1], [1, 0], [0, 1]])  # blue, red in each copy
