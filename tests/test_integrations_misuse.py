@@ -81,7 +81,8 @@ def test_single_env_refuses_steps_after_its_episode_until_reset():
 
 
 def test_every_adapter_refuses_use_after_close():
-    one, vec, match, sb3 = VolleyGymEnv("hover"), VolleyVectorEnv("hover", num_envs=2), VolleyParallelEnv("1v1"), VolleySB3VecEnv("hover", 2)
+    one, vec, match = VolleyGymEnv("hover"), VolleyVectorEnv("hover", num_envs=2), VolleyParallelEnv("1v1")
+    sb3 = VolleySB3VecEnv("hover", 2)
     for env in (one, vec, match):
         env.reset(seed=0)
     sb3.reset()

@@ -60,7 +60,7 @@ def test_sb3_ppo_trains_through_the_vecenv_on_solo_bump():
     before = [p.detach().clone() for p in model.policy.parameters()]
     model.learn(total_timesteps=3072, callback=Ends())
     assert model.num_timesteps == 3072
-    assert any(not torch.equal(a, b) for a, b in zip(before, model.policy.parameters()))  # it learned something
+    assert any(not torch.equal(a, b) for a, b in zip(before, model.policy.parameters(), strict=True))  # it learned something
     assert len(ends) >= 4 and len(model.ep_info_buffer) == min(len(ends), 100)
     for info in ends:  # VecMonitor's return and length beside the task's own statistics
         assert info["episode"]["r"] == pytest.approx(info["final_stats"]["return"], rel=1e-4, abs=1e-4)
