@@ -152,6 +152,11 @@ def test_missing_extras_are_named(monkeypatch):
     assert integrations.VolleyVectorEnv.__name__ == "VolleyVectorEnv"
     with pytest.raises(ImportError, match=r"pip install 'volleybots\[pettingzoo\]'"):
         integrations.VolleyParallelEnv  # noqa: B018
+    for name in ("stable_baselines3", "stable_baselines3.common.vec_env"):  # the submodule too: another test may have imported it
+        monkeypatch.setitem(sys.modules, name, None)
+    integrations = fresh_import()
+    with pytest.raises(ImportError, match=r"pip install 'volleybots\[sb3\]'"):
+        integrations.VolleySB3VecEnv  # noqa: B018
     monkeypatch.setitem(sys.modules, "gymnasium", None)
     with pytest.raises(ImportError, match=r"pip install 'volleybots\[gym\]'"):
         fresh_import()
