@@ -151,7 +151,7 @@ def versions() -> dict:
 
 
 # options of the cross-play verbs (key=value on the command line) and their types
-OPTIONS = {"games": int, "seed": int, "batch": int, "scenario": str, "deterministic": bool, "reuse": str}
+OPTIONS = {"games": int, "seed": int, "batch": int, "scenario": str, "deterministic": bool, "reuse": str, "pool": str}
 
 
 def resolve_all(specs) -> list:
@@ -196,7 +196,7 @@ def provenance(competitor, spec: str) -> dict:
 
 
 def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_BATCH, scenario: str = "any",
-              deterministic: bool = False, specs=None, progress=None, reuse=None) -> CrossPlay:
+              deterministic: bool = False, specs=None, progress=None, reuse=None, pool: str = "serial") -> CrossPlay:
     """Play ``games`` games for every pair of ``competitors`` on the match task of ``cfg``.
 
     Args:
@@ -210,6 +210,8 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
         specs: the competitors as named on the command line, for the provenance.
         progress: called as ``progress(i, j, games)`` after each pair.
         reuse: an earlier results file whose pairs are copied instead of played (``volleybots.eval.reuse``).
+        pool: "serial" (pairs in turn) or "ray" (pairs as Ray tasks together; the same numbers: every
+            pair plays on ``seed``).
 
     Returns:
         The ``CrossPlay``: win / draw / loss counts per ordered pair, game-by-game outcomes and the
@@ -230,12 +232,18 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
         "versions": versions(),
     }
     earlier = Reuse(reuse, CrossPlay.load(reuse), meta) if reuse is not None else None  # refused here, before any game, if it does not fit
-    for i, j in combinations(range(n), 2):
+    pairs = list(combinations(range(n), 2))
+    copied = {(i, j): earlier.pair(meta["competitors"][i], meta["competitors"][j]) for i, j in pairs} if earlier is not None else {}
+    todo = [(i, j) for i, j in pairs if copied.get((i, j)) is None]
+    from volleybots.play.pool import pool_map
+
+    played = pool_map(_play_pair, cfg, [(competitors[i], competitors[j], games, seed, batch, scenario, deterministic) for i, j in todo],
+                      pool)
+    for i, j in pairs:
         key = f"{i},{j}"
-        g = earlier.pair(meta["competitors"][i], meta["competitors"][j]) if earlier is not None else None
+        g = copied.get((i, j))
         if g is None:
-            g = play_games(cfg, competitors[i], competitors[j], games, seed=seed, batch=batch, scenario=scenario,
-                           deterministic=deterministic)
+            g = next(played)
         else:
             reused[key] = g.source
         record.put(wdl, i, j, g.total)
@@ -245,6 +253,11 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
     if reused:
         meta["reused"] = reused  # "i,j" -> the results file the pair was copied from
     return CrossPlay(labels, wdl, outcomes, sides, meta, content)
+
+
+def _play_pair(cfg, a, b, games: int, seed: int, batch: int, scenario: str, deterministic: bool):
+    """One pair's games (a Ray task's body with ``pool=ray``)."""
+    return play_games(cfg, a, b, games, seed=seed, batch=batch, scenario=scenario, deterministic=deterministic)
 
 
 def heatmap(result: CrossPlay, path: Path, title: str | None = None) -> None:
@@ -358,6 +371,10 @@ def setup(args, options: dict, min_competitors: int = 2):
         raise ConfigError(f"games={games} must be an even number >= 2 (each side plays half of them)")
     if "reuse" in opts:
         check_readable(opts["reuse"])
+    if "pool" in opts:
+        from volleybots.play.pool import check_pool
+
+        check_pool(opts["pool"], "pool")
     comps = resolve_all(specs)
     cfg = match_config(comps, overrides)
     check_scenario(opts.get("scenario", "any"), cfg)
@@ -392,7 +409,7 @@ def play_and_save(comps, specs, opts, cfg, path: Path, progress=None) -> CrossPl
     res = crossplay(
         cfg, comps, opts.get("games", 1000), seed=opts.get("seed", 0), batch=opts.get("batch", DEFAULT_BATCH),
         scenario=opts.get("scenario", "any"), deterministic=opts.get("deterministic", False), specs=specs, progress=progress,
-        reuse=opts.get("reuse"),
+        reuse=opts.get("reuse"), pool=opts.get("pool", "serial"),
     )
     res.save(path / RESULTS)
     heatmap(res, path / HEATMAP)
