@@ -17,7 +17,7 @@ MAX_LINES = 400
 # and may be imported from any floor; the top-level package ``volleybots`` is the façade above all.
 FLOORS = {
     "volleybots.errors": 0, "volleybots.files": 0, "volleybots.paths": 0, "volleybots.version": 0, "volleybots.ratings": 0,
-    "volleybots.population.solvers": 0, "volleybots.zoo": 0, "volleybots.population.payoffs": 0, "volleybots.tasks.layout": 0,
+    "volleybots.zoo": 0, "volleybots.tasks.layout": 0,
     "volleybots.keys": 0, "volleybots.overrides": 0,
     "volleybots.physics": 1,
     "volleybots.rules": 2,
@@ -184,6 +184,21 @@ def test_every_module_has_a_floor_and_none_is_over_the_line_limit():
     assert {n: k for n, k in long.items() if k > MAX_LINES} == {}
     for n in long:
         floor(n)  # a module under no known prefix raises
+
+
+def test_the_game_theory_package_imports_no_torch():
+    """Records, payoff tables, meta-solvers and ratings (``volleybots.ratings``) load without torch: a
+    notebook over a crossplay.json or payoffs.json needs numpy and scipy only."""
+    import subprocess
+    import sys
+
+    code = ("import importlib, pkgutil, sys, volleybots.ratings as r\n"
+            "names = [m.name for m in pkgutil.iter_modules(r.__path__)]\n"
+            "[importlib.import_module('volleybots.ratings.' + n) for n in names]\n"
+            "assert {'solvers', 'payoffs', 'record', 'elo', 'bradley_terry'} <= set(names), names\n"
+            "assert 'torch' not in sys.modules, sorted(m for m in sys.modules if m.startswith('torch'))[:5]\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=PKG.parent)
+    assert res.returncode == 0, res.stderr
 
 
 @pytest.mark.parametrize("layer", ["volleybots.play", "volleybots.policies", "volleybots.config", "volleybots.train", "volleybots.cli"])

@@ -18,7 +18,7 @@ from typer.testing import CliRunner
 from volleybots.cli import app
 from volleybots.config import ConfigError, validate
 from volleybots.policies import resolve_competitor, resolve_target
-from volleybots.population.payoffs import PayoffTable
+from volleybots.ratings.payoffs import PayoffTable
 from volleybots.runs import RunDir, read_population
 
 runner = CliRunner()

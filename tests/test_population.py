@@ -10,8 +10,8 @@ import volleybots
 from volleybots.config import ConfigError, load
 from volleybots.policies import Competitor, builtin_member, resolve_competitor
 from volleybots.population.loop import PopulationLoop
-from volleybots.population.payoffs import PayoffTable
 from volleybots.population.run import resume, start
+from volleybots.ratings.payoffs import PayoffTable
 from volleybots.runs import RunDir
 from volleybots.train import SelfPlay, collect
 

@@ -82,7 +82,7 @@ def test_an_oracle_stops_early_enough_for_its_payoff_games_to_end_by_the_time_li
     from types import SimpleNamespace
 
     from volleybots.population.loop import PopulationLoop
-    from volleybots.population.payoffs import payoff_reserve
+    from volleybots.ratings.payoffs import payoff_reserve
 
     assert payoff_reserve(0.0, 1) == 0.0  # no pair played yet: nothing to estimate from
     assert payoff_reserve(30.0, 3) == 30.0  # 3 pairs took 30 s: the 3 pairs of a fourth member take 30 s more

@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 from volleybots.cli import app
 from volleybots.eval.crossplay import CrossPlay
 from volleybots.eval.ranking import ratings
-from volleybots.population.solvers import member_exploitability
+from volleybots.ratings.solvers import member_exploitability
 
 runner = CliRunner()
 

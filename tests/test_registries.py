@@ -15,7 +15,7 @@ from volleybots.algos import ALGOS, is_population
 from volleybots.algos.population import PRESETS
 from volleybots.config import compose, load, make_env, validate
 from volleybots.policies import PLAYERS, check_references, resolve_target
-from volleybots.population.solvers import SOLVERS
+from volleybots.ratings.solvers import SOLVERS
 
 
 def _plain(x):
@@ -106,6 +106,12 @@ def test_every_population_preset_accepts_its_own_default_start_and_refuses_the_o
             with pytest.raises(ConfigError, match=f"^algo={name} .*'{init}'"):
                 validate(raw)
     assert not preset.learner_inits or defaults <= set(preset.learner_inits)
+
+
+def test_the_names_a_spec_may_give_are_the_built_in_players():
+    from volleybots.policies.store import BUILTIN_NAMES
+
+    assert BUILTIN_NAMES == tuple(PLAYERS)
 
 
 @pytest.mark.parametrize("name", sorted(PLAYERS))

@@ -4,7 +4,7 @@ random games), rock-paper-scissors gives uniform, dominated members get nothing.
 import numpy as np
 import pytest
 
-from volleybots.population.solvers import SOLVERS, exploitability, member_exploitability, nash, nash_with_value
+from volleybots.ratings.solvers import SOLVERS, exploitability, member_exploitability, nash, nash_with_value
 
 RPS = np.array([[0.0, -1.0, 1.0], [1.0, 0.0, -1.0], [-1.0, 1.0, 0.0]])
 

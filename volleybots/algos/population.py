@@ -19,7 +19,7 @@ from volleybots.algos.happo import HAPPO
 from volleybots.algos.mat import MAT
 from volleybots.algos.ppo import MAPPO
 from volleybots.errors import ConfigError, ranged
-from volleybots.population.solvers import SOLVERS  # a leaf module (numpy and scipy only)
+from volleybots.ratings.solvers import SOLVERS  # a leaf module (numpy and scipy only)
 
 CLONE = "bc"  # the run's behaviour clone of the scripted team: a learner_init and a seed_members name
 INITS = ("scratch", "last", CLONE)

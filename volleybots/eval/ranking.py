@@ -1,7 +1,7 @@
 """Ratings of a cross-play result: the paper's Elo, Bradley-Terry with profile-likelihood intervals, and the
 Nash mixture of the meta-game with each competitor's exploitability within the population
 (docs/evaluation.md). The arithmetic lives in ``volleybots.ratings`` and
-``volleybots.population.solvers``; this module applies it to a ``CrossPlay`` and draws the plot.
+``volleybots.ratings.solvers``; this module applies it to a ``CrossPlay`` and draws the plot.
 
 Elo's games: when the cross-play played at least ``rounds`` games per pair, round r is every pair's
 r-th game after a seeded shuffle of that pair's games (and the pairs of a round come in a seeded
@@ -27,9 +27,9 @@ from volleybots.eval.content import by_competitor
 from volleybots.eval.crossplay import CrossPlay, _nan_to_none
 from volleybots.files import write_atomic, write_json
 from volleybots.overrides import split_arg
-from volleybots.population.solvers import exploitability, member_exploitability, nash
 from volleybots.ratings import ELO_K, ELO_START, bradley_terry_intervals, elo_history, record, round_robin, sample_round_robin
 from volleybots.ratings.elo import elo_orders
+from volleybots.ratings.solvers import exploitability, member_exploitability, nash
 
 ORDERS = 100  # seeded game orders over which Elo's spread is reported
 RESAMPLES = 200  # resampled payoff tables over which the Nash weights' sensitivity is reported

@@ -42,8 +42,8 @@ from volleybots.population.clone import CLONE, clone_member, make_clone, needs_c
 from volleybots.population.convergence import Convergence
 from volleybots.population.final import evaluate_mixture, log_final_eval
 from volleybots.population.oracle import Oracle
-from volleybots.population.payoffs import PayoffTable, payoff_reserve, plot
-from volleybots.population.solvers import SOLVERS
+from volleybots.ratings.payoffs import PayoffTable, payoff_reserve, plot
+from volleybots.ratings.solvers import SOLVERS
 from volleybots.replay import write_curves
 from volleybots.runs import CKPT_FORMAT, POPULATION_DIR, RunDir, check_writable, locked, read_checkpoint, read_metas, read_population
 from volleybots.train import RESUME_KEYS as TRAIN_RESUME_KEYS

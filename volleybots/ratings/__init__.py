@@ -1,4 +1,6 @@
-"""Ratings of competitors from games between them (docs/evaluation.md).
+"""The game theory of the package: ratings of competitors from games between them, the payoff tables
+and meta-solvers of populations (docs/evaluation.md, docs/competitive.md). A leaf: it imports nothing
+of volleybots but other leaves, and never torch (tests/test_architecture.py holds it to that).
 
 Small pure functions over numpy arrays, usable without the CLI or the env:
 
@@ -7,7 +9,9 @@ Small pure functions over numpy arrays, usable without the CLI or the env:
 * ``wilson_interval``: a 95 % interval for a win rate (``intervals``);
 * ``elo`` and its round-robin game schedules: the paper's sequential Elo (``elo``);
 * ``bradley_terry`` and ``bradley_terry_intervals``: Firth-penalised maximum-likelihood strengths
-  with penalised profile-likelihood intervals, honest on unbeaten records (``bradley_terry``).
+  with penalised profile-likelihood intervals, honest on unbeaten records (``bradley_terry``);
+* ``payoffs.PayoffTable``: a population's W/D/L counts per ordered pair and its zero-sum payoff matrix;
+* ``solvers.SOLVERS``: the meta-solvers (uniform, Nash by linear programming, last) over such a matrix.
 
 Game results come in one layout everywhere (``record``): a count array whose last axis is the wins,
 draws and losses, ``wdl`` [n, n, 3] for the row competitor against the column one (so
