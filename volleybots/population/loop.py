@@ -326,6 +326,7 @@ def resume(run_dir, overrides=()) -> dict:
     run = RunDir(run_dir)
     cfg = resume_config(run_dir, overrides, RESUME_KEYS)
     check_writable(run.path, "the run directory")
+    run.check_contained()
     check_references(cfg)
     loop = PopulationLoop(cfg, run)
     metas = loop.metas()  # a damaged meta.jsonl line is one line naming it

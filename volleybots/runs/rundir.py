@@ -20,6 +20,8 @@ from volleybots.runs.metrics import _is_number
 
 CKPT_FORMAT = 1
 POPULATION_DIR = "population"  # a population run's members, payoffs.json and meta.jsonl
+# what a run writes at its top level besides config, metrics, summary, curves and checkpoints
+OWN_FILES = ("payoffs.png", "wandb_run.json", "wandb", ".lock")
 _CKPT = re.compile(r"ckpt_(\d+)\.pt$")
 
 
@@ -70,6 +72,11 @@ class RunDir:
         is refused."""
         make_dir(self.path, "the run directory")
         lock(self.path)
+        try:
+            self.check_contained()
+        except ConfigError:
+            unlock(self.path)
+            raise
         if self.has_checkpoint():
             unlock(self.path)
             raise ConfigError(f"{self.path} already holds a run; choose another hydra.run.dir or continue it with resume={self.path}")
@@ -100,6 +107,22 @@ class RunDir:
         for d in (self.ckpt_dir, pop):
             if d.is_dir() and not any(d.iterdir()):
                 d.rmdir()
+
+    def check_contained(self) -> None:
+        """Refuse a run directory (received from elsewhere) in which a file or folder the run writes
+        is a link leading outside it: writing through it would append to, or replace, a file that is
+        not the run's. Links that stay inside the directory are harmless. Writes nothing."""
+        root = self.path.resolve()
+        own = [self.config_path, self.metrics_path, self.summary_path, self.curves_path, *(self.path / n for n in OWN_FILES),
+               self.ckpt_dir, self.path / POPULATION_DIR]
+        for d in (self.ckpt_dir, self.path / POPULATION_DIR):
+            if d.is_dir() and d.resolve().is_relative_to(root):
+                own += sorted(d.iterdir())
+        own += sorted(self.path.glob("eval_*.rrd"))
+        for p in own:
+            if p.is_symlink() and not p.resolve().is_relative_to(root):
+                raise ConfigError(f"{p} is a link to {p.resolve()}, outside the run directory; a run writes only inside its "
+                                  "own directory: replace the link with a copy of what it points to")
 
     def load_config(self):
         """The run's validated config; a damaged or hand-broken config.yaml is one line naming it."""

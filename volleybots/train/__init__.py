@@ -58,6 +58,7 @@ def resume(run_dir, overrides=()) -> dict:
     run = RunDir(run_dir)
     cfg = resume_config(run_dir, overrides)
     check_writable(run.path, "the run directory")
+    run.check_contained()
     ckpt = run.latest_checkpoint()
     stamp = run.checkpoint_stamp()
     if ckpt is not None:
