@@ -25,6 +25,7 @@ import numpy as np
 from volleybots.errors import ConfigError, Range
 from volleybots.eval.content import by_competitor
 from volleybots.eval.crossplay import CrossPlay, _nan_to_none
+from volleybots.eval.plain import plain
 from volleybots.files import write_atomic, write_json
 from volleybots.population.solvers import exploitability, member_exploitability, nash
 from volleybots.ratings import ELO_K, ELO_START, bradley_terry_intervals, elo_history, record, round_robin, sample_round_robin
@@ -126,8 +127,8 @@ def format_table(report: dict):
 
     e, bt = report["elo"], report["bradley_terry"]
     table = Table(
-        title=f"ratings on {report['crossplay']['task']}: Elo K={e['k']:g} over {e['rounds']} rounds ({e['games']} games); "
-        "BT with 95 % profile-likelihood intervals"
+        title=plain(f"ratings on {report['crossplay']['task']}: Elo K={e['k']:g} over {e['rounds']} rounds ({e['games']} games); "
+                    "BT with 95 % profile-likelihood intervals")
     )
     cols = ("competitor", "Elo", "Bradley-Terry [95 %]", "avg win rate", "Nash weight", "exploitability in population (pp)",
             "touches/game (opp.)", "rally steps", "serving W/D/L", "receiving W/D/L")
@@ -141,7 +142,7 @@ def format_table(report: dict):
             f"{c['touches']:.2f} ({c['opponent_touches']:.2f})", f"{c['rally_steps']:.0f}",
             "/".join(map(str, c["serve_wdl"])), "/".join(map(str, c["receive_wdl"])))
         table.add_row(
-            lab,
+            plain(lab),
             f"{e['ratings'][i]:.0f}",
             f"{bt['ratings'][i]:.0f} [{bt['low'][i]:.0f}, {bt['high'][i]:.0f}]",
             "n/a" if avg is None else f"{avg:.3f}",
