@@ -34,7 +34,7 @@ import yaml
 
 from volleybots.errors import ConfigError
 from volleybots.files import write_atomic, write_json
-from volleybots.runs import RunDir, config_problem, make_dir, read_metrics
+from volleybots.runs import InUseError, RunDir, check_writable, config_problem, lock, make_dir, read_metrics, unlock
 
 CONFIDENCE = 0.95
 RESAMPLES = 10_000  # bootstrap resamples (seeds are few: this costs milliseconds)
@@ -389,11 +389,34 @@ def plot_curves(report: dict, out: Path) -> list[Path]:
     return files
 
 
+def check_out(out: Path) -> None:
+    """Refuse an output folder that already holds a report (reports are never overwritten)."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"--out {str(out)!r} is a file; give a folder")
+    check_writable(out, "--out")
+    taken = []
+    if out.is_dir():
+        taken = [p.name for p in out.glob("*") if p.name in OUTPUT_FILES or (p.name.startswith("curves_") and p.suffix == ".png")]
+    if taken:
+        raise ConfigError(f"--out {str(out)!r} already holds a report ({', '.join(sorted(taken))}); choose another folder")
+
+
 def write_report(report: dict, out: Path) -> list[Path]:
-    """report.md, report.json and curves_<task>.png in ``out``."""
+    """report.md, report.json and curves_<task>.png in ``out``, holding the folder's lock: two
+    reports to one folder end with one report and one refusal, never a mix of both."""
+    out = Path(out)
     make_dir(out, "--out")
-    files = plot_curves(report, out)
-    md = format_markdown(report) + "\n" + "".join(f"![{p.stem}]({p.name})\n" for p in files)
-    write_atomic(out / "report.md", md, "the report")
-    write_json(out / "report.json", report, "the report", indent=2)
+    try:
+        lock(out)
+    except InUseError:
+        raise ConfigError(f"--out {str(out)!r} is being written by another report; choose another folder") from None
+    try:
+        check_out(out)  # again under the lock: another report may have been first
+        files = plot_curves(report, out)
+        md = format_markdown(report) + "\n" + "".join(f"![{p.stem}]({p.name})\n" for p in files)
+        write_atomic(out / "report.md", md, "the report")
+        write_json(out / "report.json", report, "the report", indent=2)
+    finally:
+        unlock(out)
     return [out / "report.md", out / "report.json", *files]

@@ -334,6 +334,8 @@ def resume(run_dir, overrides=()) -> dict:
         read_population(run.path, f"run {str(run_dir)!r}", quiet=True)
     for path in population_members(run.path):
         read_checkpoint(path)  # a damaged member is one line naming it
+    PayoffTable.load(loop.payoffs_path)  # as are a damaged payoffs.json and metrics.csv: before any file changes
+    run.check_metrics()
     done = sum(1 for m in metas if m["iteration"] >= 1)
     frames = metas[-1]["frames"] if metas else 0
     if cfg.algo.self_play and done >= 1:

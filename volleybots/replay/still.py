@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from volleybots.files import write_atomic
 from volleybots.replay.recorder import BALL_COLOUR, FAULT_COLOUR, HIT_COLOUR, TEAM_COLOURS, TEAM_NAMES, Episode
 
 
@@ -32,7 +33,7 @@ def check_plotting() -> None:
 
 
 def draw_still(ep: Episode, out: Path, title: str = "") -> Path:
-    """Write the picture of ``ep`` to the PNG ``out`` (written whole: a ``.part`` file moved into place)."""
+    """Write the picture of ``ep`` to the PNG ``out`` (written whole: ``volleybots.files.write_atomic``)."""
     check_plotting()
     import matplotlib
 
@@ -81,10 +82,8 @@ def draw_still(ep: Episode, out: Path, title: str = "") -> Path:
         ax.set_title(title, fontsize=10)
     fig.subplots_adjust(left=0, right=1, bottom=0, top=0.94)
     out = Path(out)
-    tmp = out.with_name(out.name + ".part")
-    try:
-        fig.savefig(tmp, format="png")
+    try:  # written whole or not at all; a full disk is one line
+        write_atomic(out, lambda fh: fig.savefig(fh, format="png"), "the still picture")
     finally:
         plt.close(fig)
-    tmp.replace(out)
     return out

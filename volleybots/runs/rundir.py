@@ -81,12 +81,24 @@ class RunDir:
             unlock(self.path)
             raise ConfigError(f"{self.path} already holds a run; choose another hydra.run.dir or continue it with resume={self.path}")
         if self.has_results():
+            try:
+                self.check_clearable()
+            except ConfigError:
+                unlock(self.path)
+                raise
             self.clear_unfinished()
         self.write_config(cfg)
 
     def write_config(self, cfg) -> None:
         """config.yaml, replaced at once (a reader never sees half of it)."""
         write_atomic(self.config_path, OmegaConf.to_yaml(OmegaConf.create(to_dict(cfg))), "the run's config")
+
+    def check_clearable(self) -> None:
+        """Refuse to clear a run that finished (it wrote summary.json) but whose checkpoints are gone:
+        its results are not those of a run killed early, and starting afresh would overwrite them."""
+        if self.summary_path.exists():
+            raise ConfigError(f"{self.path} holds a finished run (summary.json) whose checkpoints are gone: it cannot be continued, "
+                              "and its results are never overwritten; restore its checkpoints/ or choose another directory")
 
     def clear_unfinished(self) -> None:
         """Remove what a run killed before its first checkpoint left (nothing of it can be resumed),

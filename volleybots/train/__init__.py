@@ -68,6 +68,8 @@ def resume(run_dir, overrides=()) -> dict:
                 f"run {str(run_dir)!r} already has {done} frames >= total_frames={cfg.total_frames}; raise total_frames to continue it"
             )
         run.check_metrics()
+    else:
+        run.check_clearable()
     check_memory(cfg)
     check_references(cfg)
     with memory_errors_as(_counts(cfg)):
