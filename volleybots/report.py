@@ -23,7 +23,6 @@ unreadable summary, a final metric that is not finite, or a job that stopped bef
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from dataclasses import dataclass, field
@@ -33,7 +32,7 @@ import numpy as np
 import yaml
 
 from volleybots.errors import ConfigError
-from volleybots.files import write_atomic, write_json
+from volleybots.files import read_json, read_text, write_atomic, write_json
 from volleybots.runs import InUseError, RunDir, check_writable, config_problem, lock, make_dir, read_metrics, unlock
 
 CONFIDENCE = 0.95
@@ -101,20 +100,22 @@ def _run_dirs(root: Path):
 
 def _is_run_config(path: Path) -> bool:
     try:
-        cfg = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError):
-        return path.is_file()  # an unreadable config.yaml is a broken run, reported as failed
+        cfg = yaml.safe_load(read_text(path, "config.yaml"))
+    except (ConfigError, yaml.YAMLError):
+        return path.exists()  # an unreadable config.yaml (binary, a folder, a device) is a broken run, reported as failed
     return isinstance(cfg, dict) and {"task", "algo", "seed"} <= set(cfg)
 
 
 def _read_run(d: Path, stale_after: float, now: float) -> Run:
     run = RunDir(d)
-    if not run.config_path.is_file():
+    if not run.config_path.exists():
         overrides = _hydra_overrides(d)
         return _unfinished(Run(d, "running"), d, stale_after, now,
                            f"no config.yaml: the job stopped before training began (overrides: {overrides})")
     try:
-        config = yaml.safe_load(run.config_path.read_text())
+        config = yaml.safe_load(read_text(run.config_path, "config.yaml"))
+    except ConfigError as e:
+        return Run(d, "failed", f"config.yaml unreadable ({' '.join(str(e).split())[:160]})")
     except yaml.YAMLError as e:
         return Run(d, "failed", f"config.yaml unreadable ({type(e).__name__})")
     bad = config_problem(config)
@@ -126,13 +127,13 @@ def _read_run(d: Path, stale_after: float, now: float) -> Run:
         return _unfinished(Run(d, "running", config=config), d, stale_after, now,
                            f"no summary.json: stopped (killed or crashed) at {_frames_reached(run)} of {total} frames{hint}")
     try:
-        summary = json.loads(run.summary_path.read_text())
+        summary = read_json(run.summary_path, "run summary")
         if "final_eval" not in summary and "population" in summary:
             return Run(d, "not aggregated", "a population run: no final evaluation to average (its payoffs: population/payoffs.json)",
                        config, summary)
         value = float(summary["final_eval"]["stats"][summary["metric"]]["mean"])
-    except (ValueError, KeyError, TypeError) as e:
-        return Run(d, "failed", f"summary.json unreadable ({type(e).__name__}: {e})", config)
+    except (ValueError, KeyError, TypeError, AttributeError) as e:  # a ConfigError is a ValueError
+        return Run(d, "failed", f"summary.json unreadable ({type(e).__name__}: {' '.join(str(e).split())[:160]})", config)
     if not config.get("time_limit") and summary.get("frames", 0) < config.get("total_frames", 0):
         # `train resume=DIR total_frames=N` rewrote config.yaml; summary.json is that of the earlier budget
         return _unfinished(Run(d, "running", config=config), d, stale_after, now,
@@ -140,6 +141,10 @@ def _read_run(d: Path, stale_after: float, now: float) -> Run:
                            f"summary.json is of the first {summary['frames']}")
     if not math.isfinite(value):
         return Run(d, "failed", f"final {summary['metric']} is {value} (training diverged)", config, summary)
+    try:
+        Run(d, "complete", "", config, summary).curve()  # its learning curve is read too: a damaged metrics.csv is listed
+    except ConfigError as e:
+        return Run(d, "failed", f"metrics.csv unreadable ({' '.join(str(e).split())[:160]})", config, summary)
     return Run(d, "complete", "", config, summary)
 
 
@@ -156,14 +161,17 @@ def _unfinished(run: Run, d: Path, stale_after: float, now: float, failed_reason
 def _frames_reached(run: RunDir) -> int:
     if not run.metrics_path.is_file():
         return 0
-    rows = read_metrics(run.metrics_path)
-    return int(rows[-1]["frames"]) if rows else 0
+    try:
+        rows = read_metrics(run.metrics_path)
+        return int(rows[-1]["frames"]) if rows else 0
+    except (ConfigError, ValueError, TypeError):  # damaged: how far it got is unknown
+        return 0
 
 
 def _hydra_overrides(d: Path) -> str:
     try:
-        return " ".join(yaml.safe_load((d / ".hydra" / "overrides.yaml").read_text()) or []) or "none"
-    except (OSError, yaml.YAMLError):
+        return " ".join(map(str, yaml.safe_load(read_text(d / ".hydra" / "overrides.yaml", "overrides.yaml")) or [])) or "none"
+    except (ConfigError, yaml.YAMLError, TypeError):
         return "unknown"
 
 

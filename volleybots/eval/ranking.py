@@ -192,6 +192,10 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
         raise ConfigError(f"k={k} must be a finite number > 0 (Elo's step; the paper's is {ELO_K:g})")
     source = opts.get("from")
     if source is not None:
+        playing = [k for k in ("reuse", "batch", "scenario", "deterministic") if k in opts]
+        if playing:  # they say how games are played, and from= plays none: silently ignored, they would mislead
+            raise ConfigError(f"{'= and '.join(playing)}= play games, but from={source!r} rates a cross-play already played; "
+                              "leave them out, or name competitors instead of from= to play")
         result = CrossPlay.load(source)
         if specs:
             _check_same_competitors(result, resolve_all(specs), source)
