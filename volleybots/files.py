@@ -110,7 +110,7 @@ def read_text(path, what: str, limit: int = MAX_READ_BYTES) -> str:
     try:
         return data.decode()
     except UnicodeDecodeError:
-        raise ConfigError(f"{what} {str(path)!r} is not text (binary or damaged)") from None
+        raise ConfigError(f"{str(path)!r} is damaged or not a {what} (not text: binary bytes)") from None
 
 
 def read_json(path, what: str):
