@@ -320,7 +320,7 @@ def start(cfg, run_dir) -> dict:
 RESUME_KEYS = (*TRAIN_RESUME_KEYS, "algo.iterations")  # a population run may also be given more iterations
 
 
-def resume(run_dir, overrides=()) -> dict:
+def resume(run_dir, overrides=(), check=None) -> dict:
     """Continue a population run (``train resume=DIR``, overrides within ``RESUME_KEYS``).
 
     Everything is checked before anything is written: the config and overrides, that the run dir is
@@ -333,6 +333,8 @@ def resume(run_dir, overrides=()) -> dict:
     check_writable(run.path, "the run directory")
     run.check_contained()
     check_references(cfg)
+    if check is not None:
+        check(cfg)
     loop = PopulationLoop(cfg, run)
     metas = loop.metas()  # a damaged meta.jsonl line is one line naming it
     if metas:  # every member meta.jsonl lists is there and reads back; a member written after it is completed below

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import io
 import itertools
 import json
 import re
@@ -14,7 +15,7 @@ from omegaconf import OmegaConf
 
 from volleybots.config import to_dict, validate
 from volleybots.errors import ConfigError
-from volleybots.files import write_atomic, write_json
+from volleybots.files import read_text, write_atomic, write_json
 from volleybots.runs.locks import InUseError, lock, make_dir, note, unlock
 from volleybots.runs.metrics import _is_number
 
@@ -38,7 +39,8 @@ class RunDir:
     best_path = property(lambda self: self.ckpt_dir / "best.pt")
 
     def is_run(self) -> bool:
-        return self.config_path.is_file()
+        """Whether the directory holds a run's config.yaml (a damaged one too: ``load_config`` says what is wrong)."""
+        return self.config_path.exists() or self.config_path.is_symlink()
 
     def has_results(self) -> bool:
         """Whether a run already wrote here (starting another one would overwrite it)."""
@@ -140,10 +142,11 @@ class RunDir:
         """The run's validated config; a damaged or hand-broken config.yaml is one line naming it."""
         if not self.is_run():
             raise ConfigError(f"{self.path} is not a run directory (no config.yaml)")
+        text = read_text(self.config_path, "the run's config")  # bounded: a folder or /dev/zero is one line
         try:
             # not resolved: a run dir may come from someone else, and ``${oc.env:VAR}`` would fill in
             # this machine's environment (then written in clear into the resumed run's files)
-            data = OmegaConf.to_container(OmegaConf.load(self.config_path), resolve=False)
+            data = OmegaConf.to_container(OmegaConf.load(io.StringIO(text)), resolve=False)
         except Exception as e:  # noqa: BLE001 - YAML and OmegaConf errors alike: the file is damaged
             raise ConfigError(f"{self.config_path} is damaged ({' '.join(str(e).split())[:200]}); restore it or start a new run") from None
         if not isinstance(data, dict):
