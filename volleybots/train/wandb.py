@@ -103,7 +103,14 @@ class WandbLogger:
             raise ConfigError("logger=wandb needs the wandb package: pip install 'volleybots[wandb]'") from None
         identity = run_identity(run_dir, resume)
         self.cfg, self.id = cfg, identity["id"]
-        self.run = wandb.init(
+        try:
+            self.run = self._init(wandb, cfg, run_dir, identity, resume)
+        except wandb.errors.Error as e:  # a refused key, an unreachable server, a setting W&B will not take
+            raise ConfigError(f"W&B could not start the run ({type(e).__name__}: {' '.join(str(e).split())[:200]}); "
+                              "check wandb.* and the WANDB_* environment, or use wandb.mode=offline") from None
+
+    def _init(self, wandb, cfg, run_dir, identity, resume):
+        return wandb.init(
             project=cfg.wandb.project,
             mode=cfg.wandb.mode,
             dir=str(run_dir),
