@@ -58,7 +58,7 @@ def test_a_ray_address_nothing_answers_at_is_refused_at_once(monkeypatch):
 
 
 @pytest.mark.parametrize("override", [
-    "env.substeps=100000", "env.num_envs=1099511627776", "total_frames=1e30", "evaluation.every=9223372036854775808",
+    "env.substeps=100000", "env.num_envs=1e18", "total_frames=1e30", "evaluation.every=9223372036854775808",
     "algo.actor_lr=1e30", "algo.entropy_coeff=-1e30", "time_limit=1e30", "task.hit_reward=1e30",
 ])
 def test_numeric_keys_have_upper_bounds(override):
