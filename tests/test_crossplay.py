@@ -282,9 +282,8 @@ def test_the_game_code_fingerprint_covers_the_floors_that_play_and_no_others():
     and config, and not the verbs that only record or read games (a results file's reuse would otherwise
     be refused after every change to a report)."""
     import volleybots
-    from volleybots.version import play_sources
-
     from volleybots.paths import conf_dir
+    from volleybots.version import play_sources
 
     root = Path(volleybots.__file__).parent
     conf = [p for p in play_sources() if p.is_relative_to(conf_dir())]
