@@ -22,7 +22,6 @@ def start(cfg, run_dir, checked: bool = False) -> dict:
 
     if not checked:
         preflight(cfg)
-    check_payoff_games(cfg)
     return start_population(cfg, run_dir)
 
 
@@ -33,21 +32,9 @@ def resume(run_dir, overrides=()) -> dict:
     if not is_population(RunDir(run_dir).load_config()):
         return resume_learner(run_dir, overrides)
     from volleybots.population.loop import resume as resume_population
+    from volleybots.train import check_payoff_games
 
     return resume_population(run_dir, overrides, check=check_payoff_games)
-
-
-def check_payoff_games(cfg) -> None:
-    """Before anything is written or trained: the pool the payoff games play in (a ``RAY_ADDRESS``
-    nothing answers at is refused here, not after the first oracle), and ``algo.payoff_games`` against
-    memory for the last member's row (``algo.payoff_games=1e12`` is a one-line refusal)."""
-    from volleybots.config.resources import check_play
-    from volleybots.play.games import DEFAULT_BATCH
-    from volleybots.play.pool import check_pool
-
-    m = cfg.algo
-    check_pool(m.payoff_pool, "algo.payoff_pool")
-    check_play(cfg, m.payoff_games, max(1, len(m.seed_members) + m.iterations - 1), DEFAULT_BATCH)
 
 
 __all__ = ["is_population", "resume", "start"]
