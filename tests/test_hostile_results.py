@@ -13,10 +13,10 @@ import pytest
 import torch
 from conftest import one_line_exit_2, snapshot
 from typer.testing import CliRunner
-from volleybots.ratings.solvers import nash
 
 from volleybots.cli import app
 from volleybots.config import ConfigError
+from volleybots.ratings.solvers import nash
 
 runner = CliRunner()
 PAIR = ["random", "scripted", "task=1v1", "task.episode_len=20", "games=2", "batch=2"]
