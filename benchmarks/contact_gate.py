@@ -4,7 +4,7 @@ and with it answering "yes" every time (every sub-step runs the contact tests, a
     python benchmarks/contact_gate.py                      # 32 envs, random actions, five tasks
     python benchmarks/contact_gate.py --num-envs 256 --tasks hover,1v1
 
-Both ways give the same numbers (tests/test_physics.py); only the time differs. The two ways take
+Both ways give the same numbers (tests/physics/test_physics.py); only the time differs. The two ways take
 turns within one process, so the machine's load falls on both alike; each figure is the mean of the
 faster half of the rounds (CPU ms per env step, ``profile_step.cpu_ms``, one torch thread). Print the
 machine's load beside it.

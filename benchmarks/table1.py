@@ -6,7 +6,7 @@ paper's hyperparameters), then plays ``--eval-episodes`` deterministic episodes 
 a seed's value is their mean metric. Two off-policy settings are scaled to the budget: the batch
 (``--batch-size``, paper 4096) and the target networks' pace (``--tau 0.05`` every step, paper 0.005
 every 4 steps): the paper's pace assumes ~1e6 gradient steps, and with the ~1e3 of a CPU budget its
-targets would hardly move and the critics learn nothing (tests/test_offpolicy_learning.py).
+targets would hardly move and the critics learn nothing (tests/algos/test_offpolicy_learning.py).
 DQN acts in the discrete space (each rotor -1 or +1) whatever the column, so it runs once per seed
 and its value fills both columns.
 

@@ -1,81 +1,18 @@
-"""What many test files share: quiet tiny-run overrides, the command line in a child process, readers of run
-directories and checkpoints, and a session-wide cache of tiny trained runs, so that tests which only read a
-run (evaluate it, start from it, replay it) do not each train their own.
+"""Hooks and fixtures of the suite: the scheduling order, one torch thread per test, and a session-wide
+cache of tiny trained runs, so that tests which only read a run (evaluate it, start from it, replay it) do
+not each train their own. Plain helpers are in helpers.py.
 
 Markers (registered in pyproject.toml) only select: `python -m pytest -q` runs every test, and
 `python -m pytest -q -m "not slow"` is the quick local loop."""
 
 from __future__ import annotations
 
-import csv
-import functools
-import io
-import os
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 import torch
-
-ROOT = Path(__file__).resolve().parents[1]
-# one torch thread, no progress bar and no rerun recording of evaluations: what every tiny run wants
-QUIET = ["threads=1", "progress=false", "evaluation.record=false"]
-# a child process with one OpenMP thread: the suite shares two cores
-CLI_ENV = {**os.environ, "OMP_NUM_THREADS": "1"}
-
-
-def cli_cmd(*args: str) -> list[str]:
-    """The argv of `volleybots ARGS` run by this interpreter (the package under test, not an installed copy)."""
-    return [sys.executable, "-m", "volleybots.cli", *map(str, args)]
-
-
-def run_cli(*args: str, cwd=None, timeout: int = 600, env=None) -> subprocess.CompletedProcess:
-    """`volleybots ARGS` in a child process, its output captured as text."""
-    return subprocess.run(cli_cmd(*args), cwd=cwd, env=env or CLI_ENV, capture_output=True, text=True, timeout=timeout)
-
-
-def flat(state, prefix: str = "") -> dict:
-    """Every tensor / number of a nested checkpoint dict (or list), by dotted key."""
-    out = {}
-    for k, v in state.items() if isinstance(state, dict) else enumerate(state):
-        if isinstance(v, (dict, list)):
-            out.update(flat(v, f"{prefix}{k}."))
-        else:
-            out[f"{prefix}{k}"] = v
-    return out
-
-
-def train_rows(run: Path) -> list[dict]:
-    """The raw (string) rows of phase ``train`` in a run's metrics.csv; none while the file is not written yet
-    (so a test can poll a run that is still starting)."""
-    path = Path(run) / "metrics.csv"
-    if not path.is_file():
-        return []
-    # a run that is still writing can be read between its bytes (seen on CI: a header without its last
-    # columns), so only whole lines count, and a row without a phase is not a train row yet
-    text = path.read_text()
-    text = text[: text.rfind("\n") + 1]
-    return [r for r in csv.DictReader(io.StringIO(text, newline="")) if r.get("phase") == "train"]
-
-
-def snapshot(root: Path) -> dict:
-    """Modification time and size of everything under ``root``: equal snapshots mean nothing was written."""
-    root = Path(root)
-    return {str(p): (p.stat().st_mtime_ns, p.stat().st_size) for p in root.rglob("*")} if root.exists() else {}
-
-
-def one_line_exit_2(res, *words) -> str:
-    """A CLI refusal as the README promises it: exit code 2 and one ``error:`` line naming ``words``
-    (after the progress lines of games already played, when the refusal comes after them: a full disk)."""
-    err = "\n".join(line for line in res.stderr.splitlines() if line.strip() and not line.startswith("  pair ")).strip()
-    assert res.exit_code == 2, (res.exit_code, res.output)
-    assert len(err.splitlines()) == 1 and err.startswith("error: "), err
-    for w in words:
-        assert w in err, (w, err)
-    return err
-
+from helpers import QUIET, TINY_1V1
 
 # Seconds each of the heaviest test modules took on the 2-core machine (xdist, 2 workers, 2026-11-28, main 904c7e0).
 # Only the order of scheduling reads them; no test is selected or skipped by them.
@@ -88,8 +25,83 @@ MODULE_SECONDS = {
 }
 
 
+# Tests that are not slow by their nature but took the quick tier over 4 minutes: the longest, by total seconds
+# (all their parameters, setup included) in a `-m "not slow" --durations=0` run on the 2-core machine at load
+# 5-7 (2026-11-29), marked slow until the rest summed under 200 s. Only the tier they run in changes.
+QUICK_TIER_SLOW = {
+    "test_scripted_bump_and_pass::test_bump_and_pass_pair_keeps_passing_for_the_whole_episode",  # 32 s once the module cost moved here
+    "test_bc::test_a_resumed_bc_run_repeats_the_uninterrupted_one", "test_cli::test_bad_input_from_a_real_process_has_no_traceback",
+    "test_cli::test_eval_compare_pairs_the_episodes_and_tells_the_better_player",
+    "test_cli::test_eval_of_a_run_prints_a_table_and_json", "test_cli::test_eval_of_the_scripted_pair_on_a_multi_drone_task",
+    "test_cli::test_list_names_every_task_algorithm_backend_and_action_space", "test_cli::test_multirun_sweeps_seeds",
+    "test_cli::test_train_writes_a_complete_run_directory", "test_compiled_step::test_bench_training_rows",
+    "test_compiled_step::test_compiled_step_compiles_once_and_matches_eager",
+    "test_config::test_configs_are_found_from_any_working_directory", "test_config::test_every_registered_task_has_a_config",
+    "test_coop::test_ten_thousand_random_steps_stay_finite", "test_crossplay::test_bad_input_exits_2_with_one_line_and_writes_nothing",
+    "test_crossplay::test_crossplay_cli_writes_results_with_every_file_hash",
+    "test_crossplay::test_elo_cli_played_and_from_a_results_file",
+    "test_crossplay::test_reuse_copies_the_pairs_an_earlier_crossplay_played_and_the_table_is_the_fresh_one",
+    "test_crossplay::test_scripted_beats_random_on_both_sides_equally_often",
+    "test_damaged_runs::test_a_damaged_population_is_refused_and_its_resume_writes_nothing",
+    "test_damaged_runs::test_a_damaged_run_is_refused_by_every_verb", "test_drills::test_scripted_drill_reaches_its_success_criterion",
+    "test_env::test_random_rollouts_finite_every_task", "test_env::test_ten_thousand_random_steps_stay_finite",
+    "test_eval_inputs::test_a_run_dir_named_with_comma_and_equals_is_usable",
+    "test_eval_inputs::test_two_writers_of_one_out_never_overwrite_each_other",
+    "test_exploitability::test_bad_input_is_one_line_and_writes_nothing",
+    "test_exploitability::test_responses_on_two_seeds_fixed_ones_and_the_target_itself_give_a_lower_bound_never_below_zero",
+    "test_exploitability::test_split_chooses_a_serve_and_a_receive_response_and_averages_their_figures",
+    "test_exploitability::test_the_cli_names_the_trained_runs_and_json_keeps_progress_on_stderr",
+    "test_game_content::test_crossplay_carries_content_through_json_table_and_ratings",
+    "test_hierarchical::test_a_trained_drill_drives_its_drone_on_the_drill_observation",
+    "test_hierarchical::test_hierarchical_team_never_touches_twice_in_a_row_with_one_drone",
+    "test_init::test_best_pt_holds_the_policy_of_the_best_evaluation", "test_init::test_init_of_mappo_from_ppo_and_off_policy_targets",
+    "test_lookahead::test_a_kept_choice_searches_every_k_steps_and_starts_as_the_memoryless_player",
+    "test_marl::test_a_tiny_run_on_bump_and_pass_checkpoints_and_resumes_bit_for_bit",
+    "test_marl::test_every_algorithm_trains_every_task_kind_it_claims_and_refuses_the_others",
+    "test_match::test_ten_thousand_random_steps_stay_finite_and_stats_add_up",
+    "test_match_scripted::test_scripted_1v1_team_never_loses_to_random_on_either_side",
+    "test_offpolicy::test_losses_decrease_on_a_fixed_batch",
+    "test_offpolicy_runs::test_a_tiny_run_writes_metrics_and_loadable_checkpoints",
+    "test_offpolicy_runs::test_cli_trains_evaluates_and_replays_sac_and_picks_discrete_for_dqn",
+    "test_offpolicy_runs::test_resume_with_the_buffer_repeats_the_uninterrupted_run",
+    "test_offpolicy_runs::test_resume_without_the_buffer_warms_up_again_and_goes_on",
+    "test_physics::test_skipping_the_contacts_where_no_drone_can_meet_the_ball_changes_no_number",
+    "test_ppo::test_target_kl_stops_an_update_once_the_actor_has_moved",
+    "test_progress::test_a_population_run_reports_progress_final_eval_curves_and_its_wall_time_split",
+    "test_progress::test_a_time_limited_run_prints_lines_and_stops_before_a_batch_would_overshoot",
+    "test_ranking::test_elo_cli_from_a_file_is_finite_and_the_same_for_a_seed",
+    "test_ranking::test_elo_of_played_games_does_not_depend_on_the_order_of_the_side_batches",
+    "test_ranking::test_the_nash_weight_comes_with_how_often_each_member_carries_it_on_resampled_payoffs",
+    "test_registries::test_a_run_dir_evaluates_after_the_files_it_was_trained_against_have_moved",
+    "test_registries::test_every_algorithm_composes_validates_and_builds_on_a_task_it_accepts",
+    "test_registries::test_every_built_in_player_acts_in_the_space_of_the_tasks_it_fits",
+    "test_registries::test_every_population_preset_accepts_its_own_default_start_and_refuses_the_others_by_name",
+    "test_reliability::test_a_benchmark_rerun_never_removes_a_run_another_process_is_training",
+    "test_reliability::test_a_run_killed_before_its_first_checkpoint_can_be_retried",
+    "test_reliability::test_claim_gives_a_fresh_suffix_when_the_default_dir_is_taken_or_in_use",
+    "test_reliability::test_every_numeric_key_rejects_values_outside_its_range_by_name",
+    "test_reliability::test_out_of_range_on_the_command_line_is_one_line_and_writes_nothing",
+    "test_reliability::test_resume_onto_a_mismatched_checkpoint_names_both_and_writes_nothing",
+    "test_reliability::test_two_resumes_at_once_train_once_and_lose_nothing",
+    "test_reliability::test_two_starts_at_once_make_two_intact_runs",
+    "test_reliability::test_two_starts_into_one_dir_end_with_one_run_and_one_refusal",
+    "test_replay::test_replay_of_the_scripted_policy_or_a_clear_error",
+    "test_rows::test_a_payoff_row_plays_every_opponent_its_games_and_a_chunk_is_its_own_seed",
+    "test_sac_init::test_a_guided_sac_run_passes_its_guide_on",
+    "test_sac_init::test_resume_keeps_the_guide_and_repeats_the_uninterrupted_run",
+    "test_sac_init::test_the_guide_is_exactly_the_saved_actor_and_drives_the_warm_up",
+    "test_sac_init::test_with_a_guide_the_warm_up_lasts_guide_warmup_transitions",
+    "test_scripted::test_heading_control_turns_the_drone", "test_scripted::test_position_controller_reaches_and_holds_a_target",
+    "test_scripted::test_scripted_solo_bump_keeps_bumping",
+    "test_scripted_bump_and_pass::test_bump_and_pass_pair_opens_with_a_counted_bump_and_stays_airborne",
+    "test_scripted_match_rally::test_scripted_3v3_team_rallies_against_itself",
+    "test_zoo::test_every_zoo_entry_loads_weights_only_fits_its_task_and_beats_random",
+}
+
+
 def pytest_collection_modifyitems(items):
-    """A learning test trains to a floor: it is slow by nature, so ``-m "not slow"`` leaves it out too.
+    """A learning test trains to a floor: it is slow by nature, so ``-m "not slow"`` leaves it out too, and
+    so does every test of ``QUICK_TIER_SLOW``.
 
     The longest modules are collected first (``MODULE_SECONDS``, then the ones holding slow tests):
     xdist's ``loadscope`` hands modules out in collection order, so the long ones start at once and
@@ -97,6 +109,8 @@ def pytest_collection_modifyitems(items):
     long module alone at the end."""
     for item in items:
         if item.get_closest_marker("learning") and not item.get_closest_marker("slow"):
+            item.add_marker(pytest.mark.slow)
+        if f"{item.module.__name__}::{item.originalname}" in QUICK_TIER_SLOW:
             item.add_marker(pytest.mark.slow)
     slow = {item.module.__name__ for item in items if item.get_closest_marker("slow")}
 
@@ -142,10 +156,6 @@ def tiny_run(tmp_path_factory):
 
 # ---- session-scoped tiny runs for the tests of damaged runs and of the evaluation verbs' input checks:
 # each is trained once and copied by a test that damages it
-TINY_1V1 = [
-    "task=1v1", "env.num_envs=8", "algo.steps_per_batch=16", "algo.minibatches=1", "algo.epochs=1", "algo.hidden=[16]",
-    "evaluation.episodes=2", "evaluation.every=0", "evaluation.record=false", "progress=false", "threads=1",
-]
 
 
 def _train(path: Path, *args) -> Path:
@@ -181,50 +191,3 @@ def copy_run(tmp_path):
     return copy
 
 
-# ---- scripted rollouts read by several tests of one module (each module runs on one xdist worker)
-SCRIPTED_STEPS = 170  # every first Set and Spike episode is over by then (a spiked ball lands about 2.8 s in)
-
-
-def rollout_first_episodes(env, policy, steps: int):
-    """What ``env.rollout(steps, policy, break_when_any_done=False)`` returns ([N, T], the same
-    steps), cut short after the step by which every env has finished its first episode: what comes
-    later belongs to second episodes, and a scripted player's lookahead makes each step cost most of
-    a second. T is ``steps`` where some env's first episode is still running."""
-    n = env.num_envs
-    over = torch.zeros(n, dtype=torch.bool)
-    out = []
-    td = env.reset()
-    for _ in range(steps):
-        td.update(policy(td))
-        step, td = env.step_and_maybe_reset(td)
-        out.append(step)
-        over |= step["next", "done"].reshape(n)
-        if bool(over.all()):
-            break
-    return torch.stack(out, 1)
-
-
-@functools.cache  # several tests read the same episodes (nothing mutates them)
-def first_episodes(task, n=16, seed=2, action_space="prt", steps=SCRIPTED_STEPS):
-    """The stats of each env's first episode under the task's scripted policy, the rollout, and the
-    mask [N, T] of each env's first done step."""
-    import volleybots
-    from volleybots.scripted import make_scripted_policy
-
-    env = volleybots.make_env(task, num_envs=n, seed=seed, action_space=action_space)
-    td = rollout_first_episodes(env, make_scripted_policy(env), steps)
-    nxt = td["next"]
-    done = nxt["done"].squeeze(-1)
-    first = done & (done.long().cumsum(1) == 1)
-    assert bool(first.any(1).all()), "an env did not finish its first episode"
-    return {k: nxt["stats", k].squeeze(-1)[first] for k in env._stats_keys}, td, first
-
-
-def setter_sets_and_stays_home(task: str) -> None:
-    """Set and Spike's scripted setter always sets, and until its episode ends never leaves its own
-    half or drops low (asserted on each env's first episode)."""
-    st, td, first = first_episodes(task)
-    assert (st["setter_hit"] == 1).all()
-    alive = (first.long().cumsum(1) - first.long()) == 0
-    setter = td["next", "agents", "observation"][..., 0, :3][alive]
-    assert (setter[:, 0] > 0.2).all() and (setter[:, 2] > 1.0).all()

@@ -2,7 +2,7 @@
 
 Each acts for whichever agents the tensordict holds (one team of a match, or every drone), so the same
 player serves ``eval scripted``, a cross-play competitor, an ``opponent=`` and a population's seed
-member. Add a player by registering a ``Player`` here; ``tests/test_registries.py`` holds every entry
+member. Add a player by registering a ``Player`` here; ``tests/config/test_registries.py`` holds every entry
 to the contract (it builds, acts with actions in the space, and is listed by ``volleybots list``).
 """
 

@@ -35,7 +35,7 @@ from volleybots.runs import RunDir, load_algo_state, read_checkpoint, refuse_int
 
 KINDS = ("builtin", "checkpoint", "run", "drills", "mixture")
 # the built-in players a spec may name: the keys of policies.builtin.PLAYERS (which imports this module,
-# so it cannot be imported here; tests/test_registries.py holds the two equal)
+# so it cannot be imported here; tests/config/test_registries.py holds the two equal)
 BUILTIN_NAMES = ("scripted", "random", "hierarchical")
 # (sha256, device, n_agents, obs_dim, action_space) -> the learner with its weights loaded; shared safely because
 # acting never changes a learner (observation statistics move only in ``update``)

@@ -1,6 +1,6 @@
 """The game theory of the package: ratings of competitors from games between them, the payoff tables
 and meta-solvers of populations (docs/evaluation.md, docs/competitive.md). A leaf: it imports nothing
-of volleybots but other leaves, and never torch (tests/test_architecture.py holds it to that).
+of volleybots but other leaves, and never torch (tests/project/test_architecture.py holds it to that).
 
 Small pure functions over numpy arrays, usable without the CLI or the env:
 

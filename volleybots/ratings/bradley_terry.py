@@ -18,7 +18,7 @@ removes most of the small-sample bias (for two players w wins of n it is the log
 (w + 0.5) / (n + 1)). The interval of each rating is where twice the drop of the penalised
 log-likelihood, maximised over the other strengths, stays under the chi-square(1) quantile (3.84 for
 95 %), the interval logistf gives in logistic regression (Heinze and Schemper 2002); it stays wide on
-the unbounded side of an unbeaten record and covers at about its nominal rate (tests/test_ratings.py).
+the unbounded side of an unbeaten record and covers at about its nominal rate (tests/ratings/test_ratings.py).
 
 A weak Gaussian prior on s (``prior_sd`` logits, default 10, about 1740 Elo points) is kept beside
 the penalty: it ties together competitors that never met, directly or through others (the
