@@ -10,7 +10,8 @@ plays, and a file changed on disk is read again.
 The grammar (``parse_spec``), used by ``eval``, ``replay``, ``eval crossplay``, ``opponent=``,
 ``algo.seed_members`` and ``init=``::
 
-    scripted | random | hierarchical     a built-in player (``volleybots.policies.builtin.PLAYERS``)
+    scripted | receiver | random | hierarchical
+                                         a built-in player (``volleybots.policies.builtin.PLAYERS``)
     PATH.pt                              a checkpoint file (a run's, or a population member)
     RUN_DIR                              a run: its population (members and final mixture) if it is a
                                          population run, else its final (else latest) checkpoint
@@ -31,6 +32,7 @@ import torch
 from volleybots import zoo
 from volleybots.errors import ConfigError
 from volleybots.files import exists
+from volleybots.policies.builtin import BUILTIN
 from volleybots.runs import RunDir, load_algo_state, read_checkpoint, refuse_interpolation, run_policy_checkpoint
 
 KINDS = ("builtin", "checkpoint", "run", "drills", "mixture")
@@ -54,7 +56,7 @@ class Spec:
         return Path(self.target)
 
 
-def parse_spec(spec: str, builtins=("scripted", "random", "hierarchical"), what: str = "competitor") -> Spec:
+def parse_spec(spec: str, builtins=BUILTIN, what: str = "competitor") -> Spec:
     """Split ``[NAME=]TARGET`` and say what TARGET is; a missing file is one ``ConfigError`` line."""
     label, eq, target = str(spec).partition("=")
     if not eq or exists(str(spec)):  # a path whose name holds '=' is that path, not NAME=PATH
@@ -152,7 +154,7 @@ def load_policy(path, env, deterministic: bool = True, n_agents: int | None = No
     return algo.policy(deterministic=deterministic)
 
 
-def parse_single(spec: str, what: str, builtins=("scripted", "random", "hierarchical")) -> Spec:
+def parse_single(spec: str, what: str, builtins=BUILTIN) -> Spec:
     """``parse_spec`` where one policy must play (``init=``, a target, ``algo.seed_members``): a zoo
     mixture is one ``ConfigError`` line naming its member files, which are what to give instead."""
     s = parse_spec(spec, builtins, what=what)
@@ -163,7 +165,7 @@ def parse_single(spec: str, what: str, builtins=("scripted", "random", "hierarch
     return s
 
 
-def policy_checkpoint(spec: str, what: str, builtins=("scripted", "random", "hierarchical")) -> Path:
+def policy_checkpoint(spec: str, what: str, builtins=BUILTIN) -> Path:
     """The checkpoint a single-policy name stands for: the file, a zoo entry, or a run's final (else
     latest) one, checked against what the run holds; anything else is one ``ConfigError`` line."""
     s = parse_single(spec, what, builtins)
