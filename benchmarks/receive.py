@@ -61,7 +61,8 @@ def main() -> None:
     for r in a.receivers:
         for s in a.servers:
             t0 = time.perf_counter()
-            row = {"receiver": r, "server": s, "seed": a.seed, **measure(r, s, a.games, a.seed), "wall_s": round(time.perf_counter() - t0, 1)}
+            row = {"receiver": r, "server": s, "seed": a.seed, **measure(r, s, a.games, a.seed)}
+            row["wall_s"] = round(time.perf_counter() - t0, 1)
             print(json.dumps(row), flush=True)
             rows.append(row)
     if a.json:

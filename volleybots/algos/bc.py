@@ -82,10 +82,12 @@ class BC(PPO):
         if task_cls.name not in SCRIPTED_POLICIES:
             allowed = sorted(t for t in SCRIPTED_POLICIES if t in TASKS and task_kind(TASKS[t]) in cls.task_kinds)
             raise ConfigError(f"algo 'bc' imitates a scripted player; task {task_cls.name!r} has none; allowed: {', '.join(allowed)}")
-
-    def __init__(self, cfg, env, seed: int = 0):
         if cfg.teacher not in TEACHERS:
             raise ConfigError(f"unknown algo.teacher {cfg.teacher!r}; allowed: {', '.join(TEACHERS)}")
+        if cfg.teacher == "receiver" and task_cls.name not in TEACHER_TASKS:
+            raise ConfigError(f"algo.teacher=receiver plays task {' or '.join(TEACHER_TASKS)}, not {task_cls.name!r}")
+
+    def __init__(self, cfg, env, seed: int = 0):
         super().__init__(ppo_config(cfg), env, seed)
         self.cfg = cfg
         dev = self.device
@@ -104,8 +106,6 @@ class BC(PPO):
         from volleybots.scripted.receive import OneVsOneReceiver
 
         if self.cfg.teacher == "receiver":
-            if env.name not in TEACHER_TASKS:
-                raise ConfigError(f"algo.teacher=receiver plays task {' or '.join(TEACHER_TASKS)}, not {env.name!r}")
             teacher = OneVsOneReceiver(env.action_space_name, env.params)
         else:
             teacher = make_scripted_policy(env, env.action_space_name)

@@ -167,6 +167,6 @@ PLAYERS: dict[str, Player] = {
 BUILTIN = tuple(PLAYERS)
 
 __all__ = [
-    "BUILTIN", "HIERARCHICAL_TASK", "PLAYERS", "RECEIVER_TASK", "Player", "acted", "hierarchical_both_sides", "hierarchical_policy", "learned_drill",
-    "random_policy", "read_drills_file", "receiver_policy", "scripted_policy",
+    "BUILTIN", "HIERARCHICAL_TASK", "PLAYERS", "RECEIVER_TASK", "Player", "acted", "hierarchical_both_sides", "hierarchical_policy",
+    "learned_drill", "random_policy", "read_drills_file", "receiver_policy", "scripted_policy",
 ]
