@@ -99,6 +99,14 @@ def test_the_receiver_reaches_the_ace_with_its_racket_where_scripted_lets_it_fal
     assert int(returned.sum()) >= 1
 
 
+def test_the_receiver_is_a_built_in_player_by_name():
+    from volleybots.policies import PLAYERS
+    from volleybots.policies.store import BUILTIN_NAMES, parse_spec
+
+    assert set(BUILTIN_NAMES) == set(PLAYERS)
+    assert parse_spec("receiver").kind == "builtin" and PLAYERS["receiver"].task == "1v1"
+
+
 def test_algo_teacher_is_checked():
     with pytest.raises(ConfigError, match="algo.teacher"):
         load(["task=1v1", "algo=bc", "opponent=scripted", "algo.teacher=coach"])

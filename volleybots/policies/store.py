@@ -32,13 +32,14 @@ import torch
 from volleybots import zoo
 from volleybots.errors import ConfigError
 from volleybots.files import exists
-from volleybots.policies.builtin import BUILTIN
 from volleybots.runs import RunDir, load_algo_state, read_checkpoint, refuse_interpolation, run_policy_checkpoint
 
 KINDS = ("builtin", "checkpoint", "run", "drills", "mixture")
 # (sha256, device, n_agents, obs_dim, action_space) -> the learner with its weights loaded; shared safely because
 # acting never changes a learner (observation statistics move only in ``update``)
 _CACHE: dict[tuple, object] = {}
+# the names of volleybots.policies.builtin.PLAYERS (which imports this module; tests/test_receive.py keeps the two equal)
+BUILTIN_NAMES = ("scripted", "receiver", "random", "hierarchical")
 _CACHE_SIZE = 64  # distinct networks kept; a cross-play of many populations still fits in a few hundred MB
 
 
@@ -56,7 +57,7 @@ class Spec:
         return Path(self.target)
 
 
-def parse_spec(spec: str, builtins=BUILTIN, what: str = "competitor") -> Spec:
+def parse_spec(spec: str, builtins=BUILTIN_NAMES, what: str = "competitor") -> Spec:
     """Split ``[NAME=]TARGET`` and say what TARGET is; a missing file is one ``ConfigError`` line."""
     label, eq, target = str(spec).partition("=")
     if not eq or exists(str(spec)):  # a path whose name holds '=' is that path, not NAME=PATH
@@ -154,7 +155,7 @@ def load_policy(path, env, deterministic: bool = True, n_agents: int | None = No
     return algo.policy(deterministic=deterministic)
 
 
-def parse_single(spec: str, what: str, builtins=BUILTIN) -> Spec:
+def parse_single(spec: str, what: str, builtins=BUILTIN_NAMES) -> Spec:
     """``parse_spec`` where one policy must play (``init=``, a target, ``algo.seed_members``): a zoo
     mixture is one ``ConfigError`` line naming its member files, which are what to give instead."""
     s = parse_spec(spec, builtins, what=what)
@@ -165,7 +166,7 @@ def parse_single(spec: str, what: str, builtins=BUILTIN) -> Spec:
     return s
 
 
-def policy_checkpoint(spec: str, what: str, builtins=BUILTIN) -> Path:
+def policy_checkpoint(spec: str, what: str, builtins=BUILTIN_NAMES) -> Path:
     """The checkpoint a single-policy name stands for: the file, a zoo entry, or a run's final (else
     latest) one, checked against what the run holds; anything else is one ``ConfigError`` line."""
     s = parse_single(spec, what, builtins)
@@ -177,6 +178,7 @@ def policy_checkpoint(spec: str, what: str, builtins=BUILTIN) -> Path:
 
 
 __all__ = [
-    "KINDS", "Spec", "build_learner", "learner_class", "load_learner", "load_policy", "parse_single", "parse_spec", "policy_checkpoint",
+    "BUILTIN_NAMES", "KINDS", "Spec", "build_learner", "learner_class", "load_learner", "load_policy", "parse_single", "parse_spec",
+    "policy_checkpoint",
     "saved_config", "sha256",
 ]

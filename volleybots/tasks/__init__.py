@@ -16,8 +16,18 @@ TASKS: dict[str, type[VolleyEnv]] = {
     )
 }
 
+
+
+def plays_as(task: str) -> str:
+    """The task whose players a policy of ``task`` is (a drill that shares a match's observation and
+    actions per drone, like ``receive`` with ``1v1``, names it as ``policy_task``): policies trained on
+    either play the other's (``init=``, cross-play)."""
+    cls = TASKS.get(task)
+    return getattr(cls, "policy_task", "") or task
+
+
 __all__ = [
-    "TASKS", "StepResult", "VolleyEnv", "BackAndForth", "HitTheBall", "Hover", "SoloBump",
+    "plays_as", "TASKS", "StepResult", "VolleyEnv", "BackAndForth", "HitTheBall", "Hover", "SoloBump",
     "BumpAndPass", "SetAndSpikeEasy", "SetAndSpikeHard", "OneVsOne", "ThreeVsThree", "SixVsSix",
     "Serve", "Pass", "Set", "Attack", "Receive",
 ]

@@ -93,6 +93,7 @@ class Receive(VolleyEnv):
     metric = "success"
     extra_stats = ("hits", "deep_serve")
     init_noise = 0.1
+    policy_task = OneVsOne.name  # its policies are 1 vs 1 players, and 1 vs 1 players play it (tasks.plays_as)
 
     def __init__(self, *args, deep: float = 0.5, under_reward: float | None = None, **kw):
         """``deep``: the share of deep, flat serves (the rest are lobs); ``under_reward``: the shaping
