@@ -82,9 +82,10 @@ class BC(PPO):
         if task_cls.name not in SCRIPTED_POLICIES:
             allowed = sorted(t for t in SCRIPTED_POLICIES if t in TASKS and task_kind(TASKS[t]) in cls.task_kinds)
             raise ConfigError(f"algo 'bc' imitates a scripted player; task {task_cls.name!r} has none; allowed: {', '.join(allowed)}")
-        if cfg.teacher not in TEACHERS:
-            raise ConfigError(f"unknown algo.teacher {cfg.teacher!r}; allowed: {', '.join(TEACHERS)}")
-        if cfg.teacher == "receiver" and task_cls.name not in TEACHER_TASKS:
+        teacher = getattr(cfg, "teacher", "scripted")  # (a population's config, whose clone's teacher is the scripted player, has none)
+        if teacher not in TEACHERS:
+            raise ConfigError(f"unknown algo.teacher {teacher!r}; allowed: {', '.join(TEACHERS)}")
+        if teacher == "receiver" and task_cls.name not in TEACHER_TASKS:
             raise ConfigError(f"algo.teacher=receiver plays task {' or '.join(TEACHER_TASKS)}, not {task_cls.name!r}")
 
     def __init__(self, cfg, env, seed: int = 0):
@@ -105,7 +106,7 @@ class BC(PPO):
         from volleybots.scripted import make_scripted_policy
         from volleybots.scripted.receive import OneVsOneReceiver
 
-        if self.cfg.teacher == "receiver":
+        if getattr(self.cfg, "teacher", "scripted") == "receiver":
             teacher = OneVsOneReceiver(env.action_space_name, env.params)
         else:
             teacher = make_scripted_policy(env, env.action_space_name)

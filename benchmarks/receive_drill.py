@@ -1,0 +1,56 @@
+"""The receive drill's figures for a policy: serves returned, deep and lob apart.
+
+    python benchmarks/receive_drill.py POLICY [POLICY ...] --episodes 256 --seed 9800 [--json OUT]
+
+POLICY is ``scripted`` (the drill's scripted player: the ``receiver``'s play) or a run dir /
+checkpoint of a policy that plays the drill (trained on it, or a 1v1 policy: the drill shares the
+1v1 observation). Each plays ``episodes`` drill episodes (one serve each) on ``seed``, on its mean
+action. docs/receive.md quotes these figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import torch
+
+import volleybots
+from volleybots.play import run_episodes
+from volleybots.policies.store import load_policy, policy_checkpoint
+from volleybots.scripted import make_scripted_policy
+
+
+def drill_record(policy: str, episodes: int, seed: int) -> dict:
+    env = volleybots.make_env("receive", num_envs=episodes, seed=seed)
+    if policy == "scripted":
+        pol = make_scripted_policy(env)
+    else:
+        pol = load_policy(policy_checkpoint(policy, "policy"), env, deterministic=True)
+    res = run_episodes(env, pol)
+    deep = res["deep_serve"] > 0.5
+    ok = res["success"] > 0.5
+    return {"policy": policy, "seed": seed, "episodes": episodes, "returned": int(ok.sum()), "deep": int(deep.sum()),
+            "deep_returned": int((ok & deep).sum()), "lob_returned": int((ok & ~deep).sum()), "touched": int((res["hits"] >= 1).sum()),
+            "return_mean": float(res["return"].mean())}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("policies", nargs="+")
+    ap.add_argument("--episodes", type=int, default=256)
+    ap.add_argument("--seed", type=int, default=9800)
+    ap.add_argument("--json", type=Path, default=None)
+    a = ap.parse_args()
+    torch.set_num_threads(1)
+    rows = [drill_record(p, a.episodes, a.seed) for p in a.policies]
+    for r in rows:
+        print(json.dumps(r), flush=True)
+    if a.json:
+        a.json.parent.mkdir(parents=True, exist_ok=True)
+        a.json.write_text(json.dumps({"rows": rows}, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
