@@ -115,3 +115,18 @@ def test_algo_teacher_is_checked():
     load(["task=receive", "algo=bc", "algo.teacher=receiver"])
     with pytest.raises(ConfigError, match="deep"):
         load(["task=receive", "task.deep=1.5"])
+
+
+def test_a_drill_policy_plays_its_match_and_no_other():
+    """``tasks.plays_as``: a policy trained on the receive drill is a 1v1 player (cross-play,
+    ``opponent=``) and refused on 3v3; a 1v1 policy fits the drill."""
+    from volleybots.policies.competitors import Competitor, Member
+    from volleybots.tasks import plays_as
+
+    assert plays_as("receive") == "1v1" and plays_as("1v1") == "1v1" and plays_as("3v3") == "3v3"
+    drill = Competitor("d", [Member("d", lambda env, deterministic=False: None, {"kind": "checkpoint"}, "receive", "prt", 39)])
+    drill.check_fits("1v1", "prt", 39)
+    with pytest.raises(ConfigError, match="plays task 'receive', not '3v3'"):
+        drill.check_fits("3v3", "prt", 57)
+    match = Competitor("m", [Member("m", lambda env, deterministic=False: None, {"kind": "checkpoint"}, "1v1", "prt", 39)])
+    match.check_fits("receive", "prt", 39)
