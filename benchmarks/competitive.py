@@ -28,7 +28,9 @@ def run(method: str, args, root: Path) -> dict:
         "task=1v1", f"algo={method}", f"env.num_envs={args.num_envs}", f"seed={args.seed}", f"threads={args.threads}",
         f"total_frames={int(args.frames)}", f"algo.iterations={args.iterations}", f"algo.max_updates={args.max_updates}",
         f"algo.min_updates={args.min_updates}", f"algo.payoff_games={args.games}", "evaluation.every=0", "evaluation.episodes=32",
-        "evaluation.record=false", "progress=false", *args.overrides,
+        "evaluation.record=false", "progress=false",
+        "algo.start=scratch",  # the from-scratch study of docs/competitive.md (the defaults now start from the clone)
+        *args.overrides,
     ])
     run_dir = root / f"{method}_s{args.seed}_{time.strftime('%Y%m%d-%H%M%S')}"
     t0 = time.perf_counter()
@@ -55,7 +57,7 @@ def main() -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--root", default="outputs/benchmarks/competitive")
-    p.add_argument("--out", default="docs")
+    p.add_argument("--out", default="results/competitive", help="folder of competitive.json and the payoff heatmaps")
     p.add_argument("overrides", nargs="*", help="further config overrides")
     args = p.parse_args()
     root = Path(args.root)

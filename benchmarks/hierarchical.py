@@ -1,7 +1,7 @@
 """The hierarchical 3v3 policy's figures (not a test: it takes minutes). docs/hierarchical.md.
 
     python benchmarks/hierarchical.py [--episodes 100] [--seeds 0,1] [--games 200] [--vs random,scripted,sp=RUN]
-                                      [--drills serve=CKPT,...] [--out docs/hierarchical.json]
+                                      [--drills serve=CKPT,...] [--out results/hierarchical/hierarchical.json]
     python benchmarks/hierarchical.py --learn serve,pass,set,attack --bc-minutes 4 [--ft-minutes 0]
                                       --seeds 1000,1001 [--sp-frames 300000] --vs random,scripted,hierarchical
 
@@ -125,6 +125,7 @@ def train_sp(a, root: Path) -> dict:
     overrides = [
         "task=3v3",
         "algo=sp",
+        "algo.start=scratch",  # the run the hierarchical page measured: self-play from scratch
         f"total_frames={a.sp_frames}",
         f"env.num_envs={a.sp_envs}",
         f"seed={a.train_seed}",
@@ -203,7 +204,7 @@ def main() -> None:
     ap.add_argument("--vs", default="random,scripted")
     ap.add_argument("--drills", default="", help="drill=checkpoint,... (trained drills; the others scripted)")
     ap.add_argument("--skip-drills", action="store_true")
-    ap.add_argument("--out", default="docs/hierarchical.json")
+    ap.add_argument("--out", default="results/hierarchical/hierarchical.json")
     ap.add_argument("--learn", default="", help="drills to train (bc, then PPO with --ft-minutes) and play, e.g. serve,pass,set,attack")
     ap.add_argument("--bc-minutes", type=float, default=4.0, help="wall-clock minutes of each drill's bc run")
     ap.add_argument("--ft-minutes", type=float, default=0.0, help="wall-clock minutes of each drill's PPO fine-tuning (0: none)")

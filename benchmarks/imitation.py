@@ -274,8 +274,8 @@ def main() -> None:
     )
     p.add_argument("--ft-overrides", nargs="*", default=[], help="extra overrides of the fine-tuning runs")
     p.add_argument("--root", default="outputs/imitation")
-    p.add_argument("--out", default="docs/imitation.json")
-    p.add_argument("--png", default="docs/imitation.png")
+    p.add_argument("--out", default="results/imitation/imitation.json")
+    p.add_argument("--png", default="results/imitation/imitation.png")
     p.add_argument("--combine", nargs="+", default=None, help="JSONs of earlier invocations: write their results together to --out / --png")
     args = p.parse_args()
     if args.combine:

@@ -182,7 +182,7 @@ def main() -> None:
     p.add_argument("--eval-episodes", type=int, default=64)
     p.add_argument("--progress", action="store_true")
     p.add_argument("--runs", type=Path, default=Path("outputs/bench_learn_ppo"), help="where the run directories go")
-    p.add_argument("--out", type=Path, default=Path("docs/learn_ppo.png"), help="PNG of the curves (a .json goes beside it)")
+    p.add_argument("--out", type=Path, default=Path("results/training/learn_ppo.png"), help="PNG of the curves (a .json goes beside it)")
     p.add_argument("overrides", nargs="*", help="further config overrides, e.g. algo.obs_norm=true")
     p.add_argument("--diagnose", nargs="+", default=None, help="runs or checkpoints to diagnose instead of training")
     args = p.parse_args()

@@ -17,7 +17,7 @@ SERVER serves every game (team 0), RECEIVER receives (team 1); both are competit
 - ``receiver_max_speed``: the receiver's top speed during the flight (m/s).
 
 Each is reported as mean, min and max over the aces (serves the receiver never touched) and over the
-returned serves. ``docs/evaluation.md`` ("Longer self-play: the ace serve") quotes its figures.
+returned serves. ``docs/results/table3-1v1.md`` ("Longer self-play: the ace serve") quotes its figures.
 """
 
 from __future__ import annotations

@@ -51,7 +51,8 @@ def main(argv=None) -> int:
     p.add_argument("--br-envs", type=int, default=128, help="envs of best-response training")
     p.add_argument("--br-init", default=None, help="policy every best response starts from (init=, e.g. zoo:1v1/bc)")
     p.add_argument("--br-until", default=UNTIL[0], choices=UNTIL,
-                   help="stop each best response at the criterion, or train its whole budget")
+                   help="train each best response its whole budget, or until its win rate plateaus")
+    p.add_argument("--br-seeds", type=int, default=2, help="training seeds of each best response (the figure is the best candidate's)")
     p.add_argument("--br-response", action="append", default=[], metavar="SPEC",
                    help="a fixed candidate response beside the trained one (repeatable; eval exploitability's response=)")
     p.add_argument("--reuse", type=Path, default=None,
@@ -97,6 +98,7 @@ def best_response(spec: str, a) -> dict:
         f"num_envs={a.br_envs}",
         f"seed={a.seed}",
         f"until={a.br_until}",
+        f"seeds={getattr(a, 'br_seeds', 2)}",
         "progress=false",
     ]
     if a.br_init:
@@ -104,9 +106,8 @@ def best_response(spec: str, a) -> dict:
     args += [f"response={r}" for r in a.br_response]
     report, _ = run_exploitability(args, out)
     print(f"  exploitability of {label}: {report['exploitability']:.1f} {report['exploitability_interval']}", flush=True)
-    keys = ("exploitability", "exploitability_interval", "converged", "lower_bound", "br_run", "budget_frames", "br_frames", "games", "wdl",
-            "best")
-    return {k: report[k] for k in keys if k in report}  # (no br_run with --br-budget 0; "best" only beside fixed responses)
+    keys = ("exploitability", "exploitability_interval", "lower_bound", "budget_frames", "games", "wdl", "best", "seeds", "trained")
+    return {k: report[k] for k in keys if k in report}
 
 
 def table(rep: dict, res, a, wall: float) -> str:
@@ -118,7 +119,7 @@ def table(rep: dict, res, a, wall: float) -> str:
         f"{a.rounds} rounds sampled from the counts; BT with 95 % profile-likelihood intervals; {wall:.0f} s of games"
         + (f" ({len(res.meta['reused'])} of {res.n * (res.n - 1) // 2} pairs copied from {a.reuse})" if res.meta.get("reused") else "")
         + "; "
-        + (f"best responses: {a.br_budget:,} frames ({'the whole budget' if a.br_until == 'budget' else 'or until converged'}"
+        + (f"best responses: {a.br_budget:,} frames ({'the whole budget' if a.br_until == 'budget' else 'or until a plateau'}"
            f"{f', from {a.br_init}' if a.br_init else ''}), {a.br_games} games each" if a.br_budget else "no best responses trained")
         + (f"; fixed candidate responses: {', '.join(a.br_response)}." if a.br_response else "."),
         "",
@@ -137,12 +138,14 @@ def table(rep: dict, res, a, wall: float) -> str:
 
 
 def _br(r) -> str:
+    """A lower bound (every figure is), the candidate that gave it and the training seeds' spread."""
     if r is None:
         return "n/a"
     lo, hi = r["exploitability_interval"]
-    bound = " (lower bound: no response met the criterion)" if r.get("lower_bound") else ""
-    by = f", by {r['best']}" if r.get("best") else ""  # beside fixed responses: which candidate gave the figure
-    return f"{r['exploitability']:.1f} [{lo:.1f}, {hi:.1f}]{by}{bound}"
+    by = f", by {r['best']}" if r.get("best") else ""
+    seeds = (r.get("seeds") or {}).get("points") or {}
+    spread = f"; seeds {min(seeds.values()):.1f} to {max(seeds.values()):.1f}" if len(seeds) > 1 else ""
+    return f">= {r['exploitability']:.1f} [{lo:.1f}, {hi:.1f}]{by}{spread}"
 
 
 if __name__ == "__main__":

@@ -10,7 +10,9 @@ GAE, clipped surrogate, minibatch epochs) with one change the env's autoreset as
 env resets a finished world within the step (Gymnasium's same-step autoreset), so the value of a
 truncated episode's last observation, ``info["final_obs"]``, is added to its last reward instead of
 being lost at the cut. A short run learns little (Solo Bump's first bumps take hours of PPO); it
-shows the plumbing, and prints the finished episodes' returns (``info["episode"]``) as it goes.
+shows the plumbing, and prints the finished episodes' returns as it goes: as in CleanRL, from Gymnasium's
+``RecordEpisodeStatistics`` (``info["episode"]["r"]``), beside the task's own statistics
+(``info["final_stats"]``, here Solo Bump's bumps).
 """
 
 from __future__ import annotations
@@ -77,7 +79,7 @@ def main(argv=None) -> list[float]:
     args = parse_args(argv)
     torch.set_num_threads(args.threads)
     torch.manual_seed(args.seed)
-    envs = gym.make_vec(args.env_id, num_envs=args.num_envs)
+    envs = gym.wrappers.vector.RecordEpisodeStatistics(gym.make_vec(args.env_id, num_envs=args.num_envs))
     obs_dim = envs.single_observation_space.shape[0]
     act_dim = envs.single_action_space.shape[0]
     low, high = envs.single_action_space.low, envs.single_action_space.high
@@ -93,6 +95,7 @@ def main(argv=None) -> list[float]:
     iterations = max(1, args.total_timesteps // batch)
 
     returns: list[float] = []
+    metric: list[float] = []  # the task's headline statistic, where it is Solo Bump's bumps
     start = time.time()
     next_obs = torch.as_tensor(envs.reset(seed=args.seed)[0])
     next_done = torch.zeros(n)
@@ -110,8 +113,9 @@ def main(argv=None) -> list[float]:
                     with torch.no_grad():
                         last = agent.value(torch.as_tensor(info["final_obs"][cut.numpy()]))
                     reward[cut] += args.gamma * last
-            if "episode" in info:  # the statistics of the episodes that just ended
-                returns += info["episode"]["return"][info["_episode"]].tolist()
+            if "episode" in info:  # the episodes that just ended (RecordEpisodeStatistics)
+                returns += info["episode"]["r"][info["_episode"]].tolist()
+                metric += info["final_stats"]["bumps"][info["_final_stats"]].tolist() if "bumps" in info["final_stats"] else []
             rew_buf[step] = reward
             next_obs, next_done = torch.as_tensor(obs), torch.as_tensor(term | trunc, dtype=torch.float32)
 
@@ -144,6 +148,7 @@ def main(argv=None) -> list[float]:
                 optimizer.step()
         frames = (it + 1) * batch
         recent = f"{np.mean(returns[-20:]):.2f}" if returns else "-"
+        recent += f", bumps {np.mean(metric[-20:]):.2f}" if metric else ""
         print(f"iter {it}: {frames} steps, {frames / (time.time() - start):.0f} steps/s, {len(returns)} episodes, "
               f"mean return of the last 20: {recent}, value loss {v_loss.item():.3f}")
     envs.close()

@@ -166,7 +166,7 @@ def tiny_1v1_run(tmp_path_factory) -> Path:
 @pytest.fixture(scope="session")
 def tiny_population(tmp_path_factory) -> Path:
     """A finished PSRO run of one iteration over a random seed member: members random and br1."""
-    return _train(tmp_path_factory.mktemp("shared") / "pop", "algo=psro_uniform", "algo.seed_members=[random]", "algo.iterations=1",
+    return _train(tmp_path_factory.mktemp("shared") / "pop", "algo=psro_uniform", "algo.start=scratch", "algo.iterations=1",
                   "total_frames=256", "algo.min_updates=1", "algo.max_updates=1", "algo.payoff_games=2")
 
 

@@ -26,7 +26,7 @@ from volleybots.integrations import (
 )
 
 ROOT = Path(__file__).resolve().parents[1]
-UNBOUNDED = ("minimum value is -infinity", "maximum value is infinity")  # the observations are unbounded, as the env's spec says
+UNBOUNDED = ("minimum value is -infinity", "maximum value is infinity")  # positions and velocities are unbounded (no hard limit)
 
 
 def test_solo_bump_passes_gymnasium_check_env():
@@ -51,7 +51,7 @@ def test_every_single_drone_task_is_registered_and_only_those():
     assert vec.observation_space.shape == (3, 26) and vec.action_space.shape == (3, 4)
     with pytest.raises(ValueError, match="'3v3' is not a single-drone task; use .*VolleyParallelEnv"):
         VolleyVectorEnv("3v3")
-    with pytest.raises(ValueError, match=r"expected shape \(3, 1, 4\)"):
+    with pytest.raises(ValueError, match=r"shape \(3, 3\); expected shape \(3, 4\)"):
         vec.reset(seed=0)
         vec.step(np.zeros((3, 3), np.float32))
 
@@ -82,8 +82,8 @@ def test_vector_env_gives_the_batched_envs_numbers_autoreset_included():
             np.testing.assert_array_equal(info["_final_obs"], done)
             np.testing.assert_array_equal(info["final_obs"][done], cur["next", "agents", "observation"][done, 0].numpy())
             assert not np.array_equal(info["final_obs"][done], obs[done])  # the returned row is the new episode's
-            np.testing.assert_allclose(info["episode"]["return"][done], cur["next", "stats", "return"][done, 0].numpy())
-            assert set(info["episode"]) >= {"return", "episode_len", "bumps"}
+            np.testing.assert_allclose(info["final_stats"]["return"][done], cur["next", "stats", "return"][done, 0].numpy())
+            assert set(info["final_stats"]) >= {"return", "episode_len", "bumps"} and "episode" not in info
         else:
             assert info == {}
 
@@ -111,18 +111,18 @@ def test_single_env_matches_the_batched_env_and_seeds_fix_the_run():
 def test_3v3_passes_the_parallel_api_test_with_agents_per_team():
     env = VolleyParallelEnv("3v3")
     parallel_api_test(env, num_cycles=300)
-    team0 = ["team0_drone0", "team0_drone1", "team0_drone2"]
-    team1 = ["team1_drone0", "team1_drone1", "team1_drone2"]
+    team0 = ["blue_0", "blue_1", "blue_2"]
+    team1 = ["red_0", "red_1", "red_2"]
     assert env.possible_agents == team0 + team1 and env.n_agents == 6
     assert env.groups == {"team0": team0, "team1": team1}
     assert [env.team_of[a] for a in env.possible_agents] == list(env.env.teams)
-    assert env.observation_space("team1_drone2").shape == (57,) and env.action_space("team0_drone0").shape == (4,)
+    assert env.observation_space("red_2").shape == (57,) and env.action_space("blue_0").shape == (4,)
     # the same seed gives the batched env's observations, each agent its row
     obs, _ = env.reset(seed=21)
     ref = volleybots.make_env("3v3", num_envs=1, seed=21).reset()["agents", "observation"][0].numpy()
     for i, agent in enumerate(env.possible_agents):
         np.testing.assert_array_equal(obs[agent], ref[i])
-    with pytest.raises(ValueError, match=r"missing \['team1_drone2'\]"):
+    with pytest.raises(ValueError, match=r"missing \['red_2'\]"):
         env.step({a: np.zeros(4, np.float32) for a in env.possible_agents[:-1]})
 
 
@@ -133,7 +133,7 @@ def test_parallel_env_episode_end_and_cooperative_names():
     for _ in range(3):
         *_, trunc, info = env.step({a: 5 for a in env.agents})
     assert trunc == {"drone_0": True, "drone_1": True} and env.agents == []
-    assert info["drone_0"]["episode"]["episode_len"] == 3.0 and np.isfinite(info["drone_1"]["episode"]["return"])
+    assert info["drone_0"]["final_stats"]["episode_len"] == 3.0 and np.isfinite(info["drone_1"]["final_stats"]["return"])
     with pytest.raises(RuntimeError, match="call reset"):
         env.step({})
 
@@ -152,6 +152,11 @@ def test_missing_extras_are_named(monkeypatch):
     assert integrations.VolleyVectorEnv.__name__ == "VolleyVectorEnv"
     with pytest.raises(ImportError, match=r"pip install 'volleybots\[pettingzoo\]'"):
         integrations.VolleyParallelEnv  # noqa: B018
+    for name in ("stable_baselines3", "stable_baselines3.common.vec_env"):  # the submodule too: another test may have imported it
+        monkeypatch.setitem(sys.modules, name, None)
+    integrations = fresh_import()
+    with pytest.raises(ImportError, match=r"pip install 'volleybots\[sb3\]'"):
+        integrations.VolleySB3VecEnv  # noqa: B018
     monkeypatch.setitem(sys.modules, "gymnasium", None)
     with pytest.raises(ImportError, match=r"pip install 'volleybots\[gym\]'"):
         fresh_import()

@@ -21,6 +21,7 @@ TINY = [
     "task=1v1", "env.num_envs=16", "algo.steps_per_batch=16", "algo.minibatches=2", "algo.epochs=1", "algo.hidden=[32,32]",
     "algo.min_updates=2", "algo.max_updates=4", "algo.payoff_games=6", "evaluation.episodes=2", "evaluation.every=0",
     "evaluation.record=false", "checkpoint.every=512", "progress=false", "threads=1",
+    "algo.start=scratch",  # learners and members from nothing unless a test names the clone (it costs a bc run)
 ]
 
 
@@ -127,24 +128,36 @@ def test_psro_run_grows_the_population_and_fills_the_payoffs(tmp_path):
     assert [m["iteration"] for m in meta] == [0, 1, 2, 3] and pay["members"] == ["random", "br1", "br2", "br3"]
 
 
-def test_an_oracle_the_budget_cuts_before_min_updates_does_not_join_and_a_resume_trains_it(tmp_path, capsys):
-    """Iteration 2's oracle gets one batch of total_frames (256 of its min_updates 2 x 256): it is no
-    response to anything, so the run ends with {random, br1}, naming the dropped oracle and its frames;
-    a resume with more frames trains iteration 2 again and br2 joins."""
+def test_an_oracle_the_budget_cannot_give_min_updates_is_not_started_and_a_resume_trains_it(tmp_path):
+    """Iteration 2's oracle would get one batch of total_frames (256 of its min_updates 2 x 256): it could
+    be no response to anything, so it is not started (a bare default run once spent minutes on such an
+    oracle and dropped it); the run ends with {random, br1} and its frames unspent; a resume with more
+    frames trains iteration 2 and br2 joins."""
     cfg = tiny("psro_nash", "algo.iterations=3", "algo.max_updates=2", "total_frames=768")
     summary = start(cfg, tmp_path / "run")
     meta, pay, members = _read(tmp_path / "run")
     assert pay["members"] == ["random", "br1"] and len(members) == 2 and [m["iteration"] for m in meta] == [0, 1]
     assert summary["population"]["members"] == ["random", "br1"] and summary["frames"] == 512
-    assert summary["dropped_oracle"] == {"iteration": 2, "updates": 1, "frames": 256}
+    assert "dropped_oracle" not in summary and summary["iterations"] == 1
     from volleybots.cli.train import _echo_summary
 
-    _echo_summary(summary, tmp_path / "run")  # what `volleybots train` prints at the end
-    assert "oracle 2 dropped: the budget ended it after 1 update(s) (256 frames)" in capsys.readouterr().out
+    # an oracle a time limit cuts short is still dropped, and said so
+    assert "oracle 2 dropped: the budget ended it after 1 update(s) (256 frames)" in _echo_text(
+        _echo_summary, {**summary, "dropped_oracle": {"iteration": 2, "updates": 1, "frames": 256}}, tmp_path / "run")
     summary = resume(tmp_path / "run", ["total_frames=1024"])
     meta, pay, _ = _read(tmp_path / "run")
     assert pay["members"] == ["random", "br1", "br2"] and meta[-1]["oracle"]["updates"] == 2
     assert "dropped_oracle" not in summary and summary["frames"] == 1024
+
+
+def _echo_text(echo, summary, run) -> str:
+    import contextlib
+    import io
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        echo(summary, run)
+    return out.getvalue()
 
 
 def test_fsp_learner_starts_from_the_previous_one(tmp_path, monkeypatch):
@@ -332,7 +345,8 @@ def test_a_bc_seeded_population_starts_from_a_clone_that_beats_random_and_resume
 
     run = tmp_path / "run"
     cfg = tiny("psro_nash", "algo.learner_init=bc", "algo.seed_members=[bc,random]", "algo.bc_frames=4096", "algo.bc_replay_ratio=128",
-               "env.num_envs=32", "algo.hidden=[64,64]", "algo.iterations=1", "algo.min_updates=1", "algo.max_updates=1")
+               "env.num_envs=32", "algo.hidden=[64,64]", "algo.iterations=1", "algo.min_updates=1", "algo.max_updates=1",
+               "total_frames=4096")
     assert cfg.algo.anchor_coeff == 0.3 and cfg.algo.actor_freeze_updates == 10  # the recipe, by default
     summary = start(cfg, run)
     assert summary["wall_time_split"]["clone"] > 0  # the clone's making is a part of the run's wall time of its own
@@ -368,13 +382,37 @@ def test_a_bc_seeded_population_starts_from_a_clone_that_beats_random_and_resume
     assert (clone / "checkpoints" / "final.pt").stat().st_mtime_ns == stamp
 
 
-def test_default_psro_fits_three_oracles_and_the_cli_reports_each(tmp_path):
+@pytest.mark.parametrize("task", ["1v1", "3v3", "6v6"])
+def test_the_defaults_start_every_population_from_the_clone_and_fit_every_announced_iteration(task):
+    """A bare ``train task=T algo=M`` is the recipe that plays: the clone as every learner's start (FSP:
+    its first learner continues from it) and as the first member; the budget is the frames the announced
+    iterations take; ``algo.start=scratch`` is the from-scratch recipe, one setting away."""
+    want = {"sp": ("bc", []), "fsp": ("last", ["bc"]), "psro_uniform": ("bc", ["bc"]), "psro_nash": ("bc", ["bc"])}
+    scratch = {"sp": ("scratch", []), "fsp": ("last", ["random"]), "psro_uniform": ("scratch", ["random"]),
+               "psro_nash": ("scratch", ["random"])}
+    for algo in want:
+        cfg = load([f"task={task}", f"algo={algo}"])
+        assert (cfg.algo.learner_init, list(cfg.algo.seed_members)) == want[algo]
+        raw = load([f"task={task}", f"algo={algo}", "algo.start=scratch"]).algo
+        assert (raw.learner_init, list(raw.seed_members)) == scratch[algo]
+        if algo != "sp":
+            per_batch = cfg.env.num_envs * cfg.algo.steps_per_batch
+            assert cfg.total_frames == cfg.algo.iterations * cfg.algo.max_updates * per_batch
+            loop = PopulationLoop.__new__(PopulationLoop)
+            loop.cfg, loop.m = cfg, cfg.algo
+            assert loop._planned(1, 0) == cfg.algo.iterations  # the progress line's "iteration i/N"
+            # a budget that leaves the last oracle fewer than min_updates batches announces one iteration less
+            loop.cfg = load([f"task={task}", f"algo={algo}", f"total_frames={cfg.total_frames - per_batch * (cfg.algo.max_updates - 1)}"])
+            assert loop._planned(1, 0) == cfg.algo.iterations - 1
+    # an explicit value wins over algo.start; a bad start is one line
+    assert load(["task=1v1", "algo=psro_nash", "algo.start=scratch", "algo.learner_init=bc"]).algo.learner_init == "bc"
+    with pytest.raises(ConfigError, match="unknown algo.start 'none'; allowed: clone, scratch"):
+        load(["task=1v1", "algo=psro_nash", "algo.start=none"])
+
+
+def test_the_cli_reports_each_oracle(tmp_path):
     from volleybots.cli.train import _oracle_text
 
-    cfg = load(["task=1v1", "algo=psro_nash"])
-    per_batch = cfg.env.num_envs * cfg.algo.steps_per_batch
-    assert 3 * cfg.algo.max_updates * per_batch <= cfg.total_frames  # >= 3 iterations even if no oracle converges
-    assert cfg.algo.min_updates <= cfg.algo.max_updates
     assert _oracle_text(2, {"updates": 14, "converged": True, "win_rate": 0.934}) == "br2 win 0.93 after 14 updates, converged"
     assert _oracle_text(1, {"updates": 20, "converged": False, "stopped": "max_updates", "win_rate": 0.4}).endswith(
         "not converged (max_updates)"

@@ -58,7 +58,8 @@ def test_a_time_limited_run_prints_lines_and_stops_before_a_batch_would_overshoo
 
 
 def test_a_population_run_reports_progress_final_eval_curves_and_its_wall_time_split(tmp_path, capsys):
-    cfg = load([*TINY, "algo=psro_uniform", "algo.iterations=1", "algo.min_updates=2", "algo.max_updates=2", "algo.payoff_games=2",
+    cfg = load([*TINY, "algo=psro_uniform", "algo.start=scratch",
+                "algo.iterations=1", "algo.min_updates=2", "algo.max_updates=2", "algo.payoff_games=2",
                 "total_frames=100000", "progress=true"])
     summary = start(cfg, tmp_path / "pop")
     lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("train ")]
@@ -88,7 +89,7 @@ def test_an_oracle_stops_early_enough_for_its_payoff_games_to_end_by_the_time_li
     assert payoff_reserve(12.0, 4) == 8.0  # 6 pairs in 12 s: 2 s a pair, 4 new pairs
     # iteration i's learner gets the run's time limit less the reserve; without a limit nothing changes
     for limit, want in ((100.0, 80.0), (0.0, 0.0)):
-        cfg = load([*TINY, "algo=psro_nash", f"time_limit={limit}"])
+        cfg = load([*TINY, "algo=psro_nash", "algo.start=scratch", f"time_limit={limit}"])
         loop = SimpleNamespace(cfg=cfg, m=cfg.algo, clone=None)
         assert PopulationLoop._iteration_cfg(loop, 2, 0, reserve=20.0).time_limit == want
         assert PopulationLoop._iteration_cfg(loop, 2, 0).time_limit == limit

@@ -85,14 +85,34 @@ def test_bradley_terry_recovers_strengths():
     assert np.abs((r - r[0]) - (TRUE - TRUE[0])).max() < 30  # ML on 12000 games: within 30 points
 
 
-def test_bradley_terry_counts_a_draw_as_half_a_win():
+def test_bradley_terry_counts_a_draw_as_half_a_win_only_when_asked():
     wdl = np.zeros((2, 2, 3))
     wdl[0, 1] = (30, 40, 10)  # half-wins 50 to 30: odds 5/3
     wdl[1, 0] = wdl[0, 1, ::-1]
-    r = bradley_terry(wdl, firth=False)
+    r = bradley_terry(wdl, firth=False, draws="half")
     assert r[0] - r[1] == pytest.approx(400 * math.log10(50 / 30), abs=1.0)
-    r = bradley_terry(wdl)  # Firth's estimate: half a win more for each side, (50 + 1/2) / (30 + 1/2)
+    r = bradley_terry(wdl, draws="half")  # Firth's estimate: half a win more for each side, (50 + 1/2) / (30 + 1/2)
     assert r[0] - r[1] == pytest.approx(400 * math.log10(50.5 / 30.5), abs=1.0)
+    r = bradley_terry(wdl)  # the default: decisive games only, 30 to 10, Firth (30.5 / 10.5)
+    assert r[0] - r[1] == pytest.approx(400 * math.log10(30.5 / 10.5), abs=1.0)
+    with pytest.raises(ValueError, match="draws='third'; allowed: decisive, half"):
+        bradley_terry(wdl, draws="third")
+
+
+def test_a_drawing_player_that_never_wins_cannot_outrank_the_players_that_beat_it():
+    """The 3v3 inversion: random drew 70-80 % of its games and won none, yet counted as half wins its
+    draws rated it above two learned teams that won every decisive game against it."""
+    labels = ["scripted", "fsp", "sp", "random"]
+    games = {(0, 1): (98, 1, 1), (0, 2): (99, 1, 0), (0, 3): (10, 90, 0), (1, 2): (50, 0, 50),
+             (1, 3): (25, 75, 0), (2, 3): (20, 80, 0)}
+    wdl = np.zeros((4, 4, 3))
+    for (a, b), rec in games.items():
+        wdl[a, b], wdl[b, a] = rec, rec[::-1]
+    half = bradley_terry(wdl, draws="half")
+    assert half[3] > half[1] and half[3] > half[2]  # the inversion the half-win rule makes
+    r, lo, hi = bradley_terry_intervals(wdl)
+    for beaten_by in (0, 1, 2):
+        assert r[3] < r[beaten_by], dict(zip(labels, r, strict=False))
 
 
 def test_bradley_terry_is_finite_when_one_side_wins_everything():
@@ -224,9 +244,9 @@ def test_draws_narrow_the_interval_to_the_variance_of_a_score():
     from volleybots.ratings.bradley_terry import draw_dispersion
 
     half = 1.959964 * math.sqrt(0.125 / 100) / 0.25 * ELO_SCALE
-    _, lo, hi = bradley_terry_intervals(record(25, 50, 25))
+    _, lo, hi = bradley_terry_intervals(record(25, 50, 25), draws="half")
     assert draw_dispersion(record(25, 50, 25), np.zeros(2)) == pytest.approx(0.5)
     assert hi[0] - lo[0] == pytest.approx(half, rel=0.05)  # a competitor's rating moves by half the gap
-    _, lo, hi = bradley_terry_intervals(record(50, 0, 50))  # no draws: the binomial width, sqrt(2) wider
+    _, lo, hi = bradley_terry_intervals(record(50, 0, 50), draws="half")  # no draws: the binomial width, sqrt(2) wider
     assert draw_dispersion(record(50, 0, 50), np.zeros(2)) == 1.0
     assert hi[0] - lo[0] == pytest.approx(math.sqrt(2) * half, rel=0.05)

@@ -201,7 +201,8 @@ def test_artifacts_are_logged_only_when_asked(sweeps):
 
 def test_a_population_run_logs_one_wandb_run(wandb_env):
     run_dir = wandb_env / "pop"
-    _invoke("train", "task=1v1", "algo=psro_uniform", "env.num_envs=8", "algo.steps_per_batch=16", "algo.minibatches=2", "algo.epochs=1",
+    _invoke("train", "task=1v1", "algo=psro_uniform", "algo.start=scratch",
+            "env.num_envs=8", "algo.steps_per_batch=16", "algo.minibatches=2", "algo.epochs=1",
             "algo.hidden=[16,16]", "algo.iterations=2", "algo.min_updates=1", "algo.max_updates=1", "algo.payoff_games=2",
             "evaluation.every=0", "evaluation.episodes=2", "evaluation.record=false", "progress=false", "threads=1",
             "logger=wandb", f"hydra.run.dir={run_dir}")

@@ -123,3 +123,12 @@ def test_volleybots_list_shows_the_zoo_and_an_unknown_entry_is_one_line():
     # a single entry is a target too (eval, replay TARGET), and labels itself by its zoo name as a competitor
     assert resolve_target("zoo:1v1/sp").checkpoint == entries()["1v1/sp"].checkpoint
     assert resolve_competitor("zoo:1v1/sp").label == "zoo:1v1/sp" and resolve_competitor("mine=zoo:1v1/sp").label == "mine"
+
+
+def test_every_card_gives_the_seed_its_command_names():
+    """`volleybots list` printed zoo:1v1/sp's learner seed (1001) where its command and the docs say seed 1."""
+    import re
+
+    for name, e in entries().items():
+        said = re.search(r"\bseed=(\d+)", e.card["command"])
+        assert said is None or int(said.group(1)) == int(e.card["seed"]), (name, e.card["seed"], e.card["command"])

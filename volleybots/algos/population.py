@@ -8,7 +8,7 @@ hyperparameters, which the config inherits (``algo.actor_lr=...`` sets the learn
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from volleybots.algos.base import class_attr
 from volleybots.algos.ppo import MAPPO, MAPPOConfig
@@ -17,6 +17,10 @@ from volleybots.population.solvers import SOLVERS  # a leaf module (numpy and sc
 
 CLONE = "bc"  # the run's behaviour clone of the scripted team: a learner_init and a seed_members name
 INITS = ("scratch", "last", CLONE)
+# algo.start: what a population starts from where algo.learner_init / algo.seed_members are left unset.
+# "clone" is the default because learners from scratch do not hit the ball within a default budget:
+# a bare `train task=3v3 algo=psro_nash` from scratch ended with the Nash mixture on `random` alone
+STARTS = ("clone", "scratch")
 POOLS = ("serial", "ray")  # where payoff games are played: here, or as tasks of a Ray pool (volleybots.play.pool)
 
 
@@ -24,7 +28,9 @@ POOLS = ("serial", "ray")  # where payoff games are played: here, or as tasks of
 class PopulationConfig(MAPPOConfig):
     name: str = "psro_nash"
     solver: str = "nash"
-    learner_init: str = "scratch"
+    start: str = "clone"
+    # None: from algo.start (Preset.starts); saved configs hold the resolved value
+    learner_init: str | None = None
     bc_frames: int = ranged(200_000, ge=1)
     # the clone's fit: Adam steps per teacher frame sampled (bc's replay_ratio); a small bc_frames
     # wants a high one (4096 frames at 8 are 8 steps: a clone that serves into play half the time)
@@ -34,16 +40,14 @@ class PopulationConfig(MAPPOConfig):
     actor_freeze_updates: int = ranged(10, ge=0)
     anchor_coeff: float = ranged(0.3, ge=0)
     self_play: bool = False
-    iterations: int = ranged(10, ge=1)
-    # 20 batches of the CPU default (256 envs x 64 steps) are 328k frames: three oracles fit the default
-    # total_frames of 1M, so a default run completes >= 3 iterations (docs/competitive.md)
+    iterations: int = ranged(5, ge=1)
     min_updates: int = ranged(10, ge=1)
-    max_updates: int = ranged(20, ge=1)
+    max_updates: int = ranged(30, ge=1)
     win_window: int = ranged(10, ge=1)
     win_mean: float = ranged(0.9, ge=0, le=1)
     win_std: float = ranged(0.05, ge=0)
     payoff_games: int = ranged(100, ge=1)
-    seed_members: list[str] = field(default_factory=lambda: ["random"])
+    seed_members: list[str] | None = None
     opponent_deterministic: bool = False
     eval_opponent: str = "random"
     payoff_pool: str = "serial"
@@ -55,14 +59,12 @@ class SPConfig(PopulationConfig):
     solver: str = "last"
     self_play: bool = True
     iterations: int = 1
-    seed_members: list[str] = field(default_factory=list)
 
 
 @dataclass
 class FSPConfig(PopulationConfig):
     name: str = "fsp"
     solver: str = "uniform"
-    learner_init: str = "last"
 
 
 @dataclass
@@ -87,6 +89,19 @@ class Preset:
     # make it instead; empty: every start in INITS
     learner_inits: tuple[str, ...] = ()
     otherwise: str = ""
+    # algo.start -> (learner_init, seed_members) where the config leaves them unset
+    starts: tuple = (("clone", CLONE, (CLONE,)), ("scratch", "scratch", ("random",)))
+
+    def resolve(self, cfg) -> None:
+        """Fill ``learner_init`` and ``seed_members`` the config leaves unset (None) from ``algo.start``,
+        so that a saved config holds what the run did and reloads the same whatever the defaults become."""
+        if cfg.start not in STARTS:
+            raise ConfigError(f"unknown algo.start {cfg.start!r}; allowed: {', '.join(STARTS)}")
+        init, members = dict((s, (i, m)) for s, i, m in self.starts)[cfg.start]
+        if cfg.learner_init is None:
+            cfg.learner_init = init
+        if cfg.seed_members is None:
+            cfg.seed_members = list(members)
 
     @property
     def action_spaces(self) -> tuple[str, ...]:
@@ -128,11 +143,12 @@ class Preset:
             raise ConfigError(f"algo {self.name!r} needs a first opponent: algo.seed_members=[random] (or scripted, or checkpoint paths)")
 
 
-SP = Preset("sp", SPConfig)
+# self-play has no frozen members: its one learner starts from the clone or from scratch
+SP = Preset("sp", SPConfig, starts=(("clone", CLONE, ()), ("scratch", "scratch", ())))
 # FSP is the uniform meta-solver with each learner continuing from the newest member; any other start
 # makes it PSRO-uniform, run for run (a 3v3 run with learner_init=bc was)
 FSP = Preset(
-    "fsp", FSPConfig, learner_inits=("last",),
+    "fsp", FSPConfig, learner_inits=("last",), starts=(("clone", "last", (CLONE,)), ("scratch", "last", ("random",))),
     otherwise="continues each learner from the newest member (algo.learner_init=last), not {init!r}, which makes it "
     "algo=psro_uniform; to start FSP from the clone give algo.seed_members=[bc] (its first learner continues from the clone)",
 )

@@ -106,3 +106,12 @@ def _refuse_flags(args: list[str], allowed: str) -> None:
         raise ConfigError(f"unknown option {flags[0]!r}; allowed: {allowed}")
 
 
+WIDE = 400  # columns a table may take when stdout is a file or a pipe (rich would cut it to 80)
+
+
+def console():
+    """The console tables are printed on: the terminal's width on a terminal; elsewhere (a file, a
+    pipe) as wide as the table needs, so that a saved table is not folded into unreadable cells."""
+    from rich.console import Console
+
+    return Console() if sys.stdout.isatty() else Console(width=WIDE)

@@ -10,7 +10,7 @@ from typing import List, Optional
 import typer
 from typer.core import TyperGroup
 
-from volleybots.cli.app import _PASS_THROUGH, _refuse_flags, _user_errors, app
+from volleybots.cli.app import _PASS_THROUGH, _refuse_flags, _user_errors, app, console
 from volleybots.errors import ConfigError
 
 
@@ -52,9 +52,7 @@ def eval_cmd(
     if as_json:
         typer.echo(json.dumps(result, indent=2))
     else:
-        from rich.console import Console
-
-        Console().print(format_table(result))
+        console().print(format_table(result))
 
 
 @eval_app.command("compare", context_settings=_PASS_THROUGH)
@@ -77,9 +75,7 @@ def compare_cmd(
     if as_json:
         typer.echo(json.dumps(result, indent=1))
     else:
-        from rich.console import Console
-
-        Console().print(format_table(result))
+        console().print(format_table(result))
 
 
 def _pair_progress(i: int, j: int, games) -> None:
@@ -99,9 +95,7 @@ def _show(data: dict, table, as_json: bool, files: list[Path]) -> None:
     if as_json:
         typer.echo(json.dumps(data, indent=1))
         return
-    from rich.console import Console
-
-    Console().print(table)
+    console().print(table)
     typer.echo(f"wrote {' and '.join(map(str, files))}")
 
 
@@ -110,8 +104,9 @@ def _show(data: dict, table, as_json: bool, files: list[Path]) -> None:
 def crossplay_cmd(
     args: Optional[List[str]] = typer.Argument(
         None,
-        help=f"{_COMPETITORS}, then games=1000 seed=0 batch=256 scenario=any|serve|receive deterministic=false "
-        "task=1v1 env.action_space=prt; reuse=FILE copies the pairs an earlier crossplay.json played with the same settings.",
+        help=f"{_COMPETITORS}, then games=1000 seed=0 batch=256 scenario=any|serve|receive deterministic=false pool=serial|ray "
+        "task=1v1 env.action_space=prt; reuse=FILE copies the pairs an earlier crossplay.json played with the same settings; "
+        "pool=ray plays the pairs as Ray tasks together (the same numbers).",
     ),
     as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of the table."),
     out: Optional[Path] = typer.Option(
@@ -124,7 +119,7 @@ def crossplay_cmd(
     from volleybots.eval.content import format_content
     from volleybots.eval.crossplay import format_table, run_crossplay
 
-    res, path = run_crossplay(list(args or []), out, progress=None if as_json else _pair_progress)
+    res, path = run_crossplay(list(args or []), out, progress=_pair_progress)  # on stderr, --json or not
     tables = Group(format_table(res), format_content(res.labels, res.content))
     _show(res.to_dict(), tables, as_json, [path / "crossplay.json", path / "crossplay.png"])
 
@@ -134,30 +129,31 @@ def crossplay_cmd(
 def exploitability_cmd(
     args: Optional[List[str]] = typer.Argument(
         None,
-        help="TARGET (a competitor), then budget=1000000 games=1000 seed=0 scenario=any|serve|receive|split until=converged|budget "
-        "init=RUN num_envs=N batch=256 task=1v1 env.action_space=prt, and algo.KEY=VALUE for the best response's MAPPO (with init=, "
-        "a critic warm-up of algo.actor_freeze_updates=10 batches unless given); response=SPEC (repeatable) adds a fixed "
-        "candidate response (scripted, hierarchical, a run, zoo:...) and the figure is the best candidate's; budget=0 trains none.",
+        help="TARGET (a competitor), then budget=1000000 seeds=2 games=1000 select_games=200 seed=0 scenario=any|serve|receive|split "
+        "until=budget|plateau init=RUN num_envs=N batch=256 members=true task=1v1 env.action_space=prt, and algo.KEY=VALUE for "
+        "the responses' MAPPO (with init=, a critic warm-up of algo.actor_freeze_updates=10 batches unless given); "
+        "response=SPEC (repeatable) adds a fixed candidate response (scripted, hierarchical, a run, zoo:...); budget=0 trains none.",
     ),
-    as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of a line."),
+    as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of a line (progress still goes to stderr)."),
     out: Optional[Path] = typer.Option(
-        None, "--out", help="Folder for the best response's run dir (br/; br_serve/ and br_receive/ with scenario=split) and "
-        "exploitability.json (new or empty)."
+        None, "--out", help="Folder for the trained responses' run dirs (br/, br_s1/, ...; br_serve/, br_receive/ with "
+        "scenario=split) and exploitability.json (new or empty)."
     ),
 ) -> None:
-    """Train a best response with (MA)PPO against TARGET for a budget of frames, play it: 100 x (BR win rate - 0.5)."""
+    """A lower bound on TARGET's exploitability: the best of responses trained on several seeds, fixed
+    responses, the target's members and the target itself, chosen on games apart from those that give the figure."""
     from volleybots.eval.exploitability import RESULTS, format_line, run_exploitability
 
     args = list(args or [])
     if as_json:
         args.append("progress=false")
-    report, path = run_exploitability(args, out)
+    report, path = run_exploitability(args, out, progress=lambda line: typer.echo(line, err=True))
     if as_json:
         typer.echo(json.dumps(report, indent=1, default=float))
         return
     typer.echo(format_line(report))
-    runs = [p["br_run"] for p in (report.get("parts") or {"": report}).values() if "br_run" in p]  # none with budget=0
-    also = f" and the best response's run{'s' if len(runs) > 1 else ''} {' and '.join(runs)}" if runs else ""
+    runs = [t["run"] for p in (report.get("parts") or {"": report}).values() for t in (p.get("trained") or {}).values()]
+    also = f" and the trained responses' runs {', '.join(runs)}" if runs else ""
     typer.echo(f"wrote {path / RESULTS}{also}")
 
 
@@ -173,7 +169,7 @@ def elo_cmd(
     """Elo over rounds in which every pair meets once (the paper's), Bradley-Terry with profile-likelihood intervals, the Nash mixture."""
     from volleybots.eval.ranking import format_table, run_elo
 
-    report, path = run_elo(list(args or []), out, progress=None if as_json else _pair_progress)
+    report, path = run_elo(list(args or []), out, progress=_pair_progress)  # on stderr, --json or not
     _show(report, format_table(report), as_json, [path / "ratings.json", path / "ratings.png"])
 
 

@@ -49,7 +49,7 @@ def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = Fals
             default = _task_default_algo(cfg, overrides)
             if default is not None:
                 cfg = hydra_compose("config", overrides=[*overrides, f"algo={default}"], return_hydra_config=hydra_node)
-            return algo_action_space(cfg, overrides)
+            return population_budget(algo_action_space(cfg, overrides), overrides)
         except HydraException as e:
             _explain_unknown_key(overrides, hydra_compose)
             raise ConfigError(f"bad override: {_one_line(e)}") from None
@@ -106,6 +106,24 @@ def algo_action_space(cfg: DictConfig, overrides) -> DictConfig:
     algo_cls = ALGOS.get(OmegaConf.select(cfg, "algo.name", default=None))
     if algo_cls is not None and cfg.env.action_space not in algo_cls.action_spaces:
         cfg.env.action_space = algo_cls.action_spaces[0]
+    return cfg
+
+
+def population_budget(cfg: DictConfig, overrides) -> DictConfig:
+    """A population run that the command line gives no ``total_frames`` gets the frames its iterations
+    take at most (``iterations x max_updates`` batches), so that it trains every iteration it announces;
+    the clone's ``bc_frames`` come on top. Self-play keeps ``total_frames``: its one learner is the budget."""
+    from volleybots.algos import PRESETS
+
+    if any(o.split("=", 1)[0].lstrip("+~") == "total_frames" for o in overrides):
+        return cfg
+    m = OmegaConf.select(cfg, "algo")
+    if m is None or m.get("name") not in PRESETS or m.get("self_play"):
+        return cfg
+    try:
+        cfg.total_frames = int(m.iterations) * int(m.max_updates) * int(cfg.env.num_envs) * int(m.steps_per_batch)
+    except (TypeError, ValueError):  # a bad value: validate names it
+        pass
     return cfg
 
 

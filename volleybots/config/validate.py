@@ -45,6 +45,8 @@ def validate(cfg) -> DictConfig:
     typed_task = _typed(task_cls_schema, task, "task.")
     algo_cls = ALGOS[algo["name"]]
     typed_algo = _typed(algo_cls.config_cls, algo, "algo.")
+    if hasattr(algo_cls, "resolve"):  # a population preset fills what algo.start leaves to it
+        algo_cls.resolve(typed_algo)
     rest = _typed(Config, {k: v for k, v in data.items() if k not in ("task", "algo")}, "")
     rest.task, rest.algo = typed_task, typed_algo
 

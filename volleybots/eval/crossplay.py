@@ -25,8 +25,9 @@ from volleybots.config import load, make_env, to_dict
 from volleybots.config.args import split_args
 from volleybots.config.resources import check_play
 from volleybots.errors import ConfigError
+from volleybots.eval.crossplay_view import format_table, heatmap  # noqa: F401 (the views, importable from here as before)
 from volleybots.eval.reuse import Reuse, check_readable
-from volleybots.files import Fields, read_json, write_atomic, write_json
+from volleybots.files import Fields, read_json, write_json
 from volleybots.keys import OBS
 from volleybots.play.games import DEFAULT_BATCH, check_scenario, play_games
 from volleybots.ratings import record
@@ -151,7 +152,7 @@ def versions() -> dict:
 
 
 # options of the cross-play verbs (key=value on the command line) and their types
-OPTIONS = {"games": int, "seed": int, "batch": int, "scenario": str, "deterministic": bool, "reuse": str}
+OPTIONS = {"games": int, "seed": int, "batch": int, "scenario": str, "deterministic": bool, "reuse": str, "pool": str}
 
 
 def resolve_all(specs) -> list:
@@ -196,7 +197,7 @@ def provenance(competitor, spec: str) -> dict:
 
 
 def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_BATCH, scenario: str = "any",
-              deterministic: bool = False, specs=None, progress=None, reuse=None) -> CrossPlay:
+              deterministic: bool = False, specs=None, progress=None, reuse=None, pool: str = "serial") -> CrossPlay:
     """Play ``games`` games for every pair of ``competitors`` on the match task of ``cfg``.
 
     Args:
@@ -210,6 +211,8 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
         specs: the competitors as named on the command line, for the provenance.
         progress: called as ``progress(i, j, games)`` after each pair.
         reuse: an earlier results file whose pairs are copied instead of played (``volleybots.eval.reuse``).
+        pool: "serial" (pairs in turn) or "ray" (pairs as Ray tasks together; the same numbers: every
+            pair plays on ``seed``).
 
     Returns:
         The ``CrossPlay``: win / draw / loss counts per ordered pair, game-by-game outcomes and the
@@ -230,12 +233,18 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
         "versions": versions(),
     }
     earlier = Reuse(reuse, CrossPlay.load(reuse), meta) if reuse is not None else None  # refused here, before any game, if it does not fit
-    for i, j in combinations(range(n), 2):
+    pairs = list(combinations(range(n), 2))
+    copied = {(i, j): earlier.pair(meta["competitors"][i], meta["competitors"][j]) for i, j in pairs} if earlier is not None else {}
+    todo = [(i, j) for i, j in pairs if copied.get((i, j)) is None]
+    from volleybots.play.pool import pool_map
+
+    played = pool_map(_play_pair, cfg, [(competitors[i], competitors[j], games, seed, batch, scenario, deterministic) for i, j in todo],
+                      pool)
+    for i, j in pairs:
         key = f"{i},{j}"
-        g = earlier.pair(meta["competitors"][i], meta["competitors"][j]) if earlier is not None else None
+        g = copied.get((i, j))
         if g is None:
-            g = play_games(cfg, competitors[i], competitors[j], games, seed=seed, batch=batch, scenario=scenario,
-                           deterministic=deterministic)
+            g = next(played)
         else:
             reused[key] = g.source
         record.put(wdl, i, j, g.total)
@@ -247,85 +256,11 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
     return CrossPlay(labels, wdl, outcomes, sides, meta, content)
 
 
-def heatmap(result: CrossPlay, path: Path, title: str | None = None) -> None:
-    """A PNG of the win-rate matrix (row against column), each cell with its Wilson interval, and the
-    average win rate per row; the title names the task, games per pair and seed."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    wr = result.win_rate()
-    lo, hi = result.interval()
-    n = result.n
-    touches = _touch_cells(result)
-    fig, ax = plt.subplots(figsize=(1.6 * n + 3, 1.2 * n + 1.5))
-    im = ax.imshow(np.ma.masked_invalid(wr), cmap="RdBu", vmin=0, vmax=1)
-    for i in range(n):
-        for j in range(n):
-            w, d, l_ = result.wdl[i, j].astype(int)
-            if np.isfinite(wr[i, j]):
-                colour = "white" if abs(wr[i, j] - 0.5) > 0.3 else "black"
-                cell = f"{wr[i, j]:.2f}\n[{lo[i, j]:.2f}, {hi[i, j]:.2f}]\n{w}/{d}/{l_}{touches[i][j]}"
-                ax.text(j, i, cell, ha="center", va="center", fontsize=8, color=colour)
-            elif i != j:
-                ax.text(j, i, f"no decisive\ngame{touches[i][j]}", ha="center", va="center", fontsize=7, color="grey")
-    avg = result.average_win_rate()
-    ax.set_xticks(range(n), result.labels, rotation=30, ha="right")
-    ax.set_yticks(range(n), [f"{lab}  (avg {a:.2f})" for lab, a in zip(result.labels, avg)])
-    ax.set_xlabel("opponent (column); cells: win rate [Wilson 95 %], W/D/L" + (", touches per game row/column" if result.content else ""))
-    m = result.meta
-    ax.set_title(title or f"{m.get('task')} cross-play: win rate of row over decisive games\n"
-                 f"{m.get('games_per_pair')} games per pair, seed {m.get('seed')}, scenario {m.get('scenario')}", fontsize=9)
-    fig.colorbar(im, ax=ax, fraction=0.046)
-    fig.tight_layout()
-    try:
-        write_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=120), "the heatmap")
-    finally:
-        plt.close(fig)
+def _play_pair(cfg, a, b, games: int, seed: int, batch: int, scenario: str, deterministic: bool):
+    """One pair's games (a Ray task's body with ``pool=ray``)."""
+    return play_games(cfg, a, b, games, seed=seed, batch=batch, scenario=scenario, deterministic=deterministic)
 
 
-def _touch_cells(result: CrossPlay) -> list[list[str]]:
-    """Per cell, a line "t ROW/COL": touches per game of the row and of the column ("" without content)."""
-    cells = [[""] * result.n for _ in range(result.n)]
-    for key, c in result.content.items():
-        i, j = map(int, key.split(","))
-        if c.get("games"):
-            a, b = c["touches"]
-            cells[i][j], cells[j][i] = f"\nt {a:.1f}/{b:.1f}", f"\nt {b:.1f}/{a:.1f}"
-    return cells
-
-
-def format_table(result: CrossPlay):
-    """A rich table: win rate [interval] (W/D/L) per cell, and the average win rate."""
-    from rich.table import Table
-
-    wr = result.win_rate()
-    lo, hi = result.interval()
-    m = result.meta
-    table = Table(
-        title=f"cross-play on {m.get('task')} ({m.get('games_per_pair')} games per pair, seed {m.get('seed')}): "
-        "row's win rate over decisive games"
-    )
-    table.add_column("")
-    for lab in result.labels:
-        table.add_column(lab, justify="right")
-    table.add_column("avg win rate", justify="right")
-    for i, lab in enumerate(result.labels):
-        cells = []
-        for j in range(result.n):
-            w, d, l_ = result.wdl[i, j].astype(int)
-            if i == j:
-                cells.append("-")
-            elif np.isfinite(wr[i, j]):
-                cells.append(f"{wr[i, j]:.3f} [{lo[i, j]:.2f}, {hi[i, j]:.2f}]\n{w}/{d}/{l_}")
-            else:
-                cells.append(f"n/a\n{w}/{d}/{l_}")
-        table.add_row(lab, *cells, f"{result.average_win_rate()[i]:.3f}")
-    return table
-
-
-# ------------------------------------------------------------------ command line
 RESULTS = "crossplay.json"
 HEATMAP = "crossplay.png"
 
@@ -358,6 +293,10 @@ def setup(args, options: dict, min_competitors: int = 2):
         raise ConfigError(f"games={games} must be an even number >= 2 (each side plays half of them)")
     if "reuse" in opts:
         check_readable(opts["reuse"])
+    if "pool" in opts:
+        from volleybots.play.pool import check_pool
+
+        check_pool(opts["pool"], "pool")
     comps = resolve_all(specs)
     cfg = match_config(comps, overrides)
     check_scenario(opts.get("scenario", "any"), cfg)
@@ -392,7 +331,7 @@ def play_and_save(comps, specs, opts, cfg, path: Path, progress=None) -> CrossPl
     res = crossplay(
         cfg, comps, opts.get("games", 1000), seed=opts.get("seed", 0), batch=opts.get("batch", DEFAULT_BATCH),
         scenario=opts.get("scenario", "any"), deterministic=opts.get("deterministic", False), specs=specs, progress=progress,
-        reuse=opts.get("reuse"),
+        reuse=opts.get("reuse"), pool=opts.get("pool", "serial"),
     )
     res.save(path / RESULTS)
     heatmap(res, path / HEATMAP)

@@ -28,6 +28,11 @@ from volleybots.eval.crossplay import CrossPlay, _nan_to_none
 from volleybots.files import write_atomic, write_json
 from volleybots.population.solvers import exploitability, member_exploitability, nash
 from volleybots.ratings import ELO_K, ELO_START, bradley_terry_intervals, elo_history, record, round_robin, sample_round_robin
+from volleybots.ratings.elo import elo_orders
+
+ORDERS = 100  # seeded game orders over which Elo's spread is reported
+RESAMPLES = 200  # resampled payoff tables over which the Nash weights' sensitivity is reported
+CARRIES = 0.01  # a member "carries weight" in a mixture where its weight is at least this
 
 SCORE = dict(zip(record.OUTCOMES, record.SCORES))  # a game's score by its letter
 K_RANGE = Range(low=0.0, low_open=True)  # Elo's K: a finite step > 0 (nan or inf would make every rating nan)
@@ -43,7 +48,38 @@ def elo_games(result: CrossPlay, rounds: int, rng: np.random.Generator, sample: 
     return sample_round_robin(result.wdl, rounds, rng), "sampled"
 
 
-def ratings(result: CrossPlay, rounds: int = 2000, k: float = ELO_K, seed: int = 0, sample: bool = False) -> dict:
+def nash_sensitivity(wdl, resamples: int = RESAMPLES, seed: int = 0) -> dict:
+    """How much the Nash mixture rests on the payoff table's noise: each pair's W/D/L redrawn
+    (multinomial at its observed frequencies and game count) ``resamples`` times, the mixture solved
+    again, and for each competitor how often it carries weight (>= ``CARRIES``) and its mean weight."""
+    wdl = np.asarray(wdl, float)
+    n = wdl.shape[0]
+    rng = np.random.default_rng([seed, 7])
+    carries, weights = np.zeros(n), np.zeros(n)
+    for _ in range(resamples):
+        redrawn = np.zeros_like(wdl)
+        for a in range(n):
+            for b in range(a + 1, n):
+                games = int(wdl[a, b].sum())
+                if games:
+                    redrawn[a, b] = rng.multinomial(games, wdl[a, b] / games)
+                    redrawn[b, a] = redrawn[a, b][::-1]
+        mix = nash(record.payoff(redrawn))
+        carries += mix >= CARRIES
+        weights += mix
+    return {"resamples": resamples, "carries_weight": (carries / resamples).tolist(), "mean_weight": (weights / resamples).tolist(),
+            "threshold": CARRIES}
+
+
+def draw_rates(wdl) -> list:
+    """Each competitor's share of drawn games over all its games (None: it played none)."""
+    wdl = np.asarray(wdl, float)
+    games, draws = wdl.sum((1, 2)), wdl[..., 1].sum(1)
+    return [None if g == 0 else float(d / g) for d, g in zip(draws, games)]
+
+
+def ratings(result: CrossPlay, rounds: int = 2000, k: float = ELO_K, seed: int = 0, sample: bool = False, orders: int = ORDERS,
+            resamples: int = RESAMPLES) -> dict:
     """Ratings of a cross-play: Elo, Bradley-Terry, the Nash mixture and the exploitabilities.
 
     Args:
@@ -53,6 +89,8 @@ def ratings(result: CrossPlay, rounds: int = 2000, k: float = ELO_K, seed: int =
         seed: seeds the round order and the sampled results.
         sample: draw Elo's games from each pair's frequencies (as the paper did) instead of replaying
             the games that were played.
+        orders: further seeded game orders whose final Elo ratings give the spread (mean, 95 %).
+        resamples: payoff tables redrawn to show how often each competitor carries Nash weight.
 
     Returns:
         A JSON-ready dict: ``labels``, ``elo`` (final ratings and the trajectory), ``bradley_terry``
@@ -64,18 +102,24 @@ def ratings(result: CrossPlay, rounds: int = 2000, k: float = ELO_K, seed: int =
     pairs = result.n * (result.n - 1) // 2
     history = elo_history(games, result.n, k)
     points = _trajectory_rounds(rounds)
-    bt, lo, hi = bradley_terry_intervals(result.wdl)
+    bt, lo, hi = bradley_terry_intervals(result.wdl)  # decisive games only: draws are reported beside
     pay = result.payoffs()
     mix = nash(pay)
+    spread = elo_orders(result.wdl, rounds, orders, seed, k, outcomes=None if sample else result.outcomes)
     return {
         "labels": result.labels,
         "elo": {"k": k, "start": ELO_START, "rounds": rounds, "games": how, "seed": seed, "ratings": history[-1].tolist(),
-                "trajectory_rounds": [r + 1 for r in points], "trajectory": history[[(r + 1) * pairs for r in points]].tolist()},
+                "trajectory_rounds": [r + 1 for r in points], "trajectory": history[[(r + 1) * pairs for r in points]].tolist(),
+                # the same Elo over `orders` other seeded orders: what the order alone moves it by
+                "orders": orders, "order_mean": spread.mean(0).tolist(), "order_low": np.percentile(spread, 2.5, 0).tolist(),
+                "order_high": np.percentile(spread, 97.5, 0).tolist()},
         "bradley_terry": {"ratings": bt.tolist(), "low": lo.tolist(), "high": hi.tolist(),
-                           "interval": "95 % Firth-penalised profile likelihood", "draws": "half a win"},
+                           "interval": "95 % Firth-penalised profile likelihood", "draws": "left out (decisive games only)"},
+        "draw_rate": draw_rates(result.wdl),
         "average_win_rate": _nan_to_none(result.average_win_rate()),
         "payoffs": pay.tolist(),
         "nash": mix.tolist(),
+        "nash_sensitivity": nash_sensitivity(result.wdl, resamples, seed),
         # percentage points of score, 100 x (score - 0.5), score = (wins + draws / 2) / games
         "nash_exploitability": 50.0 * exploitability(pay, mix),
         "exploitability_in_population": (50.0 * member_exploitability(pay)).tolist(),
@@ -110,6 +154,9 @@ def plot(report: dict, path: Path) -> None:
     r, lo, hi = (np.asarray(bt[k]) for k in ("ratings", "low", "high"))
     right.errorbar(x + 0.1, r, yerr=[r - lo, hi - r], fmt="o", capsize=4, label="Bradley-Terry (95 % profile likelihood)")
     right.plot(x - 0.1, e["ratings"], "s", label="Elo (final)")
+    if e.get("orders"):  # the order's own spread of Elo: what a reader must not read as a difference in strength
+        m, lo_, hi_ = (np.asarray(e[k]) for k in ("order_mean", "order_low", "order_high"))
+        right.errorbar(x - 0.2, m, yerr=[m - lo_, hi_ - m], fmt="s", mfc="none", capsize=3, label=f"Elo over {e['orders']} orders (95 %)")
     right.set_xticks(x, labels, rotation=30, ha="right")
     cp = report["crossplay"]
     right.set_title(f"{cp['task']}: {cp['games_per_pair']} games per pair, cross-play seed {cp['seed']}", fontsize=9)
@@ -125,15 +172,19 @@ def format_table(report: dict):
     from rich.table import Table
 
     e, bt = report["elo"], report["bradley_terry"]
+    orders = e.get("orders")
     table = Table(
-        title=f"ratings on {report['crossplay']['task']}: Elo K={e['k']:g} over {e['rounds']} rounds ({e['games']} games); "
-        "BT with 95 % profile-likelihood intervals"
+        title=f"ratings on {report['crossplay']['task']}: Elo K={e['k']:g} over {e['rounds']} rounds ({e['games']} games)"
+        + (f", with its mean [95 %] over {orders} game orders" if orders else "")
+        + "; BT on decisive games with 95 % profile-likelihood intervals; Nash weight (share of resampled tables where it carries weight)"
     )
-    cols = ("competitor", "Elo", "Bradley-Terry [95 %]", "avg win rate", "Nash weight", "exploitability in population (pp)",
-            "touches/game (opp.)", "rally steps", "serving W/D/L", "receiving W/D/L")
+    cols = ("competitor", "Elo", "Elo over orders", "Bradley-Terry [95 %]", "draws", "avg win rate", "Nash weight",
+            "exploitability in population (pp)", "touches/game (opp.)", "rally steps", "serving W/D/L", "receiving W/D/L")
     for col in cols:
         table.add_column(col, justify="left" if col == "competitor" else "right")
     content = report.get("content", {}).get("competitors") or [None] * len(report["labels"])
+    sens = report.get("nash_sensitivity")
+    draws = report.get("draw_rate") or [None] * len(report["labels"])
     for i, lab in enumerate(report["labels"]):
         avg = report["average_win_rate"][i]
         c = content[i]
@@ -143,9 +194,11 @@ def format_table(report: dict):
         table.add_row(
             lab,
             f"{e['ratings'][i]:.0f}",
+            f"{e['order_mean'][i]:.0f} [{e['order_low'][i]:.0f}, {e['order_high'][i]:.0f}]" if orders else "-",
             f"{bt['ratings'][i]:.0f} [{bt['low'][i]:.0f}, {bt['high'][i]:.0f}]",
+            "-" if draws[i] is None else f"{draws[i]:.2f}",
             "n/a" if avg is None else f"{avg:.3f}",
-            f"{report['nash'][i]:.3f}",
+            f"{report['nash'][i]:.3f}" + (f" ({sens['carries_weight'][i]:.2f})" if sens else ""),
             f"{report['exploitability_in_population'][i]:.1f}",
             *played,
         )
@@ -154,7 +207,7 @@ def format_table(report: dict):
 
 # ------------------------------------------------------------------ command line
 # options of `volleybots eval elo` besides cross-play's (rounds replaces games)
-ELO_OPTIONS = {"rounds": int, "k": float, "sample": bool, "from": str}
+ELO_OPTIONS = {"rounds": int, "k": float, "sample": bool, "from": str, "orders": int}
 REPORT = "ratings.json"
 PLOT = "ratings.png"
 
@@ -189,6 +242,9 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
     k = opts.get("k", ELO_K)
     if k not in K_RANGE:
         raise ConfigError(f"k={k} must be a finite number > 0 (Elo's step; the paper's is {ELO_K:g})")
+    orders = opts.get("orders", ORDERS)
+    if not 1 <= orders <= 10_000:
+        raise ConfigError(f"orders={orders} must be 1 to 10000 (seeded game orders over which Elo's spread is reported)")
     source = opts.get("from")
     if source is not None:
         result = CrossPlay.load(source)
@@ -206,7 +262,7 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
     with output_dir(out, default_out(task, "elo")) as path:  # claimed and locked before any game
         if source is None:
             result = play_and_save(comps, specs, play_opts, cfg, path, progress)
-        report = ratings(result, rounds, k, opts.get("seed", 0), sample)
+        report = ratings(result, rounds, k, opts.get("seed", 0), sample, orders=orders)
         report["source"] = str(source) if source is not None else str(path / RESULTS)
         write_json(path / REPORT, report, "the ratings")
         plot(report, path / PLOT)

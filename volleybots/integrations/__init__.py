@@ -5,10 +5,12 @@
   ``volleybots/<Task>-v0`` (``gymnasium.make("volleybots/SoloBump-v0")``, ``gymnasium.make_vec(...)``).
 - ``VolleyParallelEnv``: any task, the multi-drone ones above all, as a PettingZoo ``ParallelEnv``
   with agents named per team and a ``groups`` map (one group per team).
+- ``VolleySB3VecEnv``: the single-drone tasks as a Stable-Baselines3 ``VecEnv`` over the batched env.
 
 Both are views of the TorchRL env (``volleybots.make_env``): nothing of a task is written again here.
 They need optional extras, so that the core install stays as it is: ``pip install 'volleybots[gym]'``
-(gymnasium) and ``pip install 'volleybots[pettingzoo]'`` (pettingzoo and gymnasium).
+(gymnasium), ``pip install 'volleybots[pettingzoo]'`` (pettingzoo and gymnasium) and
+``pip install 'volleybots[sb3]'`` (stable-baselines3 and gymnasium).
 """
 
 from __future__ import annotations
@@ -30,7 +32,11 @@ def __getattr__(name: str):
         from volleybots.integrations import pettingzoo_env
 
         return getattr(pettingzoo_env, name)
+    if name == "VolleySB3VecEnv":  # likewise Stable-Baselines3
+        from volleybots.integrations import sb3_env
+
+        return sb3_env.VolleySB3VecEnv
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = ["IDS", "VolleyGymEnv", "VolleyParallelEnv", "VolleyVectorEnv", "parallel_env", "register"]
+__all__ = ["IDS", "VolleyGymEnv", "VolleyParallelEnv", "VolleySB3VecEnv", "VolleyVectorEnv", "parallel_env", "register"]

@@ -3,15 +3,20 @@ single ``Env`` (one world) for code and checkers that want one.
 
 Both drive the env through its TorchRL API (``reset``, ``step``, ``step_and_maybe_reset``), so the
 physics, rewards and resets are the env's own; these classes only move numbers between numpy and
-the env's tensordicts. Observations are float32 arrays of the env's observation size, actions the
-env's action (a Box in [-1, 1] of 4 for ``prt`` / ``ctbr``, a Discrete(16) for ``discrete``).
+the env's tensordicts, and check what comes in (``spaces``: exact action shapes and dtypes, seeds,
+switches). Observations are float32 arrays of the env's observation size, actions the env's action
+(a Box in [-1, 1] of 4 for ``prt`` / ``ctbr``, a Discrete(16) for ``discrete``).
 
-Autoreset. The batched env resets a finished world within the step that ends it, so the vector env
-declares Gymnasium's ``AutoresetMode.SAME_STEP``: a done world's row of the returned observation is
-already its next episode's first one; its last observation is in ``info["final_obs"]`` (rows where
-``info["_final_obs"]`` is set) and its episode statistics (return, length, the task metric, every
-reward term) in ``info["episode"]`` (rows where ``info["_episode"]`` is set). The single env does
-not reset by itself: it reports ``info["episode"]`` at the end and waits for ``reset()``.
+Autoreset. By default the vector env resets a finished world within the step that ends it
+(Gymnasium's ``AutoresetMode.SAME_STEP``, what the batched env does): a done world's row of the
+returned observation is already its next episode's first one and its last observation is in
+``info["final_obs"]`` (rows where ``info["_final_obs"]`` is set). ``autoreset_mode="next_step"``
+gives Gymnasium's default instead: the ending step returns the last observation, and the next
+``step`` resets that world (its action is ignored, its reward is 0) while the others step. The
+episode statistics (return, length, the task metric, every reward term) come in
+``info["final_stats"]`` (rows where ``info["_final_stats"]`` is set): ``info["episode"]`` is left
+to the standard wrappers (``RecordEpisodeStatistics``, SB3's ``Monitor``). The single env does not
+reset by itself: it reports ``info["final_stats"]`` at the end, and refuses ``step`` until ``reset()``.
 
 Seeding. ``reset(seed=s)`` reseeds the env's generator with ``s`` before the reset, exactly as
 ``make_env(task, seed=s)`` does at construction: the same seed gives the same starts, the same
@@ -24,18 +29,14 @@ from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
+import torch
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from tensordict import TensorDict
 
-from volleybots.config import build_env
 from volleybots.integrations import spaces as sp
-from volleybots.integrations.spaces import (
-    SINGLE_TASKS,
-    action_tensor,
-    episode_stats,
-    to_numpy,
-)
+from volleybots.integrations.render import RENDER_MODES, Trail, check_render_mode
+from volleybots.integrations.spaces import SINGLE_TASKS, STATS_KEY, action_array, action_tensor, check_seed, episode_stats, to_numpy
 from volleybots.keys import ACTION, DONE, NEXT, OBS, REWARD, TERMINATED, TRUNCATED
 from volleybots.tasks import TASKS
 
@@ -43,16 +44,35 @@ NAMESPACE = "volleybots"
 VERSION = 0
 # Gymnasium id -> task: volleybots/SoloBump-v0 -> solo_bump (the task's class name)
 IDS = {f"{NAMESPACE}/{TASKS[name].__name__}-v{VERSION}": name for name in SINGLE_TASKS}
+AUTORESET_MODES = {"same_step": AutoresetMode.SAME_STEP, "next_step": AutoresetMode.NEXT_STEP}
 
 
 def _make(task: str, num_envs: int, **kw):
     if task not in SINGLE_TASKS:
         others = "; use volleybots.integrations.VolleyParallelEnv (PettingZoo) for it" if task in TASKS else ""
         raise ValueError(f"task {task!r} is not a single-drone task{others}; allowed: {list(SINGLE_TASKS)}")
-    return build_env(task, num_envs=num_envs, **kw)
+    return sp.build(task, num_envs, **kw)
 
 
-class VolleyVectorEnv(VectorEnv):
+def _autoreset_mode(mode) -> AutoresetMode:
+    if isinstance(mode, AutoresetMode) and mode in AUTORESET_MODES.values():
+        return mode
+    if isinstance(mode, str) and mode in AUTORESET_MODES:
+        return AUTORESET_MODES[mode]
+    raise ValueError(f"autoreset_mode must be one of {list(AUTORESET_MODES)} (or the AutoresetMode), got {mode!r}")
+
+
+class _Closable:
+    """Refuses use after ``close()``, as a closed Gymnasium or PettingZoo env should."""
+
+    _closed = False
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError(f"this {type(self).__name__} is closed: make a new one")
+
+
+class VolleyVectorEnv(_Closable, VectorEnv):
     """``num_envs`` worlds of a single-drone task as one Gymnasium vector env (numpy in and out).
 
     Args:
@@ -62,38 +82,51 @@ class VolleyVectorEnv(VectorEnv):
         physics: ``torch`` or ``mujoco``.
         device: where the env's tensors live (arrays always come back on the CPU).
         seed: the generator's seed until ``reset(seed=...)`` gives another.
+        autoreset_mode: ``"same_step"`` (the batched env's own) or ``"next_step"`` (Gymnasium's default).
+        render_mode: None only (render one world with ``VolleyGymEnv(render_mode="rgb_array")``).
         **task_overrides: as for ``volleybots.make_env`` (``episode_len``, ``reward_shaping``, ...).
     """
 
     metadata: ClassVar[dict] = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
 
     def __init__(self, task: str = "solo_bump", num_envs: int = 1, action_space: str = "prt", physics: str = "torch",
-                 device="cpu", seed: int = 0, render_mode: str | None = None, **task_overrides):
-        # a render_mode is accepted and ignored (tools such as SB3's make_vec_env pass one): nothing
-        # renders here; a replay of the task comes from `volleybots replay`
+                 device="cpu", seed: int = 0, render_mode: str | None = None, autoreset_mode="same_step", **task_overrides):
+        if render_mode is not None:
+            raise ValueError(f"render_mode must be None for the vector env, got {render_mode!r}; "
+                             "VolleyGymEnv(render_mode='rgb_array') renders one world")
         self.render_mode = None
+        mode = _autoreset_mode(autoreset_mode)
         self.env = _make(task, num_envs, action_space=action_space, physics=physics, device=device, seed=seed, **task_overrides)
-        self.task, self.num_envs = task, num_envs
+        self.metadata = {**type(self).metadata, "autoreset_mode": mode}
+        self.next_step = mode == AutoresetMode.NEXT_STEP
+        self.task, self.num_envs = task, int(num_envs)
         self.single_observation_space = sp.observation_space(self.env)
         self.single_action_space = sp.action_space(self.env)
-        self.observation_space = batch_space(self.single_observation_space, num_envs)
-        self.action_space = batch_space(self.single_action_space, num_envs)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self._shape = sp.action_shape(self.env, (self.num_envs,))
         self._td = None
+        self._pending = np.zeros(self.num_envs, bool)  # next_step: worlds whose episode ended last step
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """Reset every world; ``seed`` (one int for the whole batch) reseeds the env's generator first."""
-        if seed is not None and not isinstance(seed, (int, np.integer)):
-            raise ValueError(f"seed must be one int for the whole batch (the worlds share one generator), got {seed!r}")
-        super().reset(seed=None if seed is None else int(seed))
+        self._check_open()
+        seed = check_seed(seed)
+        super().reset(seed=seed)
         if seed is not None:
-            self.env.set_seed(int(seed))
+            self.env.set_seed(seed)
         self._td = self.env.reset()
+        self._pending[:] = False
         return to_numpy(self._td.get(OBS)[:, 0]), {}
 
     def step(self, actions):
+        self._check_open()
         if self._td is None:
             raise RuntimeError("call reset() before step()")
-        self._td.set(ACTION, action_tensor(self.env, actions, (self.num_envs, 1)))
+        arr = action_array(self.env, actions, self._shape)
+        if self.next_step:
+            return self._step_next(arr)
+        self._td.set(ACTION, action_tensor(self.env, arr, (self.num_envs, 1)))
         cur, self._td = self.env.step_and_maybe_reset(self._td)
         nxt = cur.get(NEXT)
         done = to_numpy(nxt.get(DONE).reshape(-1))
@@ -101,8 +134,8 @@ class VolleyVectorEnv(VectorEnv):
         if done.any():
             info["final_obs"] = to_numpy(nxt.get(OBS)[:, 0])
             info["_final_obs"] = done
-            info["episode"] = episode_stats(self.env, nxt)
-            info["_episode"] = done.copy()
+            info[STATS_KEY] = episode_stats(self.env, nxt)
+            info["_" + STATS_KEY] = done.copy()
         return (
             to_numpy(self._td.get(OBS)[:, 0]),
             to_numpy(nxt.get(REWARD)[:, 0, 0]).astype(np.float64),
@@ -111,49 +144,100 @@ class VolleyVectorEnv(VectorEnv):
             info,
         )
 
+    def _step_next(self, arr: np.ndarray):
+        """Gymnasium's next-step autoreset: the worlds whose episode ended last step are stepped with a
+        zero action (one batched step for all), then reset; their rows report the reset, reward 0."""
+        pending = self._pending.copy()
+        if pending.any():  # their actions are ignored, as Gymnasium's next-step mode says: nothing of them reaches the env
+            arr = arr.copy()
+            arr[pending] = 0
+        self._td.set(ACTION, action_tensor(self.env, arr, (self.num_envs, 1)))
+        nxt = self.env.step(self._td).get(NEXT)
+        obs = to_numpy(nxt.get(OBS)[:, 0])
+        reward = to_numpy(nxt.get(REWARD)[:, 0, 0]).astype(np.float64)
+        term, trunc = to_numpy(nxt.get(TERMINATED).reshape(-1)), to_numpy(nxt.get(TRUNCATED).reshape(-1))
+        if pending.any():
+            mask = torch.as_tensor(pending, device=self.env.device).unsqueeze(-1)
+            fresh = self.env.reset(TensorDict({"_reset": mask}, batch_size=[self.num_envs], device=self.env.device))
+            obs[pending] = to_numpy(fresh.get(OBS)[:, 0])[pending]
+            reward[pending], term[pending], trunc[pending] = 0.0, False, False
+        self._td = nxt
+        done = term | trunc
+        info: dict[str, Any] = {}
+        if done.any():
+            info[STATS_KEY] = episode_stats(self.env, nxt)
+            info["_" + STATS_KEY] = done.copy()
+        self._pending = done
+        return obs, reward, term, trunc, info
+
     def close_extras(self, **kwargs):
+        self._closed = True
         self.env.close(raise_if_closed=False)
 
 
-class VolleyGymEnv(gym.Env):
+class VolleyGymEnv(_Closable, gym.Env):
     """One world of a single-drone task as a ``gymnasium.Env`` (the batched env with ``num_envs=1``).
 
-    Arguments as for ``VolleyVectorEnv`` (without ``num_envs``). The episode's statistics come in
-    ``info["episode"]`` on its last step; step again only after ``reset()``.
+    Arguments as for ``VolleyVectorEnv`` (without ``num_envs`` and ``autoreset_mode``);
+    ``render_mode="rgb_array"`` makes ``render()`` return the replay's still picture of the episode so
+    far ([H, W, 3] uint8). The episode's statistics come in ``info["final_stats"]`` on its last step;
+    ``step`` is refused after that until ``reset()``.
     """
 
-    metadata: ClassVar[dict] = {"render_modes": []}
+    metadata: ClassVar[dict] = {"render_modes": list(RENDER_MODES), "render_fps": 50}  # 50 control steps per second
 
     def __init__(self, task: str = "solo_bump", action_space: str = "prt", physics: str = "torch", device="cpu",
                  seed: int = 0, render_mode: str | None = None, **task_overrides):
-        # a render_mode is accepted and ignored (tools such as SB3's make_vec_env pass one): nothing
-        # renders here; a replay of the task comes from `volleybots replay`
-        self.render_mode = None
+        self.render_mode = check_render_mode(render_mode)
         self.env = _make(task, 1, action_space=action_space, physics=physics, device=device, seed=seed, **task_overrides)
         self.task = task
         self.observation_space = sp.observation_space(self.env)
         self.action_space = sp.action_space(self.env)
+        self._shape = sp.action_shape(self.env)
         self._td: TensorDict | None = None
+        self._ended = False
+        self._trail = Trail(self.env) if self.render_mode else None
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """Start an episode; ``seed`` reseeds the env's generator first."""
+        self._check_open()
+        seed = check_seed(seed)
         super().reset(seed=seed)
         if seed is not None:
-            self.env.set_seed(int(seed))
+            self.env.set_seed(seed)
         self._td = self.env.reset()
+        self._ended = False
+        if self._trail is not None:
+            self._trail.clear()
+            self._trail.record(after_step=False)
         return to_numpy(self._td.get(OBS)[0, 0]), {}
 
     def step(self, action):
+        self._check_open()
         if self._td is None:
             raise RuntimeError("call reset() before step()")
-        self._td.set(ACTION, action_tensor(self.env, action, (1, 1)))
+        if self._ended:
+            raise RuntimeError("the episode has ended (terminated or truncated): call reset() before step()")
+        arr = action_array(self.env, action, self._shape)
+        self._td.set(ACTION, action_tensor(self.env, arr, (1, 1)))
         nxt = self.env.step(self._td).get(NEXT)
         self._td = nxt
         terminated, truncated = bool(nxt.get(TERMINATED)), bool(nxt.get(TRUNCATED))
-        info = {"episode": episode_stats(self.env, nxt, 0)} if terminated or truncated else {}
+        self._ended = terminated or truncated
+        if self._trail is not None:
+            self._trail.record(after_step=True)
+        info = {STATS_KEY: episode_stats(self.env, nxt, 0)} if self._ended else {}
         return to_numpy(nxt.get(OBS)[0, 0]), float(nxt.get(REWARD)), terminated, truncated, info
 
+    def render(self):
+        """The still picture of the episode so far ([H, W, 3] uint8), or None without a render mode."""
+        self._check_open()
+        if self._trail is None:
+            return None
+        return self._trail.frame(title=self.task)
+
     def close(self):
+        self._closed = True
         self.env.close(raise_if_closed=False)
 
 

@@ -1,16 +1,20 @@
 """A PettingZoo ``ParallelEnv`` over one world of any task (the multi-drone ones above all).
 
-Agents. A match names its drones per team, ``team0_drone0 ... team1_drone2`` (team 0 plays on +x, 1
-on -x; each team's agents in the env's agent order), and ``groups`` maps ``team0`` and ``team1`` to
-them: the group map of TorchRL's and BenchMARL's multi-agent code, one policy per group. A
-cooperative task (and a single-drone one) has one team: ``drone_0, drone_1, ...`` in one group named
-``agents``, as TorchRL names the group of agents that share everything. The -x team's observations
-are mirrored by the task itself, so one policy can play either side.
+Agents. A match names its drones after their team's colour, ``blue_0 ... blue_2, red_0 ... red_2``
+(blue: team 0 on +x, red: team 1 on -x; each team's agents in the env's agent order), the
+``<type>_<n>`` form of SuperSuit's ``agent_indicator_v0(type_only=True)``, where the type is the team.
+``groups`` maps ``team0`` and ``team1`` to them: the group map of TorchRL's and BenchMARL's
+multi-agent code, one policy per group. A cooperative task (and a single-drone one) has one team:
+``drone_0, drone_1, ...`` in one group named ``agents``, as TorchRL names the group of agents that
+share everything. ``legacy_names=True`` gives a match's earlier names (``team0_drone0`` ...).
+The -x team's observations are mirrored by the task itself, so one policy can play either side.
 
 All agents start and end together (the env's ``done`` is shared): a step that ends the episode gives
 every agent ``terminated`` or ``truncated``, the episode statistics in each agent's
-``info["episode"]``, and leaves ``agents`` empty until ``reset()``. ``reset(seed=s)`` reseeds the
-env's generator as ``make_env(task, seed=s)`` does.
+``info["final_stats"]``, and leaves ``agents`` empty until ``reset()``; a later ``step`` is refused.
+``reset(seed=s)`` reseeds the env's generator as ``make_env(task, seed=s)`` does (and refuses what
+the Gymnasium envs refuse). ``state()`` is the global state a centralised critic sees (MAPPO's:
+every agent's observation, in ``possible_agents`` order, concatenated), ``state_space`` its box.
 """
 
 from __future__ import annotations
@@ -24,20 +28,24 @@ try:
 except ImportError:  # the message names the extra: a bare "No module named pettingzoo" does not
     raise ImportError("volleybots.integrations.VolleyParallelEnv needs pettingzoo: pip install 'volleybots[pettingzoo]'") from None
 
-from volleybots.config import build_env
+from gymnasium import spaces
+
 from volleybots.integrations import spaces as sp
-from volleybots.integrations.spaces import action_tensor, episode_stats, to_numpy
+from volleybots.integrations.render import RENDER_MODES, Trail, check_render_mode
+from volleybots.integrations.spaces import STATS_KEY, action_array, action_tensor, check_seed, episode_stats, to_numpy
 from volleybots.keys import ACTION, AGENTS, NEXT, OBS, REWARD, TERMINATED, TRUNCATED
+from volleybots.replay.style import TEAM_NAMES
 
 
-def agent_names(teams: tuple[int, ...], competitive: bool) -> list[str]:
-    """One name per drone of a task whose drones play on ``teams`` (in agent order)."""
+def agent_names(teams: tuple[int, ...], competitive: bool, legacy: bool = False) -> list[str]:
+    """One name per drone of a task whose drones play on ``teams`` (in agent order): ``blue_0``,
+    ``red_0`` ... in a match (``team0_drone0`` ... with ``legacy``), ``drone_0`` ... otherwise."""
     if not competitive:
         return [f"drone_{i}" for i in range(len(teams))]
     rank = {0: 0, 1: 0}
     names = []
     for t in teams:
-        names.append(f"team{t}_drone{rank[t]}")
+        names.append(f"team{t}_drone{rank[t]}" if legacy else f"{TEAM_NAMES[t]}_{rank[t]}")
         rank[t] += 1
     return names
 
@@ -51,21 +59,23 @@ class VolleyParallelEnv(ParallelEnv):
         physics: ``torch`` or ``mujoco``.
         device: where the env's tensors live (arrays always come back on the CPU).
         seed: the generator's seed until ``reset(seed=...)`` gives another.
+        render_mode: None or ``rgb_array`` (``render()``: the replay's still picture of the episode so far).
+        legacy_names: a match's agents named ``team0_drone0`` ... as they were first.
         **task_overrides: as for ``volleybots.make_env`` (``episode_len``, ``serve``, ...).
     """
 
-    metadata: ClassVar[dict] = {"name": "volleybots_v0", "render_modes": [], "is_parallelizable": True}
+    metadata: ClassVar[dict] = {"name": "volleybots_v0", "render_modes": list(RENDER_MODES), "render_fps": 50, "is_parallelizable": True}
 
     def __init__(self, task: str = "3v3", action_space: str = "prt", physics: str = "torch", device="cpu", seed: int = 0,
-                 render_mode: str | None = None, **task_overrides):
-        # a render_mode is accepted and ignored (tools such as SB3's make_vec_env pass one): nothing
-        # renders here; a replay of the task comes from `volleybots replay`
-        self.render_mode = None
-        self.env = build_env(task, num_envs=1, action_space=action_space, physics=physics, device=device, seed=seed,
-                                       **task_overrides)
+                 render_mode: str | None = None, legacy_names: bool = False, **task_overrides):
+        if not isinstance(legacy_names, (bool, np.bool_)):
+            raise ValueError(f"legacy_names must be True or False, got {legacy_names!r}")
+        self.render_mode = check_render_mode(render_mode)
+        self.env = sp.build(task, 1, action_space=action_space, physics=physics, device=device, seed=seed, **task_overrides)
+        self._trail = Trail(self.env) if self.render_mode else None
         self.task = task
         teams = tuple(self.env.teams)
-        self.possible_agents = agent_names(teams, self.env.competitive)
+        self.possible_agents = agent_names(teams, self.env.competitive, bool(legacy_names))
         self.n_agents = len(self.possible_agents)
         self.team_of = dict(zip(self.possible_agents, teams))  # agent -> its team (0 or 1)
         if self.env.competitive:
@@ -76,8 +86,16 @@ class VolleyParallelEnv(ParallelEnv):
         # action space must not seed the others')
         self.observation_spaces = {a: sp.observation_space(self.env) for a in self.possible_agents}
         self.action_spaces = {a: sp.action_space(self.env) for a in self.possible_agents}
+        one = self.observation_spaces[self.possible_agents[0]]
+        self.state_space = spaces.Box(np.tile(one.low, self.n_agents), np.tile(one.high, self.n_agents), dtype=np.float32)
+        self._shape = sp.action_shape(self.env)
         self.agents: list[str] = []
         self._td = None
+        self._closed = False
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError("this VolleyParallelEnv is closed: make a new one")
 
     def observation_space(self, agent: str):
         return self.observation_spaces[agent]
@@ -91,27 +109,35 @@ class VolleyParallelEnv(ParallelEnv):
 
     def reset(self, seed: int | None = None, options: dict | None = None):
         """Start an episode with every agent; ``seed`` reseeds the env's generator first."""
+        self._check_open()
+        seed = check_seed(seed)
         if seed is not None:
-            self.env.set_seed(int(seed))
+            self.env.set_seed(seed)
         self._td = self.env.reset()
         self.agents = list(self.possible_agents)
+        if self._trail is not None:
+            self._trail.clear()
+            self._trail.record(after_step=False)
         return self._obs(self._td), {a: {} for a in self.agents}
 
     def step(self, actions: dict[str, Any]):
         """One step of every agent: ``actions`` holds one action per agent of ``agents``."""
+        self._check_open()
         if not self.agents:
             raise RuntimeError("the episode is over (or never began): call reset() first")
         if set(actions) != set(self.agents):
             missing, unknown = sorted(set(self.agents) - set(actions)), sorted(set(actions) - set(self.agents))
             raise ValueError(f"actions must name every agent once: missing {missing}, unknown {unknown}; agents: {self.agents}")
-        stacked = np.stack([np.asarray(actions[a]) for a in self.possible_agents])
+        stacked = np.stack([action_array(self.env, actions[a], self._shape) for a in self.possible_agents])
         self._td.set(ACTION, action_tensor(self.env, stacked, (1, self.n_agents)))
         nxt = self.env.step(self._td).get(NEXT)
         self._td = nxt
+        if self._trail is not None:
+            self._trail.record(after_step=True)
         reward = to_numpy(nxt.get(REWARD)[0, :, 0])
         terminated, truncated = bool(nxt.get(TERMINATED)), bool(nxt.get(TRUNCATED))
         agents = self.agents
-        info = {"episode": episode_stats(self.env, nxt, 0)} if terminated or truncated else {}
+        info = {STATS_KEY: episode_stats(self.env, nxt, 0)} if terminated or truncated else {}
         if terminated or truncated:
             self.agents = []
         return (
@@ -122,7 +148,21 @@ class VolleyParallelEnv(ParallelEnv):
             {a: dict(info) for a in agents},
         )
 
+    def render(self):
+        """The still picture of the episode so far ([H, W, 3] uint8), or None without a render mode."""
+        self._check_open()
+        return None if self._trail is None else self._trail.frame(title=self.task)
+
+    def state(self) -> np.ndarray:
+        """The global state [n_agents * obs]: every agent's current observation, in ``possible_agents``
+        order, concatenated (what MAPPO's centralised critic sees)."""
+        self._check_open()
+        if self._td is None:
+            raise RuntimeError("call reset() before state()")
+        return to_numpy(self._td.get(OBS)[0]).reshape(-1)
+
     def close(self):
+        self._closed = True
         self.env.close(raise_if_closed=False)
 
 

@@ -1,9 +1,18 @@
-"""What the Gymnasium and PettingZoo views share: the env's TorchRL specs as Gymnasium spaces, one
-agent's action as the tensor the env takes, and the episode statistics as plain numbers.
+"""What the Gymnasium, PettingZoo and Stable-Baselines3 views share: the env's TorchRL specs as
+Gymnasium spaces, one agent's action as the tensor the env takes (checked exactly), the checks of
+seeds and constructor keywords, and the episode statistics as plain numbers.
 
 The spaces are read from the env's own specs (one agent's slice of ``("agents", "observation")``
-and ``("agents", "action")``), never restated: a task that changes its observation or action
-changes its Gymnasium and PettingZoo spaces with it.
+and ``("agents", "action")``) and its named observation layout, never restated: a task that changes
+its observation or action changes its Gymnasium and PettingZoo spaces with it.
+
+Observation bounds. A part of the observation is bounded where its construction bounds it: the
+attitude quaternion (a unit quaternion), the heading and up axes (unit vectors) and the rotor
+throttles (mapped to [-1, 1]) lie in [-1, 1], up to float32 rounding (a unit vector's component
+computed from a renormalised quaternion comes out as 1.0000002): their boxes allow ``UNIT_SLACK``
+more. The turn, id, may-hit and side parts are one-hots or
+flags in [0, 1]. Positions, velocities and angular velocities have no hard limit in the physics (a
+drone may leave the court, and nothing clamps its speed), so they stay unbounded.
 """
 
 from __future__ import annotations
@@ -13,10 +22,40 @@ import torch
 from gymnasium import spaces
 from torchrl.data import Bounded, Categorical, Unbounded
 
+from volleybots.config import build_env
 from volleybots.keys import ACTION, OBS, STATS, stat
 from volleybots.tasks import TASKS, VolleyEnv
+from volleybots.tasks.layout import ROOT, root_layout
 
 SINGLE_TASKS = tuple(name for name, cls in TASKS.items() if cls.n_drones == 1)  # what the Gymnasium env accepts
+STATS_KEY = "final_stats"  # the info key of the episode statistics: "episode" belongs to RecordEpisodeStatistics and Monitor
+SEED_MAX = 2**63 - 1  # torch.Generator.manual_seed takes a signed 64-bit integer
+BOOL_KEYS = ("reward_shaping", "downwash", "compile", "compile_physics")  # task keywords that are switches
+UNIT_PARTS = ("quat", "heading", "up", "throttle")  # root parts in [-1, 1] by construction
+FLAG_PARTS = ("turn", "id", "may_hit", "side")  # one-hots and flag pairs, in [0, 1] exactly
+UNIT_SLACK = 1e-4  # float32 rounding of the unit parts: hundreds of ulps at 1.0, far below any physical change
+
+
+def check_seed(seed) -> int | None:
+    """``seed`` as an int, or a ``ValueError`` naming it: None, or an integer in [0, 2**63 - 1]."""
+    if seed is None:
+        return None
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)):
+        raise ValueError(f"seed must be None or an integer in [0, {SEED_MAX}], got {seed!r} ({type(seed).__name__})")
+    if not 0 <= int(seed) <= SEED_MAX:
+        raise ValueError(f"seed must be None or an integer in [0, {SEED_MAX}], got {seed!r}")
+    return int(seed)
+
+
+def build(task: str, num_envs: int, seed=0, **kw) -> VolleyEnv:
+    """``build_env`` after the checks the adapters' users need on top of it: the switches are bools
+    (``reward_shaping="no"`` is not read as true), ``num_envs`` an int >= 1 and ``seed`` as for ``reset``."""
+    for key in BOOL_KEYS:
+        if key in kw and not isinstance(kw[key], (bool, np.bool_)):
+            raise ValueError(f"{key} must be True or False, got {kw[key]!r} ({type(kw[key]).__name__})")
+    if isinstance(num_envs, (bool, np.bool_)) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+        raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+    return build_env(task, num_envs=int(num_envs), seed=check_seed(seed), **kw)
 
 
 def agent_space(spec) -> spaces.Space:
@@ -32,23 +71,58 @@ def agent_space(spec) -> spaces.Space:
     raise TypeError(f"no Gymnasium space for a {type(one).__name__} spec")
 
 
-def observation_space(env: VolleyEnv) -> spaces.Space:
-    return agent_space(env.observation_spec[OBS])
+def observation_bounds(env: VolleyEnv) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) [obs_dim] of one agent's observation: finite where the construction bounds a part
+    (module docstring), infinite elsewhere."""
+    low, high = [], []
+    for name, size in env.layout.parts:
+        parts = root_layout(env.with_throttle).parts if name == ROOT else ((name, size),)
+        for sub, k in parts:
+            unit = 1.0 + UNIT_SLACK
+            bound = (-unit, unit) if name == ROOT and sub in UNIT_PARTS else (0.0, 1.0) if sub in FLAG_PARTS else (-np.inf, np.inf)
+            low += [bound[0]] * k
+            high += [bound[1]] * k
+    return np.array(low, np.float32), np.array(high, np.float32)
+
+
+def observation_space(env: VolleyEnv) -> spaces.Box:
+    one = env.observation_spec[OBS][0, 0]
+    low, high = observation_bounds(env)
+    if low.shape != tuple(one.shape):  # the layout and the spec are one declaration: they cannot disagree
+        raise AssertionError(f"{env.name}: observation layout of size {low.shape} against a spec of shape {tuple(one.shape)}")
+    return spaces.Box(low, high, tuple(one.shape), np.float32)
 
 
 def action_space(env: VolleyEnv) -> spaces.Space:
     return agent_space(env.action_spec[ACTION])
 
 
-def action_tensor(env: VolleyEnv, action, shape: tuple[int, ...]) -> torch.Tensor:
-    """``action`` (numpy or a sequence) as the env's ``("agents", "action")`` of batch ``shape``
-    ([N, A]); a wrong size raises a ``ValueError`` naming the sizes."""
+def action_array(env: VolleyEnv, action, shape: tuple[int, ...]) -> np.ndarray:
+    """``action`` (numpy, a number or a sequence) checked against what the caller's API promises:
+    exactly ``shape`` (``(4,)`` for one continuous agent, ``()`` for one discrete one, ``(N, 4)`` or
+    ``(N,)`` for a batch), real numbers for a ``Box``, integers for a ``Discrete``. A ``ValueError``
+    names the bad shape or type and what is allowed; nothing is reshaped, rounded or cast silently."""
+    discrete = isinstance(env.action_spec[ACTION], Categorical)
+    arr = np.asarray(action.detach().cpu() if isinstance(action, torch.Tensor) else action)
+    kind = "integers (a Discrete action)" if discrete else "real numbers (a Box action)"
+    if tuple(arr.shape) != tuple(shape):
+        raise ValueError(f"{env.name}: got an action of shape {arr.shape}; expected shape {tuple(shape)} of {kind}")
+    allowed = "iu" if discrete else "iuf"
+    if arr.dtype.kind not in allowed:
+        shown = np.array2string(arr.ravel()[:6], separator=", ") + (" ..." if arr.size > 6 else "")
+        raise ValueError(f"{env.name}: got an action of dtype {arr.dtype} ({shown}); expected {kind}")
+    return arr
+
+
+def action_tensor(env: VolleyEnv, arr: np.ndarray, batch: tuple[int, ...]) -> torch.Tensor:
+    """A checked action (``action_array``) as the env's ``("agents", "action")`` of batch ``batch`` ([N, A])."""
     spec = env.action_spec[ACTION]
-    arr = np.asarray(action)
-    want = (*shape, *spec.shape[2:])
-    if arr.size != int(np.prod(want)):
-        raise ValueError(f"{env.name}: got an action of shape {arr.shape}; expected shape {want}")
-    return torch.as_tensor(arr.reshape(want), dtype=spec.dtype, device=env.device)
+    return torch.as_tensor(arr.reshape(*batch, *spec.shape[2:]), dtype=spec.dtype, device=env.device)
+
+
+def action_shape(env: VolleyEnv, batch: tuple[int, ...] = ()) -> tuple[int, ...]:
+    """The shape an API's action has: ``batch`` followed by one agent's (``(4,)`` or ``()``)."""
+    return (*batch, *env.action_spec[ACTION].shape[2:])
 
 
 def to_numpy(x: torch.Tensor) -> np.ndarray:

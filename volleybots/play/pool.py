@@ -45,6 +45,35 @@ def payoff_row(cfg, a, opponents: list, games: int, seed: int, pool: str = "seri
     return [w for part in ray.get([task.remote(data, *c) for c in chunks]) for w in part]
 
 
+def pool_map(fn, cfg, calls: list[tuple], pool: str = "serial", key: str = "pool"):
+    """``fn(cfg, *call)`` for each of ``calls``, yielded in the calls' order: here one after another, or
+    as Ray tasks running together (each in its own worker, one torch thread). ``fn`` must draw its
+    random numbers from its arguments alone, so that where it runs changes the wall time, never the
+    results (cross-play pairs: each plays on the table's seed)."""
+    if pool == "serial":
+        for call in calls:
+            yield fn(cfg, *call)
+        return
+    check_pool(pool, key)
+    import ray
+
+    if not ray.is_initialized():
+        ray.init(address=os.environ.get("RAY_ADDRESS"), include_dashboard=False, log_to_driver=False)
+    task = ray.remote(num_cpus=1)(_call)
+    data = ray.put(to_dict(cfg))
+    refs = [task.remote(fn, data, *call) for call in calls]
+    for ref in refs:
+        yield ray.get(ref)
+
+
+def _call(fn, cfg: dict, *args):
+    """One call of ``pool_map`` in a Ray worker."""
+    import torch
+
+    torch.set_num_threads(1)
+    return fn(validate(cfg), *args)
+
+
 def _chunk(cfg: dict, a, opponents: list, games: int, seed: int):
     """One chunk in a Ray worker (one torch thread, as Ray's workers run with OMP_NUM_THREADS=1)."""
     import torch

@@ -110,7 +110,7 @@ class PopulationLoop:
             k = len(seeds) + i - 1
             # the new member's payoff games must end by the time limit too, so its oracle stops that much earlier
             out_of_time = self.cfg.time_limit and wall() + self._reserve(k) >= self.cfg.time_limit
-            if i > self.m.iterations or frames >= self.cfg.total_frames or out_of_time:
+            if i > self.m.iterations or frames >= self.cfg.total_frames or out_of_time or self._planned(i, frames) < i:
                 break
             if not member_path(self.run.path, k).is_file():
                 with self._timed("oracle_training"):
@@ -200,6 +200,17 @@ class PopulationLoop:
             data["total_frames"] = min(self.cfg.total_frames, frames + self.m.max_updates * per_batch)
         return validate(data)
 
+    def _planned(self, i: int, frames: int) -> int:
+        """The iterations the run will have trained once the frames left are spent, counting from
+        iteration ``i`` about to start with ``frames`` spent: every oracle may take ``max_updates``
+        batches, and one that the frames left cannot give ``min_updates`` is not started (the
+        criterion could not judge it, so it would not join). Self-play: its one iteration."""
+        if self.m.self_play:
+            return self.m.iterations
+        per_batch = self.cfg.env.num_envs * self.m.steps_per_batch
+        full, rest = divmod(max(self.cfg.total_frames - frames, 0), self.m.max_updates * per_batch)
+        return min(self.m.iterations, i - 1 + full + (rest >= self.m.min_updates * per_batch))
+
     def _reserve(self, k: int) -> float:
         """Seconds member ``k``'s payoff games will take (0 without a time limit to keep)."""
         return payoff_reserve(self.split["payoff_games"], k) if self.cfg.time_limit else 0.0
@@ -243,13 +254,14 @@ class PopulationLoop:
         """The progress line's note: the iteration, the oracle's updates and the whole run's ETA (the
         frames left at the oracle's rate; payoff games and evaluations come on top)."""
         cfg = self.cfg
+        planned = self._planned(i, self.metas()[-1]["frames"] if self.metas() else 0)
 
         def note(frames: int, fps: float) -> str:
             upd = f", oracle update {stop.updates}/{self.m.max_updates}" if stop is not None else ""
             left = (cfg.total_frames - frames) / max(fps, 1e-9)
             if cfg.time_limit:
                 left = min(left, cfg.time_limit - self._wall())
-            return f"iteration {i}/{self.m.iterations}{upd}, run ETA {hms(left)}"
+            return f"iteration {i}/{planned}{upd}, run ETA {hms(left)}"
 
         return note
 

@@ -2,8 +2,12 @@
 maximum likelihood (scipy's BFGS on the exact gradient), with penalised profile-likelihood
 intervals.
 
-Choices (docs/evaluation.md): a draw counts as half a win for each side; strengths are reported on
-the Elo scale (1000 + 400 / ln 10 x s, mean 1000), so a BT gap reads like an Elo gap.
+Choices (docs/evaluation.md): draws are left out, the fit uses decisive games only (``draws="decisive"``,
+the default), and callers report each competitor's draw rate beside. Counting a draw as half a win
+(``draws="half"``) rated a player that draws most games and never wins above players that beat it in
+every decisive game (3v3: ``random``, 70-80 % draws, above two learned teams): with decisive games a
+player without a win has no evidence of strength against anyone. Strengths are reported on the Elo
+scale (1000 + 400 / ln 10 x s, mean 1000), so a BT gap reads like an Elo gap.
 
 Why Firth and a profile: cross-play is often *separable*: scripted wins every decisive game against
 random, and a short cross-play leaves some pair 10-0. The plain likelihood then has no maximum, and a
@@ -37,9 +41,19 @@ PRIOR_SD = 10.0
 _MAX_LOGITS = 200.0  # an interval end beyond this (35,000 Elo points) is reported as that: only the prior bounds it
 
 
+DRAWS = ("decisive", "half")  # draws left out (the default), or half a win for each side
+
+
 def half_win_matrix(wdl) -> np.ndarray:
     """[n, n] wins of the row over the column, a draw counting half."""
     return points(wdl)
+
+
+def win_matrix(wdl, draws: str = "decisive") -> np.ndarray:
+    """[n, n] wins of the row over the column: decisive games only, or a draw counting half."""
+    if draws not in DRAWS:
+        raise ValueError(f"draws={draws!r}; allowed: {', '.join(DRAWS)}")
+    return half_win_matrix(wdl) if draws == "half" else np.asarray(wdl, float)[..., 0]
 
 
 class _Objective:
@@ -79,21 +93,22 @@ def _minimise(f, x0: np.ndarray) -> tuple[np.ndarray, float]:
     return res.x, float(res.fun)
 
 
-def _check(wdl) -> np.ndarray:
+def _check(wdl, draws: str = "decisive") -> np.ndarray:
     wdl = np.asarray(wdl, float)
     if wdl.ndim != 3 or wdl.shape[0] != wdl.shape[1] or wdl.shape[2] != 3:
         raise ValueError(f"game counts must be [n, n, 3] (wins, draws, losses of the row), got shape {wdl.shape}")
     if not np.isfinite(wdl).all() or (wdl < 0).any():
         raise ValueError("game counts must be finite and >= 0")
-    return half_win_matrix(wdl)
+    return win_matrix(wdl, draws)
 
 
-def bradley_terry(wdl, prior_sd: float = PRIOR_SD, firth: bool = True) -> np.ndarray:
-    """Ratings [n] on the Elo scale (mean 1000) from the game counts ``wdl`` [n, n, 3].
+def bradley_terry(wdl, prior_sd: float = PRIOR_SD, firth: bool = True, draws: str = "decisive") -> np.ndarray:
+    """Ratings [n] on the Elo scale (mean 1000) from the game counts ``wdl`` [n, n, 3] (``draws``: left
+    out, or half a win each).
 
     ``firth=False`` gives the plain maximum-a-posteriori fit under the weak prior alone (the fit
     choix's ``opt_pairwise`` computes with ``alpha = 1 / (2 prior_sd^2)``)."""
-    wins = _check(wdl)
+    wins = _check(wdl, draws)
     s, _ = _minimise(_Objective(wins, prior_sd, firth), np.zeros(wins.shape[0]))
     return 1000.0 + ELO_SCALE * (s - s.mean())
 
@@ -117,21 +132,22 @@ def draw_dispersion(wdl, s) -> float:
     return float(np.clip(1.0 - draws / 4.0 / binomial, 0.1, 1.0))
 
 
-def bradley_terry_intervals(wdl, confidence: float = 0.95, prior_sd: float = PRIOR_SD):
+def bradley_terry_intervals(wdl, confidence: float = 0.95, prior_sd: float = PRIOR_SD, draws: str = "decisive"):
     """(ratings [n], low [n], high [n]) on the Elo scale: the Firth-penalised fit and, for every
     competitor, the penalised profile-likelihood interval of its rating (its strength minus the
     mean strength), at ``confidence``. With draws the allowed drop of the log-likelihood is scaled by
-    ``draw_dispersion`` (draws make a game's score less variable than a win or a loss)."""
+    ``draw_dispersion`` (draws make a game's score less variable than a win or a loss) when they count
+    half; left out, they change nothing."""
     if not 0.0 < confidence < 1.0:
         raise ValueError(f"confidence={confidence} must be in (0, 1)")
-    wins = _check(wdl)
+    wins = _check(wdl, draws)
     n = wins.shape[0]
     f = _Objective(wins, prior_sd, firth=True)
     s_hat, f_hat = _minimise(f, np.zeros(n))
     theta = s_hat - s_hat.mean()
     lo, hi = theta.copy(), theta.copy()
     if n > 1:
-        limit = scipy.stats.chi2.ppf(confidence, 1) / 2.0 * draw_dispersion(wdl, s_hat)
+        limit = scipy.stats.chi2.ppf(confidence, 1) / 2.0 * (draw_dispersion(wdl, s_hat) if draws == "half" else 1.0)
         for i in range(n):
             rest = np.arange(n) != i
             warm = [s_hat[rest]]

@@ -120,3 +120,52 @@ def sample_round_robin(wdl, rounds: int, rng: np.random.Generator) -> np.ndarray
         return scores[rng.choice(3, p=p)]
 
     return round_robin(n, rounds, play, rng)
+
+
+def elo_orders(wdl, rounds: int, orders: int, seed: int, k: float = ELO_K, start: float = ELO_START, outcomes=None) -> np.ndarray:
+    """Final Elo ratings [orders, n] over ``orders`` seeded game orders: the order dependence of the
+    paper's sequential Elo made visible (its mean and spread are what a reader can compare).
+
+    Each order is a round-robin schedule of ``rounds`` rounds with the pairs of a round in a random
+    order; a pair's results in it are its played games in a random order (``outcomes``: "a,b" -> a
+    string of W/D/L letters from a's side, when every pair played at least ``rounds`` games) or drawn
+    from its W/D/L frequencies. All orders are updated together, one game at a time.
+    """
+    if not (math.isfinite(k) and k > 0):
+        raise ValueError(f"k={k} must be a finite number > 0 (Elo's step)")
+    wdl = np.asarray(wdl, float)
+    n = wdl.shape[0]
+    pairs = list(combinations(range(n), 2))
+    if not pairs or orders < 1 or rounds < 1:
+        return np.full((max(orders, 1), n), float(start))
+    letters = {"W": 1.0, "D": 0.5, "L": 0.0}
+    played = outcomes is not None and all(len(outcomes.get(f"{a},{b}", "")) >= rounds for a, b in pairs)
+    scores = np.array(SCORES)
+    a_idx = np.array([p[0] for p in pairs])
+    b_idx = np.array([p[1] for p in pairs])
+    A, B, S = (np.empty((orders, rounds * len(pairs))) for _ in range(3))
+    for o in range(orders):
+        rng = np.random.default_rng([seed, o])
+        cols = []
+        for a, b in pairs:
+            if played:
+                seq = np.array([letters[c] for c in sorted(outcomes[f"{a},{b}"])])
+                cols.append(rng.permutation(seq)[:rounds])
+            else:
+                if wdl[a, b].sum() <= 0:
+                    raise ValueError(f"competitors {a} and {b} have played no games; cannot sample their results")
+                cols.append(scores[rng.choice(3, size=rounds, p=wdl[a, b] / wdl[a, b].sum())])
+        score = np.stack(cols, 1)  # [rounds, pairs]
+        perm = np.argsort(rng.random((rounds, len(pairs))), axis=1)
+        A[o] = a_idx[perm].ravel()
+        B[o] = b_idx[perm].ravel()
+        S[o] = np.take_along_axis(score, perm, 1).ravel()
+    A, B = A.astype(int), B.astype(int)
+    r = np.full((orders, n), float(start))
+    rows = np.arange(orders)
+    for g in range(A.shape[1]):
+        a, b = A[:, g], B[:, g]
+        delta = k * (S[:, g] - expected_score(r[rows, a], r[rows, b]))
+        r[rows, a] += delta
+        r[rows, b] -= delta
+    return r

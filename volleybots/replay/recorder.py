@@ -27,6 +27,23 @@ SKIP_EVENTS = ("hit", "landed_side", "last_hitter")
 TRAIL = 60  # ball trail length in control steps
 
 
+def step_events(ev, i: int) -> tuple[list[str], list[str], list[str]]:
+    """The referee's events ``ev`` of one step in env ``i`` as (touches, other notes, faults), each a
+    list of ``"<who> <event>"`` (who: ``drone k`` or ``ball``); empty lists without events."""
+    hits, infos, faults = [], [], []
+    if ev is None:
+        return hits, infos, faults
+    for f in dataclasses.fields(ev):
+        val = getattr(ev, f.name)
+        if f.name in SKIP_EVENTS or not isinstance(val, torch.Tensor) or val.dtype != torch.bool:
+            continue
+        row = val[i]
+        who = [f"drone {k}" for k in torch.nonzero(row).flatten().tolist()] if row.dim() else (["ball"] if bool(row) else [])
+        kept = hits if f.name in HIT_EVENTS else infos if f.name in INFO_EVENTS else faults
+        kept += [f"{w} {f.name}" for w in who]
+    return hits, infos, faults
+
+
 @dataclasses.dataclass
 class Episode:
     """One recorded episode as arrays over its control steps: what the rrd holds and the still draws."""
@@ -138,25 +155,10 @@ class EpisodeRecorder:
         self._last_drills = codes
 
     def _events(self, env, ball) -> None:
-        ev = getattr(env, "last_events", None)
-        if ev is None:
-            return
-        hits, faults = [], []
-        for f in dataclasses.fields(ev):
-            val = getattr(ev, f.name)
-            if f.name in SKIP_EVENTS or not isinstance(val, torch.Tensor) or val.dtype != torch.bool:
-                continue
-            row = val[self.i]
-            who = [f"drone {k}" for k in torch.nonzero(row).flatten().tolist()] if row.dim() else (["ball"] if bool(row) else [])
-            for w in who:
-                msg = f"step {self.step}: {w} {f.name}"
-                if f.name in HIT_EVENTS:
-                    hits.append(msg)
-                elif f.name in INFO_EVENTS:
-                    self.texts["events"].append((self.step, msg, "INFO"))
-                else:
-                    faults.append(msg)
-        self.texts["events"] += [(self.step, m, "INFO") for m in hits] + [(self.step, m, "WARN") for m in faults]
+        hits, infos, faults = step_events(getattr(env, "last_events", None), self.i)
+        self.texts["events"] += [(self.step, f"step {self.step}: {m}", "INFO") for m in infos]
+        self.texts["events"] += [(self.step, f"step {self.step}: {m}", "INFO") for m in hits]
+        self.texts["events"] += [(self.step, f"step {self.step}: {m}", "WARN") for m in faults]
         if hits:
             self.marks["world/hits"].append((self.step, ball))
         if faults:

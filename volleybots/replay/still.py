@@ -31,8 +31,8 @@ def check_plotting() -> None:
         raise ConfigError("--still needs matplotlib: pip install 'volleybots[plot]'") from None
 
 
-def draw_still(ep: Episode, out: Path, title: str = "") -> Path:
-    """Write the picture of ``ep`` to the PNG ``out`` (written whole: a ``.part`` file moved into place)."""
+def _figure(ep: Episode, title: str, k: int, dpi: int):
+    """The matplotlib figure of ``ep`` with the drones drawn at step ``k``."""
     check_plotting()
     import matplotlib
 
@@ -41,7 +41,7 @@ def draw_still(ep: Episode, out: Path, title: str = "") -> Path:
 
     length, width, net = ep.court
     lx, ly = length / 2, width / 2
-    fig = plt.figure(figsize=(8, 4.6), dpi=100)
+    fig = plt.figure(figsize=(8, 4.6), dpi=dpi)
     ax = fig.add_subplot(projection="3d", computed_zorder=False)
     for team, sign in ((0, 1.0), (1, -1.0)):  # each half tinted in the colour of the team that defends it
         xs = np.array([[0.0, sign * lx], [0.0, sign * lx]])
@@ -52,7 +52,6 @@ def draw_still(ep: Episode, out: Path, title: str = "") -> Path:
         np.zeros((2, 2)), np.array([[-ly, ly], [-ly, ly]]), np.array([[0, 0], [net, net]]), color="0.6", alpha=0.35, shade=False
     )
     ax.plot([0, 0], [-ly, ly], [net, net], color="0.3", lw=1.5)
-    k = key_step(ep)
     for d, team in enumerate(ep.teams):
         colour = _rgb(TEAM_COLOURS[team % len(TEAM_COLOURS)])
         path = ep.pos[: k + 1, d]
@@ -70,7 +69,8 @@ def draw_still(ep: Episode, out: Path, title: str = "") -> Path:
     for t in sorted(set(ep.teams)):
         ax.scatter([], [], [], color=_rgb(TEAM_COLOURS[t]), marker="s", label=f"team {t} ({TEAM_NAMES[t]})")
     ax.plot([], [], color=_rgb(BALL_COLOUR), lw=2.0, label="ball")
-    top = max(float(ball[:, 2].max()), float(ep.pos[..., 2].max()), net) * 1.05
+    # a frame of a task without a ball has NaN for it (volleybots.integrations.render): nothing drawn, no height
+    top = max(float(np.max(ball[:, 2], initial=0.0, where=np.isfinite(ball[:, 2]))), float(ep.pos[..., 2].max()), net) * 1.05
     pad = 0.5  # so the court's lines stand clear of the axes' edges
     ax.set(xlim=(-lx - pad, lx + pad), ylim=(-ly - pad, ly + pad), zlim=(0, top), xlabel="x (m)", ylabel="y (m)", zlabel="z (m)")
     ax.set_box_aspect((length + 2 * pad, width + 2 * pad, top))
@@ -80,6 +80,14 @@ def draw_still(ep: Episode, out: Path, title: str = "") -> Path:
     if title:
         ax.set_title(title, fontsize=10)
     fig.subplots_adjust(left=0, right=1, bottom=0, top=0.94)
+    return fig
+
+
+def draw_still(ep: Episode, out: Path, title: str = "") -> Path:
+    """Write the picture of ``ep`` to the PNG ``out`` (written whole: a ``.part`` file moved into place)."""
+    fig = _figure(ep, title, key_step(ep), dpi=100)
+    import matplotlib.pyplot as plt
+
     out = Path(out)
     tmp = out.with_name(out.name + ".part")
     try:
@@ -88,3 +96,16 @@ def draw_still(ep: Episode, out: Path, title: str = "") -> Path:
         plt.close(fig)
     tmp.replace(out)
     return out
+
+
+def still_frame(ep: Episode, title: str = "", dpi: int = 80) -> np.ndarray:
+    """The picture of ``ep`` with the drones at its last step, as an RGB array [H, W, 3] uint8 (a
+    video frame: 640 x 368 at the default ``dpi``, even sides as video encoders want)."""
+    fig = _figure(ep, title, len(ep.ball) - 1, dpi=dpi)
+    import matplotlib.pyplot as plt
+
+    try:
+        fig.canvas.draw()
+        return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    finally:
+        plt.close(fig)

@@ -67,7 +67,7 @@ class _Match(MultiDroneTask):
     def __init__(self, *args, serve: int | None = None, hit_reward: float | None = None, **kw):
         """``hit_reward``: the shaping reward of a legal touch (None: the paper's, ``default_hit_reward``).
         A win is worth 100, so at the paper's 5 a 1 vs 1 self-play learner is paid for a serve that ends
-        the point, not for keeping a rally going (docs/evaluation.md); a larger value pays returns."""
+        the point, not for keeping a rally going (docs/results/table3-1v1.md); a larger value pays returns."""
         if serve not in (None, 0, 1):
             raise ValueError(f"serve must be None (random), 0 or 1; got {serve!r}")
         self.fixed_serve = serve

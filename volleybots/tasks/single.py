@@ -83,7 +83,7 @@ class BackAndForth(VolleyEnv):
 
     def __init__(self, *args, stay_reward: float = 2.5, target_reward: float = 0.0, **kw):
         """``stay_reward`` per step inside the sphere is the reference's; it pays a drone that dithers at a
-        target's edge more than one that completes stays and flies on (docs/imitation.md), so
+        target's edge more than one that completes stays and flies on (docs/results/imitation.md), so
         ``target_reward``, paid per target reached (0 in the reference), can align the return with the metric."""
         self.stay_reward, self.target_reward = stay_reward, target_reward
         super().__init__(*args, **kw)
@@ -218,7 +218,7 @@ class SoloBump(_BallDrill):
     metric = "bumps"  # longest streak of bumps with apex in [3.5, 4.5] m, hit within 1 m of the anchor
     extra_stats = ("hits",)
 
-    far_start = 0.5  # m from the ball's column: the scripted player misses first balls from starts this far (docs/imitation.md)
+    far_start = 0.5  # m from the ball's column: the scripted player misses first balls from starts this far (docs/results/imitation.md)
 
     def __init__(
         self, *args, hit_reward: float = 2.0, height_reward: float = 8.0, strict_bumps: bool = False, far_starts: float = 0.0, **kw
