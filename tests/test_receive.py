@@ -130,3 +130,19 @@ def test_a_drill_policy_plays_its_match_and_no_other():
         drill.check_fits("3v3", "prt", 57)
     match = Competitor("m", [Member("m", lambda env, deterministic=False: None, {"kind": "checkpoint"}, "1v1", "prt", 39)])
     match.check_fits("receive", "prt", 39)
+
+
+def test_the_opening_starts_as_the_match_does_then_serves():
+    """``opening``: the ball at rest above the server and the turn flag off, as the match's receiver
+    sees it before the serve; then the virtual server serves and the flag comes on."""
+    torch.set_num_threads(1)
+    env = volleybots.make_env("receive", num_envs=8, seed=3, opening=True)
+    td = env.reset()
+    s = env.physics.state
+    assert torch.equal(s.ball_vel, torch.zeros_like(s.ball_vel)) and (s.ball_pos[:, 0] < -1.3).all()
+    assert (env.layout.split(td["agents", "observation"])["turn"][..., 0] == 0).all()  # "I may hit": not yet
+    action = torch.zeros(8, 1, 4)
+    for _ in range(30):  # a 1 m drop takes 0.45 s (23 steps)
+        td = env.step(td.set(("agents", "action"), action))["next"]
+    assert bool(env.served.all()) and (env.layout.split(td["agents", "observation"])["turn"][..., 0] == 1).all()
+    assert (env.physics.state.ball_vel[:, 0] > 1.0).all()  # on its way over the net to the drone

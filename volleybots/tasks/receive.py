@@ -8,6 +8,11 @@ serves are deep and flat (apex 2.7-3.1 m, landing beyond x = 1.9: the kind of se
 policy has returned, docs/evaluation.md), the rest lobs (apex 3.1-3.9 m). Serves that would not
 clear the net by 0.15 m are drawn again (up to 4 candidates, then a lob to the middle of the half).
 
+With ``opening`` the episode starts as the match's does for the receiver: the ball at rest 1 m above
+the serve's start and the drone's turn flag off; where the ball has fallen to that start, a virtual
+server serves it (its velocity set to the serve's) and the turn flag comes on. A policy trained
+without it never sees the wait before the serve, and in the match it falls out of the sky there.
+
 Done when: the drone's touch sends the ball back over the net (success, the metric "serve
 returned"), or on a misbehaviour (-10, ends the episode): the ball lands or leaves the court, a body
 hit or a second touch, the ball into the net, the drone below 0.3 m, at or across the net.
@@ -48,6 +53,7 @@ HEIGHT_SCALE = 0.3  # m: the height term's fall-off outside [LOW_Z, HIGH_Z]
 NET_CLEAR = 0.15  # m: a serve's ball centre passes the net this much above its top at least
 DRAWS = 4  # candidate serves drawn per reset
 FALLBACK = (1.75, 0.0, 3.9)  # a lob landing here over this apex, where no candidate clears the net
+OPENING_DROP = 1.0  # m: with ``opening`` the ball starts at rest this far above the serve's start
 MISBEHAVE = -10.0
 HIT_REWARD = 5.0
 SUCCESS_REWARD = 10.0
@@ -95,12 +101,13 @@ class Receive(VolleyEnv):
     init_noise = 0.1
     policy_task = OneVsOne.name  # its policies are 1 vs 1 players, and 1 vs 1 players play it (tasks.plays_as)
 
-    def __init__(self, *args, deep: float = 0.5, under_reward: float | None = None, **kw):
+    def __init__(self, *args, deep: float = 0.5, under_reward: float | None = None, opening: bool = False, **kw):
         """``deep``: the share of deep, flat serves (the rest are lobs); ``under_reward``: the shaping
-        coefficient (None: ``UNDER_REWARD``)."""
+        coefficient (None: ``UNDER_REWARD``); ``opening``: start as the match does (module docstring)."""
         if not 0.0 <= float(deep) <= 1.0:
             raise ValueError(f"deep must be a share in [0, 1]; got {deep!r}")
         self.deep = float(deep)
+        self.opening = bool(opening)
         self.under_reward = UNDER_REWARD if under_reward is None else float(under_reward)
         super().__init__(*args, **kw)
         n, dev = self.num_envs, self.device
@@ -109,19 +116,23 @@ class Receive(VolleyEnv):
         self.touched = torch.zeros(n, dtype=torch.bool, device=dev)
         self.success = torch.zeros(n, device=dev)
         self.deep_serve = torch.zeros(n, device=dev)
+        self.served = torch.ones(n, dtype=torch.bool, device=dev)
+        self.serve_at = torch.zeros(n, 3, device=dev)  # the serve's start (the virtual server's touch)
+        self.serve_to = torch.zeros(n, 3, device=dev)  # where it lands (x, y) and its apex
         self._no_flip = torch.zeros(1, dtype=torch.bool, device=dev)
 
     def referee_config(self):
         return RefereeConfig(court=COURTS[OneVsOne.court], turns="possession", drone_min_z=0.3, out_at_any_height=True)
 
     # ------------------------------------------------------------------ reset
-    def draw_serves(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """[N, 3] ball positions and velocities and [N] deep flags of serves that clear the net: the
+    def draw_serves(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """[N, 3] ball positions and velocities, [N] deep flags and [N, 3] aims (landing x, y and
+        apex) of serves that clear the net: the
         first of ``DRAWS`` candidates per env that does (a reset draws the same count of numbers
         every time), else a lob to the middle of the half."""
         n, g = self.num_envs, self.params.gravity
         land_z = self.params.ball.radius
-        pos = vel = deep = None
+        pos = vel = deep = aim = None
         ok = torch.zeros(n, dtype=torch.bool, device=self.device)
         for _ in range(DRAWS):
             p = self.uniform((SERVER[0] - 0.1, -0.3, 2.3), (SERVER[0] + 0.1, 0.3, 2.8), (n,))
@@ -129,26 +140,36 @@ class Receive(VolleyEnv):
             lob = self.uniform((0.6, -1.3, 3.1), (2.9, 1.3, 3.9), (n,))
             flat = self.uniform((1.9, -1.3, 2.7), (2.9, 1.3, 3.1), (n,))
             target = torch.where(d.unsqueeze(-1), flat, lob)
-            v = serve_velocity(p, target[:, :2], torch.maximum(target[:, 2], p[:, 2] + 0.05), land_z, g)
+            target = torch.cat((target[:, :2], torch.maximum(target[:, 2], p[:, 2] + 0.05).unsqueeze(-1)), -1)
+            v = serve_velocity(p, target[:, :2], target[:, 2], land_z, g)
             good = height_at_net(p, v, g) >= COURTS[OneVsOne.court].net_height + NET_CLEAR
             take = good & ~ok
             if pos is None:
-                pos, vel, deep = p, v, d
+                pos, vel, deep, aim = p, v, d, target
+            aim = torch.where(take.unsqueeze(-1), target, aim)
             pos = torch.where(take.unsqueeze(-1), p, pos)
             vel = torch.where(take.unsqueeze(-1), v, vel)
             deep = torch.where(take, d, deep)
             ok = ok | good
-        lob = serve_velocity(pos, torch.tensor(FALLBACK[:2], device=self.device).expand(n, 2), torch.full_like(pos[:, 2], FALLBACK[2]),
-                             land_z, g)
-        return pos, torch.where(ok.unsqueeze(-1), vel, lob), deep & ok
+        fallback = torch.tensor(FALLBACK, device=self.device).expand(n, 3)
+        lob = serve_velocity(pos, fallback[:, :2], fallback[:, 2], land_z, g)
+        return pos, torch.where(ok.unsqueeze(-1), vel, lob), deep & ok, torch.where(ok.unsqueeze(-1), aim, fallback)
 
     def reset_task(self, mask):
         n = self.num_envs
         noise = (self.init_noise,) * 3
         self.place_drones(mask, self.anchor + self.uniform(tuple(-x for x in noise), noise, (n, 1)))
-        pos, vel, deep = self.draw_serves()
-        self.place_ball(mask, pos, vel)
+        pos, vel, deep, aim = self.draw_serves()
+        if self.opening:  # the ball at rest above the virtual server, the serve still to come, the drone's turn flag off
+            self.place_ball(mask, pos + torch.tensor((0.0, 0.0, OPENING_DROP), device=self.device), torch.zeros_like(vel))
+        else:
+            self.place_ball(mask, pos, vel)
         self.referee.reset(mask, self.physics.state.ball_pos)
+        if self.opening:
+            self.referee.may_hit = self.referee.may_hit & ~mask.unsqueeze(1)
+        self.served = torch.where(mask, not self.opening, self.served)
+        self.serve_at = torch.where(mask.unsqueeze(-1), pos, self.serve_at)
+        self.serve_to = torch.where(mask.unsqueeze(-1), aim, self.serve_to)
         self.touched = self.touched & ~mask
         self.success = torch.where(mask, 0.0, self.success)
         self.deep_serve = torch.where(mask, deep.float(), self.deep_serve)
@@ -168,7 +189,19 @@ class Receive(VolleyEnv):
         )
 
     # ------------------------------------------------------------------ rewards
+    def serve(self) -> None:
+        """With ``opening``: the virtual server's touch, where the dropped ball comes down to the serve's
+        start height: the ball leaves for the drawn aim, and the drone may hit (as the match's receiver)."""
+        s = self.physics.state
+        now = ~self.served & (s.ball_pos[:, 2] <= self.serve_at[:, 2])
+        vel = serve_velocity(s.ball_pos, self.serve_to[:, :2], self.serve_to[:, 2], self.params.ball.radius, self.params.gravity)
+        self.physics.set_state(now, ball_vel=vel)
+        self.referee.may_hit = self.referee.may_hit | now.unsqueeze(1)
+        self.served = self.served | now
+
     def evaluate(self, ev):
+        if self.opening:
+            self.serve()
         s = self.physics.state
         legal = ev.racket_hit[:, 0] & ~ev.wrong_hit[:, 0]
         before = ~self.touched
