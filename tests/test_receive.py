@@ -82,8 +82,9 @@ def test_the_drill_observation_is_the_1v1_one_and_its_scripted_receiver_returns_
 
 def test_the_receiver_reaches_the_ace_with_its_racket_where_scripted_lets_it_fall():
     """20 receives of zoo:1v1/sp_noanchor's ace serve, seed 1: ``scripted`` touches none; the receiver
-    touches every one, mostly with its racket, and returns some (a regression guard under the
-    measured count; the figures on 100 serves and a held-out seed: docs/receive.md)."""
+    touches every one, mostly with its racket, and returns some (regression guards under the
+    measured 20 touched, 2 body hits, 3 returned; the figures on 100 serves and a held-out seed:
+    docs/receive.md)."""
     torch.set_num_threads(1)
     cfg = load(["task=1v1", "threads=1"])
     ace = resolve_competitor("zoo:1v1/sp_noanchor")
@@ -95,7 +96,7 @@ def test_the_receiver_reaches_the_ace_with_its_racket_where_scripted_lets_it_fal
     returned = touched & ((g.touches[:, 1] >= 2) | won)
     body = int(g.faults[0, Referee.FAULTS.index("body_hit")])
     assert int(touched.sum()) >= 18
-    assert body <= 8
+    assert body <= 6
     assert int(returned.sum()) >= 1
 
 
