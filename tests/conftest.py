@@ -67,8 +67,9 @@ def snapshot(root: Path) -> dict:
 
 
 def one_line_exit_2(res, *words) -> str:
-    """A CLI refusal as the README promises it: exit code 2 and one ``error:`` line naming ``words``."""
-    err = res.stderr.strip()
+    """A CLI refusal as the README promises it: exit code 2 and one ``error:`` line naming ``words``
+    (after the progress lines of games already played, when the refusal comes after them: a full disk)."""
+    err = "\n".join(line for line in res.stderr.splitlines() if line.strip() and not line.startswith("  pair ")).strip()
     assert res.exit_code == 2, (res.exit_code, res.output)
     assert len(err.splitlines()) == 1 and err.startswith("error: "), err
     for w in words:

@@ -282,10 +282,14 @@ def test_the_game_code_fingerprint_covers_the_floors_that_play_and_no_others():
     and config, and not the verbs that only record or read games (a results file's reuse would otherwise
     be refused after every change to a report)."""
     import volleybots
+    from volleybots.paths import conf_dir
     from volleybots.version import play_sources
 
     root = Path(volleybots.__file__).parent
-    floors = {p.relative_to(root).parts[0] for p in play_sources()}
+    conf = [p for p in play_sources() if p.is_relative_to(conf_dir())]
+    floors = {p.relative_to(root).parts[0] for p in play_sources() if p not in conf}
     assert floors == {"physics", "rules", "tasks", "scripted", "algos", "policies", "play", "config", "keys.py"}
+    # and the config tree: a drone's or a task's YAML changes a game as much as code does (issue 49)
+    assert conf_dir() / "env" / "drone" / "iris.yaml" in conf and conf_dir() / "task" / "1v1.yaml" in conf
     assert (root / "physics" / "torch_backend.py") in play_sources() and (root / "scripted" / "lookahead.py") in play_sources()
     assert len(play_code()) == 16 and int(play_code(), 16) >= 0

@@ -398,6 +398,7 @@ def test_a_run_killed_before_its_first_checkpoint_can_be_retried(tmp_path):
     assert [int(x["frames"]) for x in train_rows(run)] == [FPB, 2 * FPB]
     # and the same for the plain command run again, after another early death
     (run / "checkpoints" / "final.pt").unlink()
+    (run / "summary.json").unlink()  # an early death writes none (a finished run without checkpoints is refused: issue 49)
     (run / "checkpoints" / "ckpt_000000000000.tmp").write_bytes(b"half")  # a kill while saving
     res = runner.invoke(app, ["train", *TINY, f"total_frames={FPB}", "seed=9", f"hydra.run.dir={run}"])
     assert res.exit_code == 0, res.output

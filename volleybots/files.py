@@ -13,9 +13,11 @@ of the wrong type or shape) into one ``ConfigError`` line naming the file and wh
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
+import stat
 from pathlib import Path
 from typing import Callable, Union
 
@@ -58,6 +60,15 @@ def write_json(path, data, what: str = "", indent: int = 1) -> Path:
     return write_atomic(path, json.dumps(data, indent=indent, default=float) + "\n", what)
 
 
+def sha256(path) -> str:
+    """The hex sha256 of a file's bytes: what a results file or a population records of the file that played."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
 def exists(path) -> bool:
     """Whether ``path`` exists; a name the OS cannot even look up (too long, invalid) does not."""
     try:
@@ -70,14 +81,47 @@ def _one_line(e: Exception) -> str:
     return " ".join(str(getattr(e, "msg", None) or e).split())[:160]
 
 
-def read_json(path, what: str):
-    """The JSON value in ``path``; a missing, unreadable or malformed file is one line naming it."""
+MAX_READ_BYTES = 256 * 2**20  # the largest file of this project's (a 100-competitor cross-play is a few MB)
+
+
+def read_text(path, what: str, limit: int = MAX_READ_BYTES) -> str:
+    """The text of the regular file ``path``, read with a bound: a folder, a device (``/dev/zero``), a
+    pipe, a file over ``limit`` bytes or one that is not UTF-8 is one line naming it, never a hang or
+    a MemoryError."""
     p = Path(path)
-    if not p.is_file():
-        raise ConfigError(f"{what} {str(path)!r} does not exist")
     try:
-        return json.loads(p.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        st = p.stat()
+    except (OSError, ValueError):
+        raise ConfigError(f"{what} {str(path)!r} does not exist") from None
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "a device, pipe or socket"
+        raise ConfigError(f"{what} {str(path)!r} is {kind}, not a file")
+    too_big = ConfigError(f"{what} {str(path)!r} is larger than {limit:,} bytes, more than any {what} holds; "
+                          "it is not one (or it is damaged)")
+    if st.st_size > limit:
+        raise too_big
+    try:
+        with open(p, "rb") as f:
+            data = f.read(limit + 1)  # a file still growing is cut at the bound too
+    except OSError as e:
+        raise ConfigError(f"{what} {str(path)!r} cannot be read: {e.strerror or e}") from None
+    if len(data) > limit:
+        raise too_big
+    try:
+        return data.decode()
+    except UnicodeDecodeError:
+        raise ConfigError(f"{str(path)!r} is damaged or not a {what} (not text: binary bytes)") from None
+
+
+def read_json(path, what: str):
+    """The JSON value in ``path``; a missing, unreadable, unbounded or malformed file is one line naming it."""
+    p = Path(path)
+    if not p.exists():
+        raise ConfigError(f"{what} {str(path)!r} does not exist")
+    text = read_text(p, what)
+    try:
+        return json.loads(text)
+    except (json.JSONDecodeError, RecursionError) as e:
         raise ConfigError(f"{str(path)!r} is damaged or not a {what} (not JSON: {_one_line(e)})") from None
 
 
@@ -85,12 +129,9 @@ def read_jsonl(path, what: str) -> list:
     """The JSON values of the non-blank lines of ``path`` (none if it does not exist); a bad line is
     one line naming the file and the line number."""
     p = Path(path)
-    if not p.is_file():
+    if not p.exists():
         return []
-    try:
-        lines = p.read_text().splitlines()
-    except (OSError, UnicodeDecodeError) as e:
-        raise ConfigError(f"{what} {str(path)!r} is damaged ({_one_line(e)})") from None
+    lines = read_text(p, what).splitlines()
     out = []
     for n, line in enumerate(lines, start=1):
         if not line.strip():
@@ -142,6 +183,17 @@ class Fields:
         for i, x in enumerate(v):
             self._counts(x, shape[1:], f"{where}[{i}]")
 
+    def mirrored(self, key: str, wdl) -> None:
+        """``wdl`` (counts ``[n][n][3]``, checked already) as a zero-sum record holds them: each (j, i)
+        the mirror of (i, j), wins and losses swapped, and nothing on the diagonal (no self-play)."""
+        for i, row in enumerate(wdl):
+            if any(row[i]):
+                self.fail(f"{key}[{i}][{i}] is {list(row[i])!r}: a member does not play itself")
+            for j in range(i + 1, len(wdl)):
+                w, d, l_ = row[j]
+                if list(wdl[j][i]) != [l_, d, w]:
+                    self.fail(f"{key}[{j}][{i}] is {list(wdl[j][i])!r}, not the mirror {[l_, d, w]!r} of {key}[{i}][{j}]")
+
     def mixture(self, key: str, n: int) -> list[float]:
         """``n`` non-negative finite weights summing to 1 (to 1e-6)."""
         v = self.need(key, list)
@@ -155,4 +207,4 @@ class Fields:
         return [float(w) for w in v]
 
 
-__all__ = ["Fields", "exists", "read_json", "read_jsonl", "write_atomic", "write_json"]
+__all__ = ["MAX_READ_BYTES", "Fields", "exists", "read_json", "read_jsonl", "read_text", "sha256", "write_atomic", "write_json"]

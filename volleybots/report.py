@@ -23,24 +23,19 @@ unreadable summary, a final metric that is not finite, or a job that stopped bef
 
 from __future__ import annotations
 
-import json
-import math
-import time
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from volleybots.errors import ConfigError
 from volleybots.files import write_atomic, write_json
-from volleybots.runs import RunDir, config_problem, make_dir, read_metrics
+from volleybots.runs import InUseError, check_writable, lock, make_dir, unlock
+from volleybots.runs.found import STALE_AFTER_S, Run, find_runs  # noqa: F401 (also importable from here)
 
 CONFIDENCE = 0.95
 RESAMPLES = 10_000  # bootstrap resamples (seeds are few: this costs milliseconds)
 BOOTSTRAP_SEED = 0  # the intervals of the same runs are the same every time
 FEW_SEEDS = 5  # below this many seeds a bootstrap interval is about the seeds' [min, max]: warned
-STALE_AFTER_S = 1800.0  # a run without summary.json untouched this long is counted as failed
 
 # config keys that say how a run was executed, not what it trained: runs differing only here are seeds
 # of one experiment
@@ -48,130 +43,6 @@ RUN_KEYS = ("seed", "threads", "resume", "progress", "logger", "time_limit", "ep
             "env.device", "env.compile", "evaluation.every", "evaluation.record")
 RUN_SECTIONS = ("wandb.", "checkpoint.")
 OUTPUT_FILES = ("report.md", "report.json")
-
-
-@dataclass
-class Run:
-    """One run directory (or Hydra job folder) and what it holds."""
-
-    path: Path
-    status: str  # complete | running | failed | not aggregated
-    reason: str = ""  # why it is not complete
-    config: dict = field(default_factory=dict)
-    summary: dict | None = None
-
-    def final(self) -> float:
-        """The final evaluation's mean of the task metric."""
-        return float(self.summary["final_eval"]["stats"][self.summary["metric"]]["mean"])
-
-    def curve(self) -> tuple[np.ndarray, np.ndarray]:
-        """(frames, metric) of the run's evaluations (the periodic ones and the final one)."""
-        col = f"eval_{self.summary['metric']}"
-        rows = [r for r in read_metrics(RunDir(self.path).metrics_path) if r.get("phase") == "eval" and isinstance(r.get(col), float)]
-        return np.array([r["frames"] for r in rows]), np.array([r[col] for r in rows])
-
-
-# ------------------------------------------------------------------------------------ finding runs
-def find_runs(paths, stale_after: float = STALE_AFTER_S, now: float | None = None) -> list[Run]:
-    """Every run under ``paths`` (run directories or folders holding them), each with its state."""
-    now = time.time() if now is None else now
-    found: dict[Path, Run] = {}
-    for p in map(Path, paths):
-        if not p.exists():
-            raise ConfigError(f"{str(p)!r} does not exist; give run directories or folders that hold them (a sweep's multirun/... folder)")
-        for d in _run_dirs(p):
-            found.setdefault(d.resolve(), _read_run(d, stale_after, now))
-    if not found:
-        raise ConfigError(f"no run directories under {', '.join(map(str, paths))} "
-                          "(a run directory holds the config.yaml that `volleybots train` writes)")
-    return sorted(found.values(), key=lambda r: str(r.path))
-
-
-def _run_dirs(root: Path):
-    """Folders with a run's config.yaml, and Hydra job folders (``.hydra/``) that have none."""
-    cands = [root] if root.is_dir() else []
-    cands += [p.parent for p in root.rglob("config.yaml") if p.parent.name != ".hydra"]
-    cands += [p.parent.parent for p in root.rglob(".hydra/overrides.yaml")]
-    for d in dict.fromkeys(cands):
-        if "wandb" in d.relative_to(root).parts:
-            continue  # wandb's own run folders hold a config.yaml too
-        if _is_run_config(d / "config.yaml") or (d / ".hydra").is_dir():
-            yield d
-
-
-def _is_run_config(path: Path) -> bool:
-    try:
-        cfg = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError):
-        return path.is_file()  # an unreadable config.yaml is a broken run, reported as failed
-    return isinstance(cfg, dict) and {"task", "algo", "seed"} <= set(cfg)
-
-
-def _read_run(d: Path, stale_after: float, now: float) -> Run:
-    run = RunDir(d)
-    if not run.config_path.is_file():
-        overrides = _hydra_overrides(d)
-        return _unfinished(Run(d, "running"), d, stale_after, now,
-                           f"no config.yaml: the job stopped before training began (overrides: {overrides})")
-    try:
-        config = yaml.safe_load(run.config_path.read_text())
-    except yaml.YAMLError as e:
-        return Run(d, "failed", f"config.yaml unreadable ({type(e).__name__})")
-    bad = config_problem(config)
-    if bad:  # a hand-edited config.yaml: listed as failed, never grouped with the runs it would break
-        return Run(d, "failed", f"config.yaml invalid ({bad})")
-    if not run.summary_path.is_file():
-        total = config.get("total_frames", "?")
-        hint = f"; `volleybots train resume={d}` continues it" if any(run.ckpt_dir.glob("*.pt")) else ""
-        return _unfinished(Run(d, "running", config=config), d, stale_after, now,
-                           f"no summary.json: stopped (killed or crashed) at {_frames_reached(run)} of {total} frames{hint}")
-    try:
-        summary = json.loads(run.summary_path.read_text())
-        if "final_eval" not in summary and "population" in summary:
-            return Run(d, "not aggregated", "a population run: no final evaluation to average (its payoffs: population/payoffs.json)",
-                       config, summary)
-        value = float(summary["final_eval"]["stats"][summary["metric"]]["mean"])
-    except (ValueError, KeyError, TypeError) as e:
-        return Run(d, "failed", f"summary.json unreadable ({type(e).__name__}: {e})", config)
-    if not config.get("time_limit") and summary.get("frames", 0) < config.get("total_frames", 0):
-        # `train resume=DIR total_frames=N` rewrote config.yaml; summary.json is that of the earlier budget
-        return _unfinished(Run(d, "running", config=config), d, stale_after, now,
-                           f"resumed to {config['total_frames']} frames but stopped (killed or crashed) at {_frames_reached(run)}; "
-                           f"summary.json is of the first {summary['frames']}")
-    if not math.isfinite(value):
-        return Run(d, "failed", f"final {summary['metric']} is {value} (training diverged)", config, summary)
-    return Run(d, "complete", "", config, summary)
-
-
-def _unfinished(run: Run, d: Path, stale_after: float, now: float, failed_reason: str) -> Run:
-    """A run with no result: still running if written to lately, else failed."""
-    age = now - max(p.stat().st_mtime for p in [d, *d.rglob("*")])
-    if age < stale_after:
-        run.status, run.reason = "running", f"in progress at {_frames_reached(RunDir(d))} frames (last written {age:.0f} s ago)"
-    else:
-        run.status, run.reason = "failed", f"{failed_reason}; last written {_age(age)} ago"
-    return run
-
-
-def _frames_reached(run: RunDir) -> int:
-    if not run.metrics_path.is_file():
-        return 0
-    rows = read_metrics(run.metrics_path)
-    return int(rows[-1]["frames"]) if rows else 0
-
-
-def _hydra_overrides(d: Path) -> str:
-    try:
-        return " ".join(yaml.safe_load((d / ".hydra" / "overrides.yaml").read_text()) or []) or "none"
-    except (OSError, yaml.YAMLError):
-        return "unknown"
-
-
-def _age(seconds: float) -> str:
-    for unit, size in (("d", 86400), ("h", 3600), ("min", 60)):
-        if seconds >= size:
-            return f"{seconds / size:.1f} {unit}"
-    return f"{seconds:.0f} s"
 
 
 # ------------------------------------------------------------------------------------------ groups
@@ -389,11 +260,34 @@ def plot_curves(report: dict, out: Path) -> list[Path]:
     return files
 
 
+def check_out(out: Path) -> None:
+    """Refuse an output folder that already holds a report (reports are never overwritten)."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"--out {str(out)!r} is a file; give a folder")
+    check_writable(out, "--out")
+    taken = []
+    if out.is_dir():
+        taken = [p.name for p in out.glob("*") if p.name in OUTPUT_FILES or (p.name.startswith("curves_") and p.suffix == ".png")]
+    if taken:
+        raise ConfigError(f"--out {str(out)!r} already holds a report ({', '.join(sorted(taken))}); choose another folder")
+
+
 def write_report(report: dict, out: Path) -> list[Path]:
-    """report.md, report.json and curves_<task>.png in ``out``."""
+    """report.md, report.json and curves_<task>.png in ``out``, holding the folder's lock: two
+    reports to one folder end with one report and one refusal, never a mix of both."""
+    out = Path(out)
     make_dir(out, "--out")
-    files = plot_curves(report, out)
-    md = format_markdown(report) + "\n" + "".join(f"![{p.stem}]({p.name})\n" for p in files)
-    write_atomic(out / "report.md", md, "the report")
-    write_json(out / "report.json", report, "the report", indent=2)
+    try:
+        lock(out)
+    except InUseError:
+        raise ConfigError(f"--out {str(out)!r} is being written by another report; choose another folder") from None
+    try:
+        check_out(out)  # again under the lock: another report may have been first
+        files = plot_curves(report, out)
+        md = format_markdown(report) + "\n" + "".join(f"![{p.stem}]({p.name})\n" for p in files)
+        write_atomic(out / "report.md", md, "the report")
+        write_json(out / "report.json", report, "the report", indent=2)
+    finally:
+        unlock(out)
     return [out / "report.md", out / "report.json", *files]

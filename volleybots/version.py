@@ -17,12 +17,24 @@ _ROOT = Path(__file__).resolve().parent
 
 
 def play_sources() -> list[Path]:
-    """The source files ``play_code`` reads, in a fixed order."""
+    """The source files ``play_code`` reads, in a fixed order: the play floors' code and the config
+    tree's YAML files (a drone's mass in ``conf/env/drone/`` changes a game as much as code does)."""
+    from volleybots.paths import conf_dir  # a leaf too
+
     out = []
     for part in PLAY_CODE:
         path = _ROOT / part
         out += [path] if path.is_file() else sorted(path.rglob("*.py"))
-    return out
+    return out + sorted(conf_dir().rglob("*.yaml"))
+
+
+def _name(path: Path) -> str:
+    """A source's name as hashed: relative to the package, or ``conf/...`` for the config tree."""
+    from volleybots.paths import conf_dir
+
+    if path.is_relative_to(_ROOT):
+        return path.relative_to(_ROOT).as_posix()
+    return "conf/" + path.relative_to(conf_dir()).as_posix()
 
 
 @functools.cache
@@ -32,5 +44,5 @@ def play_code() -> str:
     when the code that played them is this one (``eval.reuse``)."""
     h = hashlib.sha256()
     for path in play_sources():
-        h.update(path.relative_to(_ROOT).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+        h.update(_name(path).encode() + b"\0" + path.read_bytes() + b"\0")
     return h.hexdigest()[:16]

@@ -8,6 +8,7 @@ allowed ones, exits with code 2 and writes nothing. docs/usage.md lists the guar
 
 from __future__ import annotations
 
+import errno
 import functools
 import sys
 
@@ -67,6 +68,10 @@ app = typer.Typer(
 _PASS_THROUGH = {"allow_extra_args": True, "ignore_unknown_options": True}
 
 
+# a disk that is full, over quota, read-only or past its file size limit: the user's to fix, not a bug
+DISK_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG)
+
+
 def _fail(msg: str) -> None:
     typer.echo(f"error: {msg}", err=True)
     raise typer.Exit(2)
@@ -81,6 +86,11 @@ def _user_errors(fn):
             return fn(*args, **kw)
         except ConfigError as e:
             _fail(str(e))
+        except OSError as e:
+            if e.errno not in DISK_ERRORS:
+                raise
+            _fail(f"cannot write {str(e.filename) + ' ' if e.filename else ''}({e.strerror or e}); free space or choose another "
+                  "folder (the files already written are whole: writes are atomic)")
 
     return wrapper
 

@@ -222,6 +222,7 @@ def _replay_one(target: str, overrides: list[str], out: Path | None, viewer: boo
     from volleybots.eval.replays import replay_file, replay_name
     from volleybots.policies import resolve_target
     from volleybots.replay import record_episode
+    from volleybots.runs import make_dir, reserve_file
 
     t = resolve_target(target, overrides)
     default = None
@@ -232,10 +233,13 @@ def _replay_one(target: str, overrides: list[str], out: Path | None, viewer: boo
     policy = t.make_policy(env)
     out = replay_file(out, default)
     try:
+        if still is not None:  # reserved before the episode: a second replay to the same picture is refused, not mixed in
+            still = reserve_file(make_dir(still.parent, "the folder of --still") / still.name, explicit=True, what="--still")
         stats = record_episode(env, policy, out, viewer=viewer, still=still)
     except BaseException:
-        if out is not None and out.is_file() and out.stat().st_size == 0:
-            out.unlink()
+        for path in (out, still):
+            if path is not None and path.is_file() and path.stat().st_size == 0:
+                path.unlink()
         raise
     where = str(out) if out is not None else "the viewer"
     where += f" and {still}" if still is not None else ""

@@ -125,7 +125,7 @@ def report(
     ),
 ) -> None:
     """Aggregate runs across seeds: per task x algorithm the final metric's mean, IQM and 95% bootstrap intervals, learning curves."""
-    from volleybots.report import build_report, format_markdown, write_report
+    from volleybots.report import build_report, check_out, format_markdown, write_report
 
     if out is not None:
         check_out(out)
@@ -133,18 +133,3 @@ def report(
     if out is not None:
         write_report(result, out)
     typer.echo(json.dumps(result, indent=2) if as_json else format_markdown(result))
-
-
-def check_out(out: Path) -> None:
-    """Refuse an output folder that already holds a report (reports are never overwritten)."""
-    from volleybots.report import OUTPUT_FILES
-    from volleybots.runs import check_writable
-
-    if out.exists() and not out.is_dir():
-        raise ConfigError(f"--out {str(out)!r} is a file; give a folder")
-    check_writable(out, "--out")
-    taken = []
-    if out.is_dir():
-        taken = [p.name for p in out.glob("*") if p.name in OUTPUT_FILES or (p.name.startswith("curves_") and p.suffix == ".png")]
-    if taken:
-        raise ConfigError(f"--out {str(out)!r} already holds a report ({', '.join(sorted(taken))}); choose another folder")

@@ -30,7 +30,9 @@ OVERRIDE_PREFIXES = ("task.", "env.")
 def typed_option(key: str, value: str, kind: type):
     """``value`` of option ``key`` read as ``kind``: an int is a float where a float is asked, and an
     integral float an int where an int is (``budget=4e6``, as ``total_frames=2e6`` reads in a config)."""
-    v = parse_value(value)
+    # a text option (a path: reuse=, from=) is taken as written, unless quoted: Hydra's grammar would refuse
+    # the ',', '=' and non-ASCII letters that folder names may hold (run dirs with them already work)
+    v = value if kind is str and value[:1] not in ("'", '"') else parse_value(value)
     if kind is float and isinstance(v, int) and not isinstance(v, bool):
         v = float(v)
     if kind is int and isinstance(v, float) and v.is_integer():

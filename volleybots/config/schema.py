@@ -26,6 +26,11 @@ ENV_ARGS = (
 )
 MAX_SEED = 2**63 - 1  # torch generators take 64-bit seeds; evaluation adds an offset to the run's
 MAX_THREADS = 1024  # more torch CPU threads than this is never useful, and a typo of it hangs the machine
+MAX_ENVS = 2**24  # worlds of one env built by the Python API (a world takes ~300 bytes a step: past any device)
+MAX_SUBSTEPS = 64  # physics sub-steps per control step: 4 is stable; 1e5 runs silent for minutes
+# a numeric key without a declared upper (or lower) bound is still bounded by this: no count, budget or
+# coefficient of the project comes near it, and past it int64 / float32 arithmetic overflows or a run never ends
+MAX_MAGNITUDE = 10**15
 
 
 # Every numeric key carries its valid range (``ranged``); ``validate`` checks them all in one place.
@@ -35,7 +40,7 @@ class EnvConfig:
     action_space: str = "prt"
     num_envs: int = ranged(256, ge=1)
     device: str = "cpu"
-    substeps: int = ranged(4, ge=1)
+    substeps: int = ranged(4, ge=1, le=MAX_SUBSTEPS)
     drone: str = "iris"
     compile: bool = False
     ball_drag: float = ranged(0.0, ge=0)
@@ -202,9 +207,20 @@ def check_values(schema: type, node, prefix: str) -> None:
             check_values(hints[f.name], value, key + ".")
             continue
         value = OmegaConf.to_container(value) if isinstance(value, (DictConfig, ListConfig)) else value
-        check_range(key, value, field_range(schema, f.name) or (Range() if isinstance(value, float) else None))
+        rng = field_range(schema, f.name)
+        check_range(key, value, rng or (Range() if isinstance(value, float) else None))
+        check_magnitude(key, value, rng)
         if isinstance(value, str) and not value.strip():
             raise ConfigError(f"bad value for {key!r}: it is empty")
+
+
+def check_magnitude(key: str, value, rng: Range | None = None) -> None:
+    """Refuse a number (or a list's) beyond ``MAX_MAGNITUDE`` on a side the key's range ``rng`` leaves
+    open: 1e30 and 2**63 are no one's setting."""
+    open_high, open_low = rng is None or rng.high is None, rng is None or rng.low is None
+    for v in value if isinstance(value, list) else [value]:
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and (v > MAX_MAGNITUDE and open_high or v < -MAX_MAGNITUDE and open_low):
+            raise ConfigError(f"bad value for {key!r}: {value!r} (must be within +-{MAX_MAGNITUDE:.0e}: no setting comes near it)")
 
 
 def check_range(key: str, value, rng: Range | None) -> None:
@@ -221,9 +237,15 @@ def check_env_args(**kwargs) -> None:
     ``seed``), so that ``make_env(..., substeps=0)`` is a clear error rather than a ZeroDivisionError."""
     ranges = {f.name: field_range(s, f.name) for s in (EnvConfig, Config) for f in dataclasses.fields(s)}
     ranges.update(TASK_RANGES)
+    ints = {f.name for s in (EnvConfig, Config) for f in dataclasses.fields(s) if f.type in (int, "int")}
     for key, value in kwargs.items():
         value = value.tolist() if hasattr(value, "tolist") else list(value) if isinstance(value, tuple) else value
+        if key in ints and (isinstance(value, bool) or not isinstance(value, int)):
+            raise ConfigError(f"bad value for {key!r}: {value!r} (must be an integer)")
         check_range(key, value, ranges.get(key))
+        check_magnitude(key, value, ranges.get(key))
+        if key == "num_envs" and value > MAX_ENVS:  # the config's num_envs is held by the memory check instead
+            raise ConfigError(f"bad value for 'num_envs': {value} (at most {MAX_ENVS:,} worlds: past any device's memory)")
 
 
 

@@ -10,6 +10,7 @@ check of whoever is about to use them (``volleybots.policies.check_references``)
 from __future__ import annotations
 
 import importlib.util
+import os
 
 from omegaconf import DictConfig, OmegaConf
 
@@ -70,6 +71,7 @@ def validate(cfg) -> DictConfig:
     if rest.logger == "wandb":
         if importlib.util.find_spec("wandb") is None:
             raise ConfigError("logger=wandb needs the wandb package: pip install 'volleybots[wandb]' (or use logger=csv)")
+        check_wandb(rest.wandb)
     algo_cls.check(typed_algo, TASKS[typed_task.name], env)
     if rest.opponent is not None:
         _check_opponent(rest, TASKS[typed_task.name], algo_cls)
@@ -79,6 +81,40 @@ def validate(cfg) -> DictConfig:
         )
     return rest
 
+
+
+WANDB_ENV_MODES = ("online", "offline", "shared", "disabled", "dryrun", "run")  # what wandb reads from WANDB_MODE
+WANDB_PROJECT_CHARS = "/\\#?%:"  # characters W&B refuses in a project name (at most 128 characters)
+
+
+def check_wandb(w) -> None:
+    """Refuse what ``wandb.init`` would refuse with a traceback after the run started: a project name
+    W&B does not accept, a ``WANDB_MODE`` it does not know, online mode without an API key."""
+    bad = sorted(set(WANDB_PROJECT_CHARS) & set(w.project))
+    if bad or len(w.project) > 128:
+        raise ConfigError(f"bad value for 'wandb.project': {w.project!r} (W&B takes at most 128 characters and none of "
+                          f"{' '.join(WANDB_PROJECT_CHARS)}; the entity is set with WANDB_ENTITY)")
+    env_mode = os.environ.get("WANDB_MODE")
+    if env_mode is not None and env_mode not in WANDB_ENV_MODES:
+        raise ConfigError(f"the environment's WANDB_MODE={env_mode!r} is not a W&B mode ({', '.join(WANDB_ENV_MODES)}); "
+                          "unset it or use wandb.mode=")
+    if w.mode == "online" and env_mode in (None, "online", "run") and not _wandb_key():
+        raise ConfigError("wandb.mode=online needs a W&B API key: set WANDB_API_KEY or run `wandb login` "
+                          "(or log offline with wandb.mode=offline and `wandb sync` later)")
+
+
+def _wandb_key() -> bool:
+    """Whether W&B has credentials here: WANDB_API_KEY, an identity token file, or ``wandb login``'s netrc entry."""
+    import netrc
+    from urllib.parse import urlparse
+
+    if os.environ.get("WANDB_API_KEY") or os.environ.get("WANDB_IDENTITY_TOKEN_FILE"):
+        return True
+    host = urlparse(os.environ.get("WANDB_BASE_URL") or "https://api.wandb.ai").hostname or "api.wandb.ai"
+    try:
+        return netrc.netrc(os.environ.get("NETRC")).authenticators(host) is not None
+    except (OSError, netrc.NetrcParseError):
+        return False
 
 
 OPPONENT_LEARNERS = ("mappo", "bc")  # learners that can play one team (MAPPO over one drone is PPO; bc clones the team's scripted player)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from volleybots.eval.plain import plain
 from volleybots.ratings import record
 
 
@@ -60,7 +61,7 @@ def by_competitor(labels: list[str], content: dict[str, dict]) -> list[dict | No
 
 
 def _faults(d: dict) -> str:
-    return ", ".join(f"{f} {n}" for f, n in sorted(d.items(), key=lambda kv: -kv[1])) or "-"
+    return plain(", ".join(f"{f} {n}" for f, n in sorted(d.items(), key=lambda kv: -kv[1])) or "-")
 
 
 def format_content(labels: list[str], content: dict[str, dict], title: str = "game content"):
@@ -78,7 +79,7 @@ def format_content(labels: list[str], content: dict[str, dict], title: str = "ga
             continue
         t = c["touches"]
         table.add_row(
-            f"{labels[i]} vs {labels[j]}", f"{t[0]:.2f} / {t[1]:.2f}", f"{c['rally_steps']:.0f}",
+            plain(f"{labels[i]} vs {labels[j]}"), f"{t[0]:.2f} / {t[1]:.2f}", f"{c['rally_steps']:.0f}",
             f"{c['rally_touches']:.2f} ({c['rally_touches_max']})", f"{c['games_3plus_touches']}/{c['games']}",
             _faults(c["faults"]["A"]), _faults(c["faults"]["B"]),
             "/".join(map(str, c["serve_wdl"])), "/".join(map(str, c["receive_wdl"])),

@@ -26,6 +26,7 @@ from volleybots.config.args import split_args
 from volleybots.config.resources import check_play
 from volleybots.errors import ConfigError
 from volleybots.eval.crossplay_view import format_table, heatmap  # noqa: F401 (the views, importable from here as before)
+from volleybots.eval.results import check_consistent
 from volleybots.eval.reuse import Reuse, check_readable
 from volleybots.files import Fields, read_json, write_json
 from volleybots.keys import OBS
@@ -120,6 +121,7 @@ class CrossPlay:
         content = data.get("content") or {}
         if not isinstance(content, dict):
             f.fail("'content' must be a mapping of pairs 'i,j' to game content")
+        check_consistent(f, n, wdl.astype(int).tolist(), side_wdl, content)
         return cls(list(labels), wdl, dict(outcomes), dict(side_wdl), meta, dict(content))
 
 

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from volleybots.eval.plain import plain
 from volleybots.files import write_atomic
 
 
@@ -66,12 +67,12 @@ def format_table(result):
     lo, hi = result.interval()
     m = result.meta
     table = Table(
-        title=f"cross-play on {m.get('task')} ({m.get('games_per_pair')} games per pair, seed {m.get('seed')}): "
-        "row's win rate over decisive games"
+        title=plain(f"cross-play on {m.get('task')} ({m.get('games_per_pair')} games per pair, seed {m.get('seed')}): "
+                    "row's win rate over decisive games")
     )
     table.add_column("")
     for lab in result.labels:
-        table.add_column(lab, justify="right")
+        table.add_column(plain(lab), justify="right")
     table.add_column("avg win rate", justify="right")
     for i, lab in enumerate(result.labels):
         cells = []
@@ -83,7 +84,7 @@ def format_table(result):
                 cells.append(f"{wr[i, j]:.3f} [{lo[i, j]:.2f}, {hi[i, j]:.2f}]\n{w}/{d}/{l_}")
             else:
                 cells.append(f"n/a\n{w}/{d}/{l_}")
-        table.add_row(lab, *cells, f"{result.average_win_rate()[i]:.3f}")
+        table.add_row(plain(lab), *cells, f"{result.average_win_rate()[i]:.3f}")
     return table
 
 

@@ -25,6 +25,7 @@ import numpy as np
 from volleybots.errors import ConfigError, Range
 from volleybots.eval.content import by_competitor
 from volleybots.eval.crossplay import CrossPlay, _nan_to_none
+from volleybots.eval.plain import plain
 from volleybots.files import write_atomic, write_json
 from volleybots.population.solvers import exploitability, member_exploitability, nash
 from volleybots.ratings import ELO_K, ELO_START, bradley_terry_intervals, elo_history, record, round_robin, sample_round_robin
@@ -174,9 +175,9 @@ def format_table(report: dict):
     e, bt = report["elo"], report["bradley_terry"]
     orders = e.get("orders")
     table = Table(
-        title=f"ratings on {report['crossplay']['task']}: Elo K={e['k']:g} over {e['rounds']} rounds ({e['games']} games)"
+        title=plain(f"ratings on {report['crossplay']['task']}: Elo K={e['k']:g} over {e['rounds']} rounds ({e['games']} games)"
         + (f", with its mean [95 %] over {orders} game orders" if orders else "")
-        + "; BT on decisive games with 95 % profile-likelihood intervals; Nash weight (share of resampled tables where it carries weight)"
+        + "; BT on decisive games with 95 % profile-likelihood intervals; Nash weight (share of resampled tables where it carries weight)")
     )
     cols = ("competitor", "Elo", "Elo over orders", "Bradley-Terry [95 %]", "draws", "avg win rate", "Nash weight",
             "exploitability in population (pp)", "touches/game (opp.)", "rally steps", "serving W/D/L", "receiving W/D/L")
@@ -192,7 +193,7 @@ def format_table(report: dict):
             f"{c['touches']:.2f} ({c['opponent_touches']:.2f})", f"{c['rally_steps']:.0f}",
             "/".join(map(str, c["serve_wdl"])), "/".join(map(str, c["receive_wdl"])))
         table.add_row(
-            lab,
+            plain(lab),
             f"{e['ratings'][i]:.0f}",
             f"{e['order_mean'][i]:.0f} [{e['order_low'][i]:.0f}, {e['order_high'][i]:.0f}]" if orders else "-",
             f"{bt['ratings'][i]:.0f} [{bt['low'][i]:.0f}, {bt['high'][i]:.0f}]",
@@ -247,6 +248,10 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
         raise ConfigError(f"orders={orders} must be 1 to 10000 (seeded game orders over which Elo's spread is reported)")
     source = opts.get("from")
     if source is not None:
+        playing = [key for key in ("reuse", "batch", "scenario", "deterministic", "pool") if key in opts]
+        if playing:  # they say how games are played, and from= plays none: silently ignored, they would mislead
+            raise ConfigError(f"{'= and '.join(playing)}= play games, but from={source!r} rates a cross-play already played; "
+                              "leave them out, or name competitors instead of from= to play")
         result = CrossPlay.load(source)
         if specs:
             _check_same_competitors(result, resolve_all(specs), source)

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from volleybots.errors import ConfigError
+from volleybots.files import Fields
 
 # what every pair of a cross-play shares, as its results file names it
 SETTINGS = ("task", "action_space", "games_per_pair", "seed", "batch", "scenario", "deterministic")
@@ -57,22 +58,26 @@ class Reuse:
         """``earlier``: the ``CrossPlay`` read from ``path``; ``meta``: the new cross-play's settings."""
         self.path, self.old = str(path), earlier
         old = earlier.meta
+        f = Fields(old, f"reuse={self.path!r}")
         for key in SETTINGS:
             if old.get(key) != meta[key]:
                 raise ConfigError(
                     f"reuse={self.path!r} was played with {key}={old.get(key)!r}, this cross-play with {key}={meta[key]!r}; "
                     "only pairs played with the same settings can be reused")
+        config = f.need("config", dict)
         for part in CONFIG_PARTS:
-            if (old.get("config") or {}).get(part) != meta["config"][part]:
+            if config.get(part) != meta["config"][part]:
                 raise ConfigError(f"reuse={self.path!r} was played with other {part}.* settings than this cross-play; "
                                   "only pairs played with the same settings can be reused")
+        versions = f.need("versions", dict)
         for key, what in (("volleybots", "volleybots"), ("play_code", "the game code (volleybots.version.play_code)")):
-            was, now = (old.get("versions") or {}).get(key), meta["versions"][key]
+            was, now = versions.get(key), meta["versions"][key]
             if was != now:
                 raise ConfigError(f"reuse={self.path!r} was played by {what} {was or 'unrecorded'}, this is {now}; "
                                   "its games may differ, play them again")
+        _check_pairs(f, earlier, meta["games_per_pair"])
         self.index = {}
-        for k, prov in enumerate(old.get("competitors") or []):
+        for k, prov in enumerate(f.need("competitors", list)):
             self.index.setdefault(identity(prov), k)
 
     def pair(self, a: dict, b: dict) -> Reused | None:
@@ -85,6 +90,30 @@ class Reuse:
             return None
         return Reused(np.asarray(old.side_wdl[key], dtype=int), old.outcomes[key], int(old.meta.get("served", {}).get(key, 0)),
                       old.content.get(key, {}), self.path)
+
+
+def _check_pairs(f: Fields, old, games: int) -> None:
+    """The whole of an earlier results file before any pair of it is copied: one provenance per
+    competitor (members and a mixture over them), and every pair played holds ``games`` games with
+    their sides, serves and content (a pair cut short would be copied as if complete)."""
+    comps = f.need("competitors", list)
+    if len(comps) != old.n:
+        f.fail(f"'competitors' lists {len(comps)} provenances for {old.n} labels")
+    for k, prov in enumerate(comps):
+        p = Fields(prov, f"{f.where} (competitors[{k}])")
+        members = p.need("members", list)
+        if not members or not all(isinstance(m, dict) for m in members):
+            p.fail("'members' must be a non-empty list of member records")
+        p.mixture("mixture", len(members))
+    served = f.need("served", dict)
+    for key, seq in old.outcomes.items():
+        if len(seq) != games:
+            f.fail(f"pair {key} holds {len(seq)} games, not games_per_pair={games}")
+        if key not in old.side_wdl or key not in old.content or (old.content[key] or {}).get("games") != games:
+            f.fail(f"pair {key} lacks its {'side_wdl' if key not in old.side_wdl else 'content'} for its {games} games")
+        n_served = served.get(key)
+        if isinstance(n_served, bool) or not isinstance(n_served, int) or not 0 <= n_served <= games:
+            f.fail(f"served[{key!r}] is {n_served!r}, not a count of at most {games} games")
 
 
 def check_readable(path: str) -> None:

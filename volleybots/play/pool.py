@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import importlib.util
 import os
+import socket
 
 from volleybots.algos.population import POOLS
 from volleybots.config import to_dict, validate
@@ -19,14 +20,34 @@ from volleybots.play.games import DEFAULT_BATCH
 from volleybots.play.rows import play_row_chunk, row_chunks
 
 EXTRA = "cluster"  # pip install 'volleybots[cluster]' installs ray
+RAY_CONNECT_S = 10.0  # a cluster's head answers at once; nothing after this long means none is there
 
 
 def check_pool(pool: str, key: str) -> None:
-    """Raise ``ConfigError`` for an unknown pool, or ``ray`` where ray is not installed."""
+    """Raise ``ConfigError`` for an unknown pool, ``ray`` where ray is not installed, or a
+    ``RAY_ADDRESS`` at which no cluster answers."""
     if pool not in POOLS:
         raise ConfigError(f"unknown {key} {pool!r}; allowed: {', '.join(POOLS)}")
     if pool == "ray" and importlib.util.find_spec("ray") is None:
         raise ConfigError(f"{key}=ray needs the ray package: pip install 'volleybots[{EXTRA}]' (or use {key}=serial)")
+    if pool == "ray":
+        check_ray_address(key)
+
+
+def check_ray_address(key: str) -> None:
+    """Refuse a ``RAY_ADDRESS`` (``host:port`` or ``ray://host:port``) at which nothing answers within
+    ``RAY_CONNECT_S``: ``ray.init`` would wait on it for minutes, silent. ``auto`` and unset are Ray's."""
+    addr = os.environ.get("RAY_ADDRESS", "").strip()
+    if addr in ("", "auto", "local"):
+        return
+    host, _, port = addr.removeprefix("ray://").rpartition(":")
+    if not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ConfigError(f"RAY_ADDRESS={addr!r} is not host:port, ray://host:port or auto (what `ray start --head` prints)")
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=RAY_CONNECT_S).close()
+    except OSError as e:
+        raise ConfigError(f"RAY_ADDRESS={addr!r}: no Ray cluster answers there within {RAY_CONNECT_S:g} s ({e.strerror or e}); "
+                          f"start one with `ray start --head`, unset RAY_ADDRESS for a local one, or use {key}=serial") from None
 
 
 def payoff_row(cfg, a, opponents: list, games: int, seed: int, pool: str = "serial", batch: int = DEFAULT_BATCH) -> list:

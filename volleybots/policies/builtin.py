@@ -16,6 +16,7 @@ import torch
 from tensordict import TensorDictBase
 
 from volleybots.errors import ConfigError
+from volleybots.files import read_text
 from volleybots.keys import ACTION, AGENTS
 from volleybots.runs import read_checkpoint
 
@@ -123,10 +124,13 @@ def hierarchical_both_sides(env):
 def read_drills_file(path: Path) -> dict:
     """A hierarchical team's drill checkpoints from a YAML file ``hierarchical: {drill: path}``
     (relative paths are relative to the file)."""
+    import io
+
     from omegaconf import OmegaConf
 
+    text = read_text(path, "hierarchical team file")  # bounded: a huge file or a device is one line
     try:
-        data = OmegaConf.to_container(OmegaConf.load(path), resolve=False)
+        data = OmegaConf.to_container(OmegaConf.load(io.StringIO(text)), resolve=False)
     except Exception as e:  # noqa: BLE001 - YAML and OmegaConf errors alike: the file is damaged
         raise ConfigError(f"{str(path)!r} is no hierarchical team file ({' '.join(str(e).split())[:160]})") from None
     drills = data.get("hierarchical") if isinstance(data, dict) else None

@@ -23,7 +23,6 @@ The grammar (``parse_spec``), used by ``eval``, ``replay``, ``eval crossplay``, 
 
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,7 +30,7 @@ import torch
 
 from volleybots import zoo
 from volleybots.errors import ConfigError
-from volleybots.files import exists
+from volleybots.files import exists, sha256
 from volleybots.runs import RunDir, load_algo_state, read_checkpoint, refuse_interpolation, run_policy_checkpoint
 
 KINDS = ("builtin", "checkpoint", "run", "drills", "mixture")
@@ -89,10 +88,6 @@ def parse_spec(spec: str, builtins=BUILTIN_NAMES, what: str = "competitor") -> S
             raise ConfigError(f"{target!r} is not a run directory (no config.yaml) nor a checkpoint file")
         return Spec(label, "run", target)
     raise ConfigError(f"{what} {target!r} does not exist; expected {allowed}")
-
-
-def sha256(path) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def learner_class(algo_name: str):

@@ -35,7 +35,7 @@ import torch
 from volleybots.algos.ppo import MAPPO
 from volleybots.config import to_dict, validate
 from volleybots.errors import ConfigError
-from volleybots.files import write_atomic
+from volleybots.files import sha256, write_atomic
 from volleybots.play.pool import payoff_row
 from volleybots.play.seats import SelfPlay, Versus
 from volleybots.policies import BUILTIN, Competitor, checkpoint_member, member_path, population_members, resolve_competitor, single_policy
@@ -175,8 +175,13 @@ class PopulationLoop:
     def _solve_and_record(self, i: int, frames: int, updates: int, wall: float, oracle: dict | None) -> None:
         table = PayoffTable.load(self.payoffs_path)
         mixture = SOLVERS[self.m.solver](table.matrix())
+        # each member's sha256, recorded when it joins and carried on: a member file replaced later (by
+        # another run's policy under the same label) is refused where the population is read
+        metas = self.metas()
+        known = list((metas[-1].get("sha256") or []) if metas else [])[: len(table)]
+        known += [sha256(member_path(self.run.path, k)) for k in range(len(known), len(table))]
         self._append_meta({
-            "iteration": i, "members": table.labels, "solver": self.m.solver, "mixture": [float(x) for x in mixture],
+            "iteration": i, "members": table.labels, "sha256": known, "solver": self.m.solver, "mixture": [float(x) for x in mixture],
             "frames": frames, "updates": updates, "wall_time": wall, "oracle": oracle, "wall_time_split": dict(self.split),
         })
         plot(table, mixture, self.run.path / "payoffs.png", f"{self.m.name} on {self.cfg.task.name}: iteration {i}")
@@ -327,7 +332,7 @@ def start(cfg, run_dir) -> dict:
 RESUME_KEYS = (*TRAIN_RESUME_KEYS, "algo.iterations")  # a population run may also be given more iterations
 
 
-def resume(run_dir, overrides=()) -> dict:
+def resume(run_dir, overrides=(), check=None) -> dict:
     """Continue a population run (``train resume=DIR``, overrides within ``RESUME_KEYS``).
 
     Everything is checked before anything is written: the config and overrides, that the run dir is
@@ -338,13 +343,18 @@ def resume(run_dir, overrides=()) -> dict:
     run = RunDir(run_dir)
     cfg = resume_config(run_dir, overrides, RESUME_KEYS)
     check_writable(run.path, "the run directory")
+    run.check_contained()
     check_references(cfg)
+    if check is not None:
+        check(cfg)
     loop = PopulationLoop(cfg, run)
     metas = loop.metas()  # a damaged meta.jsonl line is one line naming it
     if metas:  # every member meta.jsonl lists is there and reads back; a member written after it is completed below
         read_population(run.path, f"run {str(run_dir)!r}", quiet=True)
     for path in population_members(run.path):
         read_checkpoint(path)  # a damaged member is one line naming it
+    PayoffTable.load(loop.payoffs_path)  # as are a damaged payoffs.json and metrics.csv: before any file changes
+    run.check_metrics()
     done = sum(1 for m in metas if m["iteration"] >= 1)
     frames = metas[-1]["frames"] if metas else 0
     if cfg.algo.self_play and done >= 1:

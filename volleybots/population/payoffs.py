@@ -113,8 +113,13 @@ class PayoffTable:
         labels = f.need("members", list)
         n = len(labels)
         if "wdl" in data or not any(k in data for k in record.KEYS):
-            return cls(labels, f.counts("wdl", (n, n, 3)))
-        return cls(labels, record.from_dict({k: f.counts(k, (n, n)) for k in record.KEYS}))
+            wdl = f.counts("wdl", (n, n, 3))
+        else:
+            wdl = record.from_dict({k: f.counts(k, (n, n)) for k in record.KEYS}).tolist()
+        f.mirrored("wdl", wdl)  # a table whose mirror disagrees would be solved as another game
+        if not all(isinstance(x, str) for x in labels):
+            f.fail("'members' must be a list of labels")
+        return cls(labels, wdl)
 
 
 def _json(a: np.ndarray) -> list:

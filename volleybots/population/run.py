@@ -32,8 +32,9 @@ def resume(run_dir, overrides=()) -> dict:
     if not is_population(RunDir(run_dir).load_config()):
         return resume_learner(run_dir, overrides)
     from volleybots.population.loop import resume as resume_population
+    from volleybots.train import check_payoff_games
 
-    return resume_population(run_dir, overrides)
+    return resume_population(run_dir, overrides, check=check_payoff_games)
 
 
 __all__ = ["is_population", "resume", "start"]

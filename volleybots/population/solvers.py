@@ -81,31 +81,58 @@ def nash(payoffs) -> np.ndarray:
 
 def max_entropy(a: np.ndarray, value: float, start: np.ndarray) -> np.ndarray:
     """The mixture of largest entropy among those with (x^T A)_j >= value - NASH_TOL for every column
-    j, solved by SLSQP from the LP's solution ``start`` (which is feasible); ``start`` itself if the
-    solver fails, so a tie is then broken as the LP broke it, never by an infeasible mixture."""
+    j (the maximin set), from the LP's solution ``start`` (which is in it).
+
+    The largest-entropy mixture weights every member that some maximin mixture weights (the entropy's
+    slope is infinite at 0), so that support is found first, by one LP per member maximising its weight
+    over the set: the mean of those solutions lies inside the set on that support, and SLSQP climbs
+    from there over the support alone, where the entropy is smooth. Whatever SLSQP reports, its answer
+    is kept when it stays in the set and has the larger entropy; a failure never falls back to a vertex
+    the LP happened to reach, which would change with the members' order."""
     n = a.shape[0]
     if n == 1:
         return np.ones(1)
+    floor = value - NASH_TOL
+    points = [start]
+    for i in range(n):
+        if start[i] > NASH_ZERO:
+            continue
+        c = np.zeros(n)
+        c[i] = -1.0
+        res = scipy.optimize.linprog(c, A_ub=-a.T, b_ub=np.full(n, -floor), A_eq=np.ones((1, n)), b_eq=[1.0],
+                                     bounds=[(0.0, None)] * n, method="highs")
+        if res.status == 0 and res.x[i] > NASH_ZERO:
+            points.append(np.clip(res.x, 0.0, None))
+    x0 = np.mean(points, axis=0)
+    support = x0 > NASH_ZERO / n
+    x0 = np.where(support, x0, 0.0)
+    x0 /= x0.sum()
+    s = a[support]  # rows of the supported members: the constraints are over every column still
 
     def neg_entropy(x):
         x = np.clip(x, 1e-300, None)
         return float(np.sum(x * np.log(x)))
 
     def grad(x):
-        return np.log(np.clip(x, 1e-12, None)) + 1.0
+        return np.log(np.clip(x, 1e-300, None)) + 1.0
 
-    cons = [{"type": "ineq", "fun": lambda x: a.T @ x - value + NASH_TOL, "jac": lambda x: a.T},
-            {"type": "eq", "fun": lambda x: np.sum(x) - 1.0, "jac": lambda x: np.ones((1, n))}]
-    # start inside the set where possible (a mix with the uniform mixture when that is feasible too), so
-    # the entropy's gradient is finite at the start
-    uniform_ok = (a.T @ np.full(n, 1.0 / n)).min() >= value - NASH_TOL
-    x0 = 0.5 * start + 0.5 / n if uniform_ok else start
-    res = scipy.optimize.minimize(neg_entropy, x0, jac=grad, bounds=[(0.0, 1.0)] * n, constraints=cons, method="SLSQP",
-                                  options={"maxiter": 500, "ftol": 1e-12})
-    x = np.where(res.x < NASH_ZERO, 0.0, res.x) if res.success else start
-    if x.sum() <= 0 or (a.T @ (x / x.sum())).min() < value - 1e-6:
-        return start
-    return x / x.sum()
+    def feasible(x) -> bool:
+        return bool(x.sum() > 0 and (s.T @ (x / x.sum())).min() >= value - 1e-6)
+
+    best = x0[support]
+    k = int(support.sum())
+    if k > 1:
+        cons = [{"type": "ineq", "fun": lambda x: s.T @ x - floor, "jac": lambda x: s.T},
+                {"type": "eq", "fun": lambda x: np.sum(x) - 1.0, "jac": lambda x: np.ones((1, k))}]
+        res = scipy.optimize.minimize(neg_entropy, best, jac=grad, bounds=[(0.0, 1.0)] * k, constraints=cons, method="SLSQP",
+                                      options={"maxiter": 1000, "ftol": 1e-14})
+        x = np.clip(res.x, 0.0, None)
+        if feasible(x) and neg_entropy(x / x.sum()) <= neg_entropy(best):
+            best = x / x.sum()
+    out = np.zeros(n)
+    out[support] = best
+    out = np.where(out < NASH_ZERO, 0.0, out)
+    return out / out.sum()
 
 
 def alpharank(payoffs, alpha: float = ALPHARANK_ALPHA, m: int = ALPHARANK_POP) -> np.ndarray:

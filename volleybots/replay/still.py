@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from volleybots.files import write_atomic
 from volleybots.replay.recorder import BALL_COLOUR, FAULT_COLOUR, HIT_COLOUR, TEAM_COLOURS, TEAM_NAMES, Episode
 
 
@@ -84,17 +85,15 @@ def _figure(ep: Episode, title: str, k: int, dpi: int):
 
 
 def draw_still(ep: Episode, out: Path, title: str = "") -> Path:
-    """Write the picture of ``ep`` to the PNG ``out`` (written whole: a ``.part`` file moved into place)."""
+    """Write the picture of ``ep`` to the PNG ``out`` (written whole: ``volleybots.files.write_atomic``)."""
     fig = _figure(ep, title, key_step(ep), dpi=100)
     import matplotlib.pyplot as plt
 
     out = Path(out)
-    tmp = out.with_name(out.name + ".part")
-    try:
-        fig.savefig(tmp, format="png")
+    try:  # written whole or not at all; a full disk is one line
+        write_atomic(out, lambda fh: fig.savefig(fh, format="png"), "the still picture")
     finally:
         plt.close(fig)
-    tmp.replace(out)
     return out
 
 

@@ -24,7 +24,7 @@ from pathlib import Path
 import yaml
 
 from volleybots.errors import ConfigError
-from volleybots.files import Fields, read_json, read_jsonl
+from volleybots.files import Fields, read_json, read_jsonl, read_text, sha256
 from volleybots.runs.locks import note
 from volleybots.runs.rundir import POPULATION_DIR, RunDir, read_checkpoint
 
@@ -48,8 +48,8 @@ def is_population_run(run_path) -> bool:
     if (path / POPULATION_DIR).is_dir():
         return True
     try:
-        algo = (yaml.safe_load((path / "config.yaml").read_text()) or {}).get("algo") or {}
-    except (OSError, yaml.YAMLError, AttributeError):
+        algo = (yaml.safe_load(read_text(path / "config.yaml", "the run's config")) or {}).get("algo") or {}
+    except (ConfigError, yaml.YAMLError, AttributeError):
         return False
     name = algo.get("name") if isinstance(algo, dict) else None
     return isinstance(name, str) and name in PRESETS
@@ -68,6 +68,9 @@ def read_metas(run_path) -> list[dict]:
         if not all(isinstance(x, str) for x in labels):
             f.fail("'members' must be a list of labels")
         f.mixture("mixture", len(labels))
+        shas = f.need("sha256", list, optional=True)  # absent in runs written before it was recorded
+        if shas is not None and (len(shas) != len(labels) or not all(isinstance(x, str) for x in shas)):
+            f.fail(f"'sha256' must list one checksum per member ({len(labels)})")
         for key in ("frames", "updates"):
             if f.need(key, int) < 0:
                 f.fail(f"{key!r} is negative")
@@ -113,6 +116,9 @@ def read_population(run_path, what: str, quiet: bool = False) -> Population:
         if found != label:
             raise ConfigError(f"{what}: member file {POPULATION_DIR}/{p.name} holds {found!r}, but {META_FILE} lists {label!r} "
                               f"as member {k}; restore the run's own file")
+        if last.get("sha256") and sha256(p) != last["sha256"][k]:
+            raise ConfigError(f"{what}: member file {POPULATION_DIR}/{p.name} is not the file this run wrote (its sha256 differs "
+                              f"from the one {META_FILE} recorded for {label!r}); restore the run's own file")
     pending = [p for p in files if p not in members]
     if pending and not quiet:
         note(f"{what} was stopped during iteration {last['iteration'] + 1} ({', '.join(p.name for p in pending)} has no "

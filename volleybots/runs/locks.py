@@ -43,7 +43,8 @@ def lock(path) -> None:
         return
     lock_path = Path(key) / LOCK_NAME
     try:
-        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+        # never through a link: the lock file is truncated and written, and must be the directory's own
+        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0), 0o644)
     except OSError as e:
         raise ConfigError(f"cannot lock {str(path)!r}: {e.strerror} ({lock_path})") from None
     try:

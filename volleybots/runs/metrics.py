@@ -6,6 +6,8 @@ import csv
 import math
 from pathlib import Path
 
+from volleybots.errors import ConfigError
+
 
 class MetricsLog:
     """metrics.csv: the header is the first row's keys; a resumed run drops the rows after its checkpoint."""
@@ -44,10 +46,18 @@ def _fmt(v):
 
 
 def read_metrics(path) -> list[dict[str, float | str]]:
+    """The rows of metrics.csv, numbers as floats; a file that is not such a table (binary, damaged,
+    no ``frames`` column) is one ``ConfigError`` line naming it."""
     out = []
-    with Path(path).open(newline="") as f:
-        for r in csv.DictReader(f):
-            out.append({k: (float(v) if _is_number(v) else v) for k, v in r.items()})
+    try:
+        with Path(path).open(newline="") as f:
+            reader = csv.DictReader(f)
+            for r in reader:
+                out.append({k: (float(v) if _is_number(v) else v) for k, v in r.items()})
+    except (OSError, UnicodeDecodeError, csv.Error) as e:
+        raise ConfigError(f"{path} is damaged ({type(e).__name__}: {' '.join(str(e).split())[:120]})") from None
+    if out and "frames" not in out[0]:
+        raise ConfigError(f"{path} is damaged (no 'frames' column in the header)")
     return out
 
 

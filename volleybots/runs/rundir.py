@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import io
 import itertools
 import json
 import re
@@ -14,12 +15,14 @@ from omegaconf import OmegaConf
 
 from volleybots.config import to_dict, validate
 from volleybots.errors import ConfigError
-from volleybots.files import write_atomic, write_json
+from volleybots.files import read_text, write_atomic, write_json
 from volleybots.runs.locks import InUseError, lock, make_dir, note, unlock
 from volleybots.runs.metrics import _is_number
 
 CKPT_FORMAT = 1
 POPULATION_DIR = "population"  # a population run's members, payoffs.json and meta.jsonl
+# what a run writes at its top level besides config, metrics, summary, curves and checkpoints
+OWN_FILES = ("payoffs.png", "wandb_run.json", "wandb", ".lock")
 _CKPT = re.compile(r"ckpt_(\d+)\.pt$")
 
 
@@ -36,7 +39,8 @@ class RunDir:
     best_path = property(lambda self: self.ckpt_dir / "best.pt")
 
     def is_run(self) -> bool:
-        return self.config_path.is_file()
+        """Whether the directory holds a run's config.yaml (a damaged one too: ``load_config`` says what is wrong)."""
+        return self.config_path.exists() or self.config_path.is_symlink()
 
     def has_results(self) -> bool:
         """Whether a run already wrote here (starting another one would overwrite it)."""
@@ -70,16 +74,33 @@ class RunDir:
         is refused."""
         make_dir(self.path, "the run directory")
         lock(self.path)
+        try:
+            self.check_contained()
+        except ConfigError:
+            unlock(self.path)
+            raise
         if self.has_checkpoint():
             unlock(self.path)
             raise ConfigError(f"{self.path} already holds a run; choose another hydra.run.dir or continue it with resume={self.path}")
         if self.has_results():
+            try:
+                self.check_clearable()
+            except ConfigError:
+                unlock(self.path)
+                raise
             self.clear_unfinished()
         self.write_config(cfg)
 
     def write_config(self, cfg) -> None:
         """config.yaml, replaced at once (a reader never sees half of it)."""
         write_atomic(self.config_path, OmegaConf.to_yaml(OmegaConf.create(to_dict(cfg))), "the run's config")
+
+    def check_clearable(self) -> None:
+        """Refuse to clear a run that finished (it wrote summary.json) but whose checkpoints are gone:
+        its results are not those of a run killed early, and starting afresh would overwrite them."""
+        if self.summary_path.exists():
+            raise ConfigError(f"{self.path} holds a finished run (summary.json) whose checkpoints are gone: it cannot be continued, "
+                              "and its results are never overwritten; restore its checkpoints/ or choose another directory")
 
     def clear_unfinished(self) -> None:
         """Remove what a run killed before its first checkpoint left (nothing of it can be resumed),
@@ -101,14 +122,31 @@ class RunDir:
             if d.is_dir() and not any(d.iterdir()):
                 d.rmdir()
 
+    def check_contained(self) -> None:
+        """Refuse a run directory (received from elsewhere) in which a file or folder the run writes
+        is a link leading outside it: writing through it would append to, or replace, a file that is
+        not the run's. Links that stay inside the directory are harmless. Writes nothing."""
+        root = self.path.resolve()
+        own = [self.config_path, self.metrics_path, self.summary_path, self.curves_path, *(self.path / n for n in OWN_FILES),
+               self.ckpt_dir, self.path / POPULATION_DIR]
+        for d in (self.ckpt_dir, self.path / POPULATION_DIR):
+            if d.is_dir() and d.resolve().is_relative_to(root):
+                own += sorted(d.iterdir())
+        own += sorted(self.path.glob("eval_*.rrd"))
+        for p in own:
+            if p.is_symlink() and not p.resolve().is_relative_to(root):
+                raise ConfigError(f"{p} is a link to {p.resolve()}, outside the run directory; a run writes only inside its "
+                                  "own directory: replace the link with a copy of what it points to")
+
     def load_config(self):
         """The run's validated config; a damaged or hand-broken config.yaml is one line naming it."""
         if not self.is_run():
             raise ConfigError(f"{self.path} is not a run directory (no config.yaml)")
+        text = read_text(self.config_path, "the run's config")  # bounded: a folder or /dev/zero is one line
         try:
             # not resolved: a run dir may come from someone else, and ``${oc.env:VAR}`` would fill in
             # this machine's environment (then written in clear into the resumed run's files)
-            data = OmegaConf.to_container(OmegaConf.load(self.config_path), resolve=False)
+            data = OmegaConf.to_container(OmegaConf.load(io.StringIO(text)), resolve=False)
         except Exception as e:  # noqa: BLE001 - YAML and OmegaConf errors alike: the file is damaged
             raise ConfigError(f"{self.config_path} is damaged ({' '.join(str(e).split())[:200]}); restore it or start a new run") from None
         if not isinstance(data, dict):

@@ -7,6 +7,7 @@ run the population loop over this trainer: ``volleybots.population.start`` dispa
 
 from __future__ import annotations
 
+from volleybots.algos import PRESETS
 from volleybots.config import apply_overrides, check_memory, to_dict
 from volleybots.errors import ConfigError
 from volleybots.play.episodes import collect, finished_stats
@@ -27,6 +28,24 @@ def preflight(cfg) -> None:
     check_memory(cfg)
     check_references(cfg)
     check_init(cfg)
+    if cfg.algo.name in PRESETS:
+        check_payoff_games(cfg)
+
+
+def check_payoff_games(cfg) -> None:
+    """Before anything is written or trained: the pool the payoff games play in (a ``RAY_ADDRESS``
+    nothing answers at is refused here, not after the first oracle), and ``algo.payoff_games`` against
+    memory for the last member's row (``algo.payoff_games=1e12`` is a one-line refusal)."""
+    from volleybots.config.resources import check_play
+    from volleybots.play.games import DEFAULT_BATCH
+    from volleybots.play.pool import check_pool
+
+    m = cfg.algo
+    check_pool(m.payoff_pool, "algo.payoff_pool")
+    try:
+        check_play(cfg, m.payoff_games, max(1, len(m.seed_members) + m.iterations - 1), DEFAULT_BATCH)
+    except ConfigError as e:
+        raise ConfigError(f"algo.payoff_games={m.payoff_games}: {e} (algo.payoff_games)") from None
 
 
 def train(cfg, run_dir, checked: bool = False, stop=None) -> dict:
@@ -58,6 +77,7 @@ def resume(run_dir, overrides=()) -> dict:
     run = RunDir(run_dir)
     cfg = resume_config(run_dir, overrides)
     check_writable(run.path, "the run directory")
+    run.check_contained()
     ckpt = run.latest_checkpoint()
     stamp = run.checkpoint_stamp()
     if ckpt is not None:
@@ -67,6 +87,8 @@ def resume(run_dir, overrides=()) -> dict:
                 f"run {str(run_dir)!r} already has {done} frames >= total_frames={cfg.total_frames}; raise total_frames to continue it"
             )
         run.check_metrics()
+    else:
+        run.check_clearable()
     check_memory(cfg)
     check_references(cfg)
     with memory_errors_as(_counts(cfg)):
@@ -90,5 +112,5 @@ def _counts(cfg) -> str:
 
 __all__ = [
     "AllAgents", "EVAL_SEED_OFFSET", "RESUME_KEYS", "SelfPlay", "Trainer", "Versus", "apply_init", "check_init", "collect", "default_seat",
-    "finished_stats", "init_checkpoint", "learner_spec", "preflight", "resume", "resume_config", "train",
+    "check_payoff_games", "finished_stats", "init_checkpoint", "learner_spec", "preflight", "resume", "resume_config", "train",
 ]

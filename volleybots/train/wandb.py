@@ -14,18 +14,18 @@ sweep (kept in the same file, as a resume runs outside the sweep); the name is `
 from __future__ import annotations
 
 import hashlib
-import json
-import os
 import re
 import time
 from pathlib import Path
 
 from volleybots.config import to_dict
 from volleybots.errors import ConfigError
+from volleybots.files import read_json, write_json
 from volleybots.runs import RunDir, note
 
 IDENTITY_FILE = "wandb_run.json"
 _DATE = re.compile(r"\d{4}-\d{2}-\d{2}")  # the date folder of Hydra's default sweep dir
+_RUN_ID = re.compile(r"[A-Za-z0-9_-]{1,64}")  # what W&B accepts as a run id
 
 
 def sweep_group(run_dir: Path) -> str | None:
@@ -51,21 +51,21 @@ def run_identity(run_dir: Path, resume: bool) -> dict:
     path = Path(run_dir) / IDENTITY_FILE
     if resume and path.is_file():
         try:
-            saved = json.loads(path.read_text())
-            if isinstance(saved, dict) and isinstance(saved.get("id"), str) and saved["id"]:
-                return saved
-        except (ValueError, OSError):
-            pass
-        note(f"{path} is damaged: the resumed run starts a new W&B run")
+            saved = read_json(path, "W&B identity file")
+        except ConfigError:
+            saved = None
+        # the id names W&B's folders under the run dir: only W&B's own characters, never a path ("../x")
+        if isinstance(saved, dict) and isinstance(saved.get("id"), str) and _RUN_ID.fullmatch(saved["id"]) \
+                and isinstance(saved.get("group"), (str, type(None))):
+            return saved
+        note(f"{path} is damaged (its id is not a W&B run id of letters, digits, '-' and '_'): the resumed run starts a new W&B run")
     created = time.time_ns()
     identity = {
         "id": hashlib.sha256(f"{Path(run_dir).resolve()}\n{created}".encode()).hexdigest()[:16],
         "group": sweep_group(run_dir),
         "created_ns": created,
     }
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(identity, indent=1) + "\n")
-    os.replace(tmp, path)
+    write_json(path, identity, "the W&B identity")
     return identity
 
 
@@ -103,7 +103,14 @@ class WandbLogger:
             raise ConfigError("logger=wandb needs the wandb package: pip install 'volleybots[wandb]'") from None
         identity = run_identity(run_dir, resume)
         self.cfg, self.id = cfg, identity["id"]
-        self.run = wandb.init(
+        try:
+            self.run = self._init(wandb, cfg, run_dir, identity, resume)
+        except wandb.errors.Error as e:  # a refused key, an unreachable server, a setting W&B will not take
+            raise ConfigError(f"W&B could not start the run ({type(e).__name__}: {' '.join(str(e).split())[:200]}); "
+                              "check wandb.* and the WANDB_* environment, or use wandb.mode=offline") from None
+
+    def _init(self, wandb, cfg, run_dir, identity, resume):
+        return wandb.init(
             project=cfg.wandb.project,
             mode=cfg.wandb.mode,
             dir=str(run_dir),

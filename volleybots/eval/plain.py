@@ -1,0 +1,26 @@
+"""Text read from a results file (labels, task names, fault names) shown as plain text.
+
+A results file may come from anyone (``from=``, ``reuse=``): its strings are never read as Rich markup
+(``[bold]x`` stays ``[bold]x``, ``[/]`` cannot break a table) and never reach the terminal as control
+characters (an escape sequence is shown as ``\\x1b]...``, so it cannot retitle or rewrite the terminal).
+"""
+
+from __future__ import annotations
+
+import unicodedata
+
+
+def clean(s) -> str:
+    """``s`` as a string with every control and format character written out as its escape."""
+    s = str(s)
+    return "".join(c.encode("unicode_escape").decode() if unicodedata.category(c)[0] == "C" else c for c in s)
+
+
+def plain(s):
+    """``s`` as a Rich ``Text``: cleaned, and not parsed as markup where a table or a console shows it."""
+    from rich.text import Text
+
+    return Text(clean(s))
+
+
+__all__ = ["clean", "plain"]
