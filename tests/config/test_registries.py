@@ -124,7 +124,8 @@ def test_every_built_in_player_acts_in_the_space_of_the_tasks_it_fits(name):
     assert act.shape[:2] == (2, env.n_drones) and torch.isfinite(act.float()).all()
     assert resolve_target(name, [f"task={task}"]).label == name
     if player.task is not None:  # a player of one task is refused elsewhere, before any run starts
-        other = load(["task=1v1", "algo=sp", f"algo.eval_opponent={name}"])
+        elsewhere = "3v3" if player.task == "1v1" else "1v1"
+        other = load([f"task={elsewhere}", "algo=sp", f"algo.eval_opponent={name}"])
         with pytest.raises(Exception, match=f"plays task '{player.task}' only"):
             check_references(other)
 

@@ -48,8 +48,13 @@ class BCConfig(PPONetConfig):
     replay_ratio: float = ranged(8.0, gt=0)
     min_std: float = ranged(0.02, gt=0)
     teacher_replan: int = ranged(1, ge=1)
+    teacher: str = "scripted"  # scripted: the task's scripted player; receiver: 1v1's deep-serve receiver (docs/receive.md)
     actor_lr: float = 1e-3
     centralised_critic: bool = True
+
+
+TEACHERS = ("scripted", "receiver")
+TEACHER_TASKS = ("1v1", "receive")  # the receiver reads the 1 vs 1 observation, which the receive drill shares
 
 
 def ppo_config(cfg) -> PPOConfig:
@@ -77,6 +82,11 @@ class BC(PPO):
         if task_cls.name not in SCRIPTED_POLICIES:
             allowed = sorted(t for t in SCRIPTED_POLICIES if t in TASKS and task_kind(TASKS[t]) in cls.task_kinds)
             raise ConfigError(f"algo 'bc' imitates a scripted player; task {task_cls.name!r} has none; allowed: {', '.join(allowed)}")
+        teacher = getattr(cfg, "teacher", "scripted")  # (a population's config, whose clone's teacher is the scripted player, has none)
+        if teacher not in TEACHERS:
+            raise ConfigError(f"unknown algo.teacher {teacher!r}; allowed: {', '.join(TEACHERS)}")
+        if teacher == "receiver" and task_cls.name not in TEACHER_TASKS:
+            raise ConfigError(f"algo.teacher=receiver plays task {' or '.join(TEACHER_TASKS)}, not {task_cls.name!r}")
 
     def __init__(self, cfg, env, seed: int = 0):
         super().__init__(ppo_config(cfg), env, seed)
@@ -94,8 +104,13 @@ class BC(PPO):
     def attach(self, env) -> None:
         """The run loop hands over its env: the teacher is built for its task, action space and physics."""
         from volleybots.scripted import make_scripted_policy
+        from volleybots.scripted.receive import OneVsOneReceiver
 
-        self.teacher = make_scripted_policy(env, env.action_space_name).replan_every(self.cfg.teacher_replan)
+        if getattr(self.cfg, "teacher", "scripted") == "receiver":
+            teacher = OneVsOneReceiver(env.action_space_name, env.params)
+        else:
+            teacher = make_scripted_policy(env, env.action_space_name)
+        self.teacher = teacher.replan_every(self.cfg.teacher_replan)
         n = env.num_envs
         self.learner_mask = (torch.arange(n, device=self.device) < round(self.cfg.learner_envs * n)).view(n, 1, 1)
 

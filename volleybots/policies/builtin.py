@@ -1,4 +1,4 @@
-"""The built-in players: ``scripted``, ``random`` and ``hierarchical`` (3v3), by name in ``PLAYERS``.
+"""The built-in players: ``scripted``, ``receiver`` (1v1), ``random`` and ``hierarchical`` (3v3), by name in ``PLAYERS``.
 
 Each acts for whichever agents the tensordict holds (one team of a match, or every drone), so the same
 player serves ``eval scripted``, a cross-play competitor, an ``opponent=`` and a population's seed
@@ -21,6 +21,7 @@ from volleybots.keys import ACTION, AGENTS
 from volleybots.runs import read_checkpoint
 
 HIERARCHICAL_TASK = "3v3"
+RECEIVER_TASK = "1v1"
 
 
 def acted(policy, td: TensorDictBase) -> TensorDictBase:
@@ -58,6 +59,19 @@ def scripted_policy(env, action_space: str | None = None) -> Callable[[TensorDic
         pol = make_scripted_policy(env, action_space)
     except (ValueError, KeyError) as e:
         raise ConfigError(f"no scripted policy for task {env.name!r} with env.action_space={action_space!r}: {e}") from None
+    return lambda td: acted(pol, td)
+
+
+def receiver_policy(env, action_space: str | None = None) -> Callable[[TensorDictBase], TensorDictBase]:
+    """The 1v1 scripted player that also receives deep, flat serves (``volleybots.scripted.receive``)."""
+    from volleybots.scripted.receive import OneVsOneReceiver
+
+    action_space = action_space or env.action_space_name
+    if env.name != RECEIVER_TASK:
+        raise ConfigError(f"the receiver plays task {RECEIVER_TASK} only, not {env.name!r}")
+    if action_space not in ("prt", "ctbr"):
+        raise ConfigError(f"the receiver acts in env.action_space 'prt' or 'ctbr', not {action_space!r}")
+    pol = OneVsOneReceiver(action_space, env.params)
     return lambda td: acted(pol, td)
 
 
@@ -147,6 +161,8 @@ PLAYERS: dict[str, Player] = {
     for p in (
         Player("scripted", "the task's scripted model-based player (plans on an exact model of the simulator)",
                lambda env: scripted_policy(env), lambda env: scripted_policy(env)),
+        Player("receiver", "1v1 only: the scripted player that also receives deep, flat serves (a teacher for algo=bc)",
+               lambda env: receiver_policy(env), lambda env: receiver_policy(env), RECEIVER_TASK),
         Player("random", "uniform random actions", random_policy, random_policy),
         Player("hierarchical", "3v3 only: drills under an event-driven high level (scripted drills, or trained ones from a YAML file)",
                hierarchical_policy, hierarchical_both_sides, HIERARCHICAL_TASK),
@@ -155,6 +171,6 @@ PLAYERS: dict[str, Player] = {
 BUILTIN = tuple(PLAYERS)
 
 __all__ = [
-    "BUILTIN", "HIERARCHICAL_TASK", "PLAYERS", "Player", "acted", "hierarchical_both_sides", "hierarchical_policy", "learned_drill",
-    "random_policy", "read_drills_file", "scripted_policy",
+    "BUILTIN", "HIERARCHICAL_TASK", "PLAYERS", "RECEIVER_TASK", "Player", "acted", "hierarchical_both_sides", "hierarchical_policy",
+    "learned_drill", "random_policy", "read_drills_file", "receiver_policy", "scripted_policy",
 ]

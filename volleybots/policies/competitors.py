@@ -43,6 +43,7 @@ from volleybots.runs import (
     read_population,
     run_policy_checkpoint,
 )
+from volleybots.tasks import plays_as
 
 
 @dataclass
@@ -70,7 +71,7 @@ class Competitor:
     def check_fits(self, task: str, action_space: str, obs_dim: int) -> None:
         """Raise ``ConfigError`` unless every member was made for this task and action space."""
         for m in self.members:
-            if m.task is not None and m.task != task:
+            if m.task is not None and plays_as(m.task) != plays_as(task):
                 raise ConfigError(f"competitor {self.label!r} plays task {m.task!r}, not {task!r}")
             if m.action_space is not None and m.action_space != action_space:
                 raise ConfigError(f"competitor {self.label!r} acts in env.action_space={m.action_space!r}, not {action_space!r}")

@@ -10,7 +10,8 @@ plays, and a file changed on disk is read again.
 The grammar (``parse_spec``), used by ``eval``, ``replay``, ``eval crossplay``, ``opponent=``,
 ``algo.seed_members`` and ``init=``::
 
-    scripted | random | hierarchical     a built-in player (``volleybots.policies.builtin.PLAYERS``)
+    scripted | receiver | random | hierarchical
+                                         a built-in player (``volleybots.policies.builtin.PLAYERS``)
     PATH.pt                              a checkpoint file (a run's, or a population member)
     RUN_DIR                              a run: its population (members and final mixture) if it is a
                                          population run, else its final (else latest) checkpoint
@@ -34,12 +35,11 @@ from volleybots.overrides import split_arg
 from volleybots.runs import RunDir, load_algo_state, read_checkpoint, refuse_interpolation, run_policy_checkpoint
 
 KINDS = ("builtin", "checkpoint", "run", "drills", "mixture")
-# the built-in players a spec may name: the keys of policies.builtin.PLAYERS (which imports this module,
-# so it cannot be imported here; tests/config/test_registries.py holds the two equal)
-BUILTIN_NAMES = ("scripted", "random", "hierarchical")
 # (sha256, device, n_agents, obs_dim, action_space) -> the learner with its weights loaded; shared safely because
 # acting never changes a learner (observation statistics move only in ``update``)
 _CACHE: dict[tuple, object] = {}
+# the names of volleybots.policies.builtin.PLAYERS (which imports this module; tests/tasks/test_receive.py keeps the two equal)
+BUILTIN_NAMES = ("scripted", "receiver", "random", "hierarchical")
 _CACHE_SIZE = 64  # distinct networks kept; a cross-play of many populations still fits in a few hundred MB
 
 

@@ -6,7 +6,7 @@ reusable: ``control`` (position/attitude cascade to PRT or CTBR actions), ``ball
 prediction, launch and racket solutions), ``plan`` (strike planner, trajectories, guidance).
 """
 
-from volleybots.scripted import bump_and_pass, drills, match, set_and_spike, set_and_spike_hard  # noqa: F401  (register the multi-drone players and drills)
+from volleybots.scripted import bump_and_pass, drills, match, receive, set_and_spike, set_and_spike_hard  # noqa: F401  (register the multi-drone players and drills)
 from volleybots.scripted.ballistics import (
     ball_at,
     bounce,

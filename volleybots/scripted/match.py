@@ -95,6 +95,16 @@ class _MatchPlayer(_Player):
         cost = torch.where(torch.arange(len(own), device=me.device) == me.unsqueeze(-1), torch.full_like(cost, float("inf")), cost)
         return own[cost.argmin(-1)]
 
+    def meet_height(self, drone, ball_p, ball_v, ours) -> torch.Tensor | None:
+        """The drone's height [...] at the next contact where it is not the default one (``TouchConfig``);
+        None: the defaults everywhere. ``ours`` [...]: the ball is the team's to play, or the opponents'
+        ball flying over the net to us."""
+        return None
+
+    def fly(self, drone, ball_p, ball_v, want_out, mine, home, drone_z) -> torch.Tensor:
+        """The touch's flight (``_Player.play``); ``drone_z`` as ``meet_height`` gave it."""
+        return self.play(drone, ball_p, ball_v, want_out, mine, home, drone_z=drone_z)
+
     def act(self, drone, t):
         c = self.cfg
         g = self.params.gravity
@@ -102,12 +112,16 @@ class _MatchPlayer(_Player):
         contact_z = self.contact_height(ball_p, ball_v)
         # where the ball comes down to the contact height; the nearest teammate takes it
         fall, _ = crossing(ball_p, ball_v, contact_z, g)
-        d = (team_pos[..., :2] - fall[..., None, :2]).norm(dim=-1)
-        me = (team_pos[..., :2] - drone.pos[..., None, :2]).norm(dim=-1).argmin(-1)
-        nearest = d.argmin(-1) == me
         # the opponents' ball flying over the net to us is ours from when it crosses (everyone may
         # touch it then): the receiver gets under it before, it would not make it from there
         incoming = ~team_turn & (ball_v[..., 0] > 0) & (fall[..., 0] > 0)
+        drone_z = self.meet_height(drone, ball_p, ball_v, (may & team_turn) | incoming)
+        if drone_z is not None:  # a player that meets some balls lower: plan those there
+            contact_z = self.contact_height(ball_p, ball_v, drone_z=drone_z)
+            fall, _ = crossing(ball_p, ball_v, contact_z, g)
+        d = (team_pos[..., :2] - fall[..., None, :2]).norm(dim=-1)
+        me = (team_pos[..., :2] - drone.pos[..., None, :2]).norm(dim=-1).argmin(-1)
+        nearest = d.argmin(-1) == me
         # a ball coming down too close to the net is let go: reaching it would cross (losing anyway)
         mine = ((may & team_turn) | incoming) & (nearest | (self.team_size == 1)) & (fall[..., 0] > c.guard_x + c.reach_margin)
         # the touch that sent the ball was where it last passed the contact height going up: on the
@@ -124,7 +138,7 @@ class _MatchPlayer(_Player):
             return torch.where(passing.unsqueeze(-1), fwd, over)
 
         home = with_z(anchor[..., :2], self.touch.contact_z)
-        action = self.play(drone, ball_p, ball_v, want_out, mine, home)
+        action = self.fly(drone, ball_p, ball_v, want_out, mine, home, drone_z)
         back = self.ctrl.act(drone, home, torch.zeros_like(home))
         return torch.where((drone.pos[..., :1] < c.guard_x), back, action)
 

@@ -77,12 +77,13 @@ class _Player(_BallPolicy):
         return torch.minimum(drone_z + self.planner.reach, apex_height(ball_p, ball_v, self.params.gravity) - t.apex_margin)
 
     def play(self, drone: DroneObs, ball_p, ball_v, want_out, mine: torch.Tensor, wait: torch.Tensor, early=None,
-             drop=None, drone_z=None, idle=None) -> torch.Tensor:
+             drop=None, drone_z=None, idle=None, touch: TouchConfig | None = None) -> torch.Tensor:
         """Fly the touch given by ``want_out(ball_at_contact, ball_velocity_in) -> v_out`` where
         ``mine`` [...] is set, from ``wait`` [..., 3]; elsewhere hold still at ``idle`` (default
         ``wait``). ``drop`` and ``drone_z`` as in ``contact_height``: a player that tells the opening
-        drop apart better than by the ball's speed, or meets balls at other heights, says so."""
-        t = self.touch
+        drop apart better than by the ball's speed, or meets balls at other heights, says so;
+        ``touch`` times this touch's approach instead of the player's own ``TouchConfig``."""
+        t = touch or self.touch
         drop = is_drop(ball_v) if drop is None else drop
         strike = self.planner.plan(ball_p, ball_v, self.contact_height(ball_p, ball_v, drop, drone_z), want_out, t.max_tilt)
         window = torch.where(drop, t.first_window, t.window)

@@ -53,7 +53,7 @@ def apply_init(algo, cfg, spec: AgentSpec) -> dict:
     algorithm whose networks cannot take the source's may keep them another way (``guide_from``:
     SAC from a bc / ppo / mappo run). Returns what was loaded (for summary.json)."""
     from volleybots.algos.base import class_attr
-    from volleybots.tasks import TASKS
+    from volleybots.tasks import TASKS, plays_as
 
     path = init_checkpoint(cfg.init)
     state = read_checkpoint(path, device=algo.device)
@@ -65,9 +65,11 @@ def apply_init(algo, cfg, spec: AgentSpec) -> dict:
     here = _side(cfg.algo.name, cfg.task.name, here_drones, cfg.env.action_space, spec.obs_dim)
     there = _side(src.algo.name, src.task.name, there_drones, src.env.action_space, int(state["obs_dim"]))
     what = f"init={cfg.init!r} ({there}) does not fit this run ({here})"
-    for name, a, b in (("task", src.task.name, cfg.task.name), ("drone count", there_drones, here_drones),
-                       ("action space", src.env.action_space, cfg.env.action_space),
-                       ("observation size", int(state["obs_dim"]), spec.obs_dim)):
+    checks = [("task", plays_as(src.task.name), plays_as(cfg.task.name)), ("drone count", there_drones, here_drones),
+              ("action space", src.env.action_space, cfg.env.action_space), ("observation size", int(state["obs_dim"]), spec.obs_dim)]
+    if src.task.name != cfg.task.name:  # a drill and its match (tasks.plays_as): one player per drone either way
+        checks.pop(1)
+    for name, a, b in checks:
         if a != b:
             raise ConfigError(f"{what}: the {name} differs")
     source = build_learner(state, AgentSpec(spec.device, int(state["n_agents"]), int(state["obs_dim"]), spec.actions), f"init={cfg.init!r}")

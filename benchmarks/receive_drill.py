@@ -1,0 +1,58 @@
+"""The receive drill's figures for a policy: serves returned, deep and lob apart.
+
+    python benchmarks/receive_drill.py POLICY [POLICY ...] --episodes 256 --seed 9800 [--opening] [--json OUT]
+
+POLICY is ``scripted`` (the drill's scripted player: the ``receiver``'s play) or a run dir /
+checkpoint of a policy that plays the drill (trained on it, or a 1v1 policy: the drill shares the
+1v1 observation). Each plays ``episodes`` drill episodes (one serve each) on ``seed``, on its mean
+action; ``--opening`` plays the drill with ``opening=True`` (the match's wait before the serve).
+docs/receive.md quotes these figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import torch
+
+import volleybots
+from volleybots.play import run_episodes
+from volleybots.policies.store import load_policy, policy_checkpoint
+from volleybots.scripted import make_scripted_policy
+
+
+def drill_record(policy: str, episodes: int, seed: int, opening: bool = False) -> dict:
+    env = volleybots.make_env("receive", num_envs=episodes, seed=seed, opening=opening)
+    if policy == "scripted":
+        pol = make_scripted_policy(env)
+    else:
+        pol = load_policy(policy_checkpoint(policy, "policy"), env, deterministic=True)
+    res = run_episodes(env, pol)
+    deep = res["deep_serve"] > 0.5
+    ok = res["success"] > 0.5
+    return {"policy": policy, "seed": seed, "opening": opening, "episodes": episodes, "returned": int(ok.sum()), "deep": int(deep.sum()),
+            "deep_returned": int((ok & deep).sum()), "lob_returned": int((ok & ~deep).sum()), "touched": int((res["hits"] >= 1).sum()),
+            "return_mean": float(res["return"].mean())}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("policies", nargs="+")
+    ap.add_argument("--episodes", type=int, default=256)
+    ap.add_argument("--seed", type=int, default=9800)
+    ap.add_argument("--opening", action="store_true")
+    ap.add_argument("--json", type=Path, default=None)
+    a = ap.parse_args()
+    torch.set_num_threads(1)
+    rows = [drill_record(p, a.episodes, a.seed, a.opening) for p in a.policies]
+    for r in rows:
+        print(json.dumps(r), flush=True)
+    if a.json:
+        a.json.parent.mkdir(parents=True, exist_ok=True)
+        a.json.write_text(json.dumps({"rows": rows}, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
