@@ -7,11 +7,14 @@ from __future__ import annotations
 import csv
 import functools
 import io
+import json
 import os
 import subprocess
 import sys
+import types
 from pathlib import Path
 
+import numpy as np
 import torch
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -62,8 +65,9 @@ def snapshot(root: Path) -> dict:
 
 
 def one_line_exit_2(res, *words) -> str:
-    """A CLI refusal as the README promises it: exit code 2 and one ``error:`` line naming ``words``."""
-    err = res.stderr.strip()
+    """A CLI refusal as the README promises it: exit code 2 and one ``error:`` line naming ``words``
+    (after the progress lines of games already played, when the refusal comes after them: a full disk)."""
+    err = "\n".join(line for line in res.stderr.splitlines() if line.strip() and not line.startswith("  pair ")).strip()
     assert res.exit_code == 2, (res.exit_code, res.output)
     assert len(err.splitlines()) == 1 and err.startswith("error: "), err
     for w in words:
@@ -125,3 +129,51 @@ def setter_sets_and_stays_home(task: str) -> None:
     alive = (first.long().cumsum(1) - first.long()) == 0
     setter = td["next", "agents", "observation"][..., 0, :3][alive]
     assert (setter[:, 0] > 0.2).all() and (setter[:, 2] > 1.0).all()
+
+
+# ---- fakes and files more than one module builds
+class _Batch:
+    def __init__(self, arr):
+        self.arr = arr
+
+    def as_arrow_array(self):
+        return self.arr
+
+
+class FakeRec:
+    """Captures what the recorder logs; a ``send_columns`` call becomes one entry per row, holding
+    that row's components by field name (``row.scalars.as_arrow_array()``), at its step."""
+
+    def __init__(self):
+        self.logs: list[tuple[str, object, bool]] = []
+        self.steps: dict[str, list[int]] = {}
+        self.blueprints: list = []
+
+    def log(self, path, archetype, static=False):
+        self.logs.append((path, archetype, static))
+
+    def send_columns(self, path, indexes, columns):
+        steps = indexes[0].as_arrow_array().to_pylist()
+        cols = {c.component_descriptor().component.split(":")[-1]: c.as_arrow_array() for c in columns}
+        for i, step in enumerate(steps):
+            self.logs.append((path, types.SimpleNamespace(**{k: _Batch(a[i].values) for k, a in cols.items()}), False))
+            self.steps.setdefault(path, []).append(step)
+
+    def send_blueprint(self, blueprint):
+        self.blueprints.append(blueprint)
+
+    def at(self, path, static=False):
+        return [a for p, a, st in self.logs if p == path and st == static]
+
+
+def crossplay_file(path: Path, edit=None) -> Path:
+    """A small valid crossplay.json at ``path`` (``edit`` changes its data first): a results file to damage."""
+    from volleybots.eval.crossplay import CrossPlay
+
+    wdl = np.array([[[0, 0, 0], [3, 1, 0]], [[0, 1, 3], [0, 0, 0]]], dtype=float)
+    res = CrossPlay(["a", "b"], wdl, {"0,1": "WWDW"}, {"0,1": [[2, 0, 0], [1, 1, 0]]}, {"task": "1v1", "games_per_pair": 4, "seed": 0})
+    data = res.to_dict()
+    if edit:
+        edit(data)
+    path.write_text(json.dumps(data))
+    return path

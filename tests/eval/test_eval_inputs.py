@@ -47,9 +47,9 @@ def test_absurd_counts_are_refused_before_any_game(args, words, no_games, tmp_pa
 
 
 def test_absurd_rounds_over_a_results_file_are_refused_before_rating(tmp_path):
-    from test_damaged_runs import _crossplay_file
+    from helpers import crossplay_file
 
-    path = _crossplay_file(tmp_path / "crossplay.json")
+    path = crossplay_file(tmp_path / "crossplay.json")
     one_line_exit_2(runner.invoke(app, ["eval", "elo", f"from={path}", "rounds=100000000000000000", "--out", str(tmp_path / "o")]),
                     "rounds=100000000000000000", "lower rounds")
 

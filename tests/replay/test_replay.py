@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import re
 import subprocess
-import types
 
 import numpy as np
 import pytest
 import torch
+from helpers import FakeRec
 from typer.testing import CliRunner
 
 import volleybots
@@ -70,38 +70,6 @@ def test_replay_of_the_scripted_policy_or_a_clear_error(tmp_path):
     assert "/world/ball" in _entities(out)
 
 
-class _Batch:
-    def __init__(self, arr):
-        self.arr = arr
-
-    def as_arrow_array(self):
-        return self.arr
-
-
-class FakeRec:
-    """Captures what the recorder logs; a ``send_columns`` call becomes one entry per row, holding
-    that row's components by field name (``row.scalars.as_arrow_array()``), at its step."""
-
-    def __init__(self):
-        self.logs: list[tuple[str, object, bool]] = []
-        self.steps: dict[str, list[int]] = {}
-        self.blueprints: list = []
-
-    def log(self, path, archetype, static=False):
-        self.logs.append((path, archetype, static))
-
-    def send_columns(self, path, indexes, columns):
-        steps = indexes[0].as_arrow_array().to_pylist()
-        cols = {c.component_descriptor().component.split(":")[-1]: c.as_arrow_array() for c in columns}
-        for i, step in enumerate(steps):
-            self.logs.append((path, types.SimpleNamespace(**{k: _Batch(a[i].values) for k, a in cols.items()}), False))
-            self.steps.setdefault(path, []).append(step)
-
-    def send_blueprint(self, blueprint):
-        self.blueprints.append(blueprint)
-
-    def at(self, path, static=False):
-        return [a for p, a, st in self.logs if p == path and st == static]
 
 
 def _colour(boxes) -> tuple[int, ...]:

@@ -5,8 +5,8 @@ the decision log of replays."""
 
 import pytest
 import torch
+from helpers import FakeRec
 from tensordict import TensorDict
-from test_replay import FakeRec
 from torchrl.envs.utils import step_mdp
 from typer.testing import CliRunner
 

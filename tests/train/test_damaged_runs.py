@@ -8,11 +8,10 @@ import json
 import shutil
 from pathlib import Path
 
-import numpy as np
 import pytest
 import torch
 import yaml
-from helpers import one_line_exit_2
+from helpers import crossplay_file, one_line_exit_2
 from typer.testing import CliRunner
 
 from volleybots.cli import app
@@ -161,18 +160,6 @@ def test_a_planted_interpolation_is_refused_and_never_resolved(tiny_1v1_run, cop
 
 
 # ------------------------------------------------------------------------------ the files the project writes
-def _crossplay_file(path: Path, edit=None) -> Path:
-    from volleybots.eval.crossplay import CrossPlay
-
-    wdl = np.array([[[0, 0, 0], [3, 1, 0]], [[0, 1, 3], [0, 0, 0]]], dtype=float)
-    res = CrossPlay(["a", "b"], wdl, {"0,1": "WWDW"}, {"0,1": [[2, 0, 0], [1, 1, 0]]}, {"task": "1v1", "games_per_pair": 4, "seed": 0})
-    data = res.to_dict()
-    if edit:
-        edit(data)
-    path.write_text(json.dumps(data))
-    return path
-
-
 CROSSPLAY_DAMAGE = {
     "missing key": (lambda d: d.pop("wdl"), ["no 'wdl'"]),
     "ragged counts": (lambda d: d["wdl"][1].pop(), ["wdl[1]", "list of 2 entries"]),
@@ -187,7 +174,7 @@ CROSSPLAY_DAMAGE = {
 @pytest.mark.parametrize("case", list(CROSSPLAY_DAMAGE))
 def test_a_damaged_crossplay_file_is_one_line(case, tmp_path):
     edit, words = CROSSPLAY_DAMAGE[case]
-    path = _crossplay_file(tmp_path / "crossplay.json", edit)
+    path = crossplay_file(tmp_path / "crossplay.json", edit)
     if edit is None:
         path.write_text('{"format": ')
     one_line_exit_2(runner.invoke(app, ["eval", "elo", f"from={path}", "--out", str(tmp_path / "o")]), *words)
@@ -195,7 +182,7 @@ def test_a_damaged_crossplay_file_is_one_line(case, tmp_path):
 
 
 def test_an_intact_crossplay_file_rates(tmp_path):
-    path = _crossplay_file(tmp_path / "crossplay.json")
+    path = crossplay_file(tmp_path / "crossplay.json")
     res = runner.invoke(app, ["eval", "elo", f"from={path}", "rounds=10", "--json", "--out", str(tmp_path / "o")])
     assert res.exit_code == 0, res.output
     assert json.loads(res.stdout)["labels"] == ["a", "b"]
