@@ -45,7 +45,7 @@ def test_solo_bump_passes_gymnasium_check_env():
 
 def test_every_single_drone_task_is_registered_and_only_those():
     assert IDS["volleybots/SoloBump-v0"] == "solo_bump" and IDS["volleybots/BackAndForth-v0"] == "back_and_forth"
-    assert set(IDS.values()) == {"hover", "back_and_forth", "hit_the_ball", "solo_bump", "serve", "pass", "set", "attack"}
+    assert set(IDS.values()) == {"hover", "back_and_forth", "hit_the_ball", "solo_bump", "serve", "pass", "set", "attack", "receive"}
     vec = gym.make_vec("volleybots/Hover-v0", num_envs=3)
     assert isinstance(vec, VolleyVectorEnv) and vec.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
     assert vec.observation_space.shape == (3, 26) and vec.action_space.shape == (3, 4)

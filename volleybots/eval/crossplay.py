@@ -274,18 +274,6 @@ def default_out(task: str, verb: str) -> Path:
     return Path("outputs") / verb / f"{time.strftime('%Y-%m-%d_%H-%M-%S')}_{task}"
 
 
-def out_dir(out: Path | None, task: str, verb: str) -> Path:
-    """Where a verb writes: ``out`` or ``outputs/<verb>/<date>_<time>_<task>``; never into a folder
-    that already holds results, and refused before any game when it cannot be written."""
-    from volleybots.runs import check_writable
-
-    path = Path(out) if out is not None else default_out(task, verb)
-    if path.exists() and (not path.is_dir() or any(path.iterdir())):
-        raise ConfigError(f"--out {str(path)!r} exists and is not an empty folder; results are never overwritten")
-    check_writable(path, "--out")
-    return path
-
-
 def setup(args, options: dict, min_competitors: int = 2):
     """(competitors, specs, options, config) of a cross-play command line, all validated."""
     specs, opts, overrides = split_args(args, options)
