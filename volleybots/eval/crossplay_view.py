@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from volleybots.eval.plain import plain
+from volleybots.eval.plain import clean, plain
 from volleybots.files import write_atomic
 
 
@@ -34,8 +34,9 @@ def heatmap(result, path: Path, title: str | None = None) -> None:
             elif i != j:
                 ax.text(j, i, f"no decisive\ngame{touches[i][j]}", ha="center", va="center", fontsize=7, color="grey")
     avg = result.average_win_rate()
-    ax.set_xticks(range(n), result.labels, rotation=30, ha="right")
-    ax.set_yticks(range(n), [f"{lab}  (avg {a:.2f})" for lab, a in zip(result.labels, avg)])
+    names = [clean(lab) for lab in result.labels]  # a label from a results file may hold control characters
+    ax.set_xticks(range(n), names, rotation=30, ha="right")
+    ax.set_yticks(range(n), [f"{lab}  (avg {a:.2f})" for lab, a in zip(names, avg)])
     ax.set_xlabel("opponent (column); cells: win rate [Wilson 95 %], W/D/L" + (", touches per game row/column" if result.content else ""))
     m = result.meta
     ax.set_title(title or f"{m.get('task')} cross-play: win rate of row over decisive games\n"

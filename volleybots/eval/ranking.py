@@ -25,7 +25,7 @@ import numpy as np
 from volleybots.errors import ConfigError, Range
 from volleybots.eval.content import by_competitor
 from volleybots.eval.crossplay import CrossPlay, _nan_to_none
-from volleybots.eval.plain import plain
+from volleybots.eval.plain import clean, plain
 from volleybots.files import write_atomic, write_json
 from volleybots.overrides import split_arg
 from volleybots.ratings import ELO_K, ELO_START, bradley_terry_intervals, elo_history, record, round_robin, sample_round_robin
@@ -142,7 +142,7 @@ def plot(report: dict, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    labels = report["labels"]
+    labels = [clean(lab) for lab in report["labels"]]  # a label from a results file may hold control characters
     e, bt = report["elo"], report["bradley_terry"]
     fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4))
     traj = np.asarray(e["trajectory"])
