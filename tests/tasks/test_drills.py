@@ -53,8 +53,8 @@ def test_pass_reset_ball_comes_over_the_net_into_the_back_of_the_court():
 
 
 def test_pass_serves_share_draws_the_3v3_scripted_serve():
-    """``task.serves``: that share of the balls is the 3v3 scripted team's serve, struck at (-6, 0, 2.2)
-    and coming down through the contact height 2.2-2.8 m behind the net; the rest as before."""
+    """``task.serves``: that share of the balls is serve-like, struck at (-6, 0, 2.2) and coming down
+    through the contact height 2.2-2.8 m behind the net; the rest as before."""
     env, td, pos, bp, bv = reset("pass", n=256, seed=4, serves=0.5)
     served = bp[:, 0] < -5.8
     assert 90 < int(served.sum()) < 166  # about half of 256

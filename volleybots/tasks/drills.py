@@ -10,10 +10,10 @@ at the anchor of its role in the team, with the ball placed as it arrives there 
   [-4.5, -2] it comes down through 2.75 m in the back of the court, x in [4.5, 6.5], y in
   [-1.5, 1.5], 1.3-1.7 s later. Done when: after the touch the ball comes down through 2.75 m.
   Success: within 1 m (horizontally) of the front-left anchor (3, -1.5). A share ``serves`` of the
-  balls are the 3 vs 3 scripted team's serve instead: from its server's racket, (-6, 0, 2.2) +- 0.1 m,
-  over the net high (apex about 5 m) and down through 2.75 m just behind it, x in [2.2, 2.8], y in
-  [-1.6, 1.6], 1.35-1.55 s later (measured on its serves: struck at (-6, 0, 2.2) with 7.5 m/s up,
-  down through 2.75 m at x 2.4-2.6, y -1.6 to 1.6).
+  balls are serve-like instead: from the 3 vs 3 scripted server's racket, (-6, 0, 2.2) +- 0.1 m, over
+  the net high (apex about 5 m) and down through 2.75 m just behind it, x in [2.2, 2.8], y in
+  [-1.6, 1.6], 1.35-1.55 s later, where that team's serves come down (its serve itself is two
+  touches, a toss and a hit over: docs/hierarchical.md).
 - ``set``. Drone: front-left, (3, -1.5, 2). Ball at reset: passed by the back drone: from its touch
   (x in [4.5, 6.5], y in [-1, 1], 2.75 m) it comes down through 2.75 m within 0.5 m of the
   front-left anchor, 1.2-1.6 s later. Done when: as Pass. Success: within 1 m of the front-right
