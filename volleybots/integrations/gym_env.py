@@ -36,8 +36,8 @@ from tensordict import TensorDict
 
 from volleybots.integrations import spaces as sp
 from volleybots.integrations.render import RENDER_MODES, Trail, check_render_mode
-from volleybots.integrations.spaces import SINGLE_TASKS, STATS_KEY, action_array, action_tensor, check_seed, episode_stats, to_numpy
-from volleybots.keys import ACTION, DONE, NEXT, OBS, REWARD, TERMINATED, TRUNCATED
+from volleybots.integrations.spaces import SINGLE_TASKS, STATS_KEY, Actions, check_seed, episode_stats, to_numpy
+from volleybots.keys import ACTION, NEXT, OBS, REWARD, TERMINATED, TRUNCATED
 from volleybots.tasks import TASKS
 
 NAMESPACE = "volleybots"
@@ -104,7 +104,8 @@ class VolleyVectorEnv(_Closable, VectorEnv):
         self.single_action_space = sp.action_space(self.env)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self._shape = sp.action_shape(self.env, (self.num_envs,))
+        self._actions = Actions(self.env, (self.num_envs, 1))
+        self._shape = self._actions.shape((self.num_envs,))
         self._td = None
         self._pending = np.zeros(self.num_envs, bool)  # next_step: worlds whose episode ended last step
 
@@ -120,29 +121,30 @@ class VolleyVectorEnv(_Closable, VectorEnv):
         return to_numpy(self._td.get(OBS)[:, 0]), {}
 
     def step(self, actions):
+        obs, reward, term, trunc, info = self.step32(actions)
+        return obs, reward.astype(np.float64), term, trunc, info
+
+    def step32(self, actions):
+        """``step`` with the reward as the env's float32 (what SB3's buffers hold: ``VolleySB3VecEnv``
+        takes it as it is; Gymnasium's ``step`` gives float64)."""
         self._check_open()
         if self._td is None:
             raise RuntimeError("call reset() before step()")
-        arr = action_array(self.env, actions, self._shape)
+        arr = self._actions.array(actions, self._shape)
         if self.next_step:
             return self._step_next(arr)
-        self._td.set(ACTION, action_tensor(self.env, arr, (self.num_envs, 1)))
+        self._td.set(ACTION, self._actions.tensor(arr))
         cur, self._td = self.env.step_and_maybe_reset(self._td)
         nxt = cur.get(NEXT)
-        done = to_numpy(nxt.get(DONE).reshape(-1))
+        term, trunc = to_numpy(nxt.get(TERMINATED).reshape(-1)), to_numpy(nxt.get(TRUNCATED).reshape(-1))
+        done = term | trunc
         info: dict[str, Any] = {}
         if done.any():
             info["final_obs"] = to_numpy(nxt.get(OBS)[:, 0])
             info["_final_obs"] = done
             info[STATS_KEY] = episode_stats(self.env, nxt)
             info["_" + STATS_KEY] = done.copy()
-        return (
-            to_numpy(self._td.get(OBS)[:, 0]),
-            to_numpy(nxt.get(REWARD)[:, 0, 0]).astype(np.float64),
-            to_numpy(nxt.get(TERMINATED).reshape(-1)),
-            to_numpy(nxt.get(TRUNCATED).reshape(-1)),
-            info,
-        )
+        return to_numpy(self._td.get(OBS)[:, 0]), to_numpy(nxt.get(REWARD)[:, 0, 0]), term, trunc, info
 
     def _step_next(self, arr: np.ndarray):
         """Gymnasium's next-step autoreset: the worlds whose episode ended last step are stepped with a
@@ -151,10 +153,10 @@ class VolleyVectorEnv(_Closable, VectorEnv):
         if pending.any():  # their actions are ignored, as Gymnasium's next-step mode says: nothing of them reaches the env
             arr = arr.copy()
             arr[pending] = 0
-        self._td.set(ACTION, action_tensor(self.env, arr, (self.num_envs, 1)))
+        self._td.set(ACTION, self._actions.tensor(arr))
         nxt = self.env.step(self._td).get(NEXT)
         obs = to_numpy(nxt.get(OBS)[:, 0])
-        reward = to_numpy(nxt.get(REWARD)[:, 0, 0]).astype(np.float64)
+        reward = to_numpy(nxt.get(REWARD)[:, 0, 0])
         term, trunc = to_numpy(nxt.get(TERMINATED).reshape(-1)), to_numpy(nxt.get(TRUNCATED).reshape(-1))
         if pending.any():
             mask = torch.as_tensor(pending, device=self.env.device).unsqueeze(-1)
@@ -193,7 +195,8 @@ class VolleyGymEnv(_Closable, gym.Env):
         self.task = task
         self.observation_space = sp.observation_space(self.env)
         self.action_space = sp.action_space(self.env)
-        self._shape = sp.action_shape(self.env)
+        self._actions = Actions(self.env, (1, 1))
+        self._shape = self._actions.shape()
         self._td: TensorDict | None = None
         self._ended = False
         self._trail = Trail(self.env) if self.render_mode else None
@@ -218,8 +221,7 @@ class VolleyGymEnv(_Closable, gym.Env):
             raise RuntimeError("call reset() before step()")
         if self._ended:
             raise RuntimeError("the episode has ended (terminated or truncated): call reset() before step()")
-        arr = action_array(self.env, action, self._shape)
-        self._td.set(ACTION, action_tensor(self.env, arr, (1, 1)))
+        self._td.set(ACTION, self._actions.tensor(self._actions.array(action, self._shape)))
         nxt = self.env.step(self._td).get(NEXT)
         self._td = nxt
         terminated, truncated = bool(nxt.get(TERMINATED)), bool(nxt.get(TRUNCATED))

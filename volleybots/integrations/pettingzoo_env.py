@@ -32,7 +32,7 @@ from gymnasium import spaces
 
 from volleybots.integrations import spaces as sp
 from volleybots.integrations.render import RENDER_MODES, Trail, check_render_mode
-from volleybots.integrations.spaces import STATS_KEY, action_array, action_tensor, check_seed, episode_stats, to_numpy
+from volleybots.integrations.spaces import STATS_KEY, Actions, check_seed, episode_stats, to_numpy
 from volleybots.keys import ACTION, AGENTS, NEXT, OBS, REWARD, TERMINATED, TRUNCATED
 from volleybots.replay.style import TEAM_NAMES
 
@@ -88,7 +88,8 @@ class VolleyParallelEnv(ParallelEnv):
         self.action_spaces = {a: sp.action_space(self.env) for a in self.possible_agents}
         one = self.observation_spaces[self.possible_agents[0]]
         self.state_space = spaces.Box(np.tile(one.low, self.n_agents), np.tile(one.high, self.n_agents), dtype=np.float32)
-        self._shape = sp.action_shape(self.env)
+        self._actions = Actions(self.env, (1, self.n_agents))
+        self._shape = self._actions.shape()
         self.agents: list[str] = []
         self._td = None
         self._closed = False
@@ -128,8 +129,8 @@ class VolleyParallelEnv(ParallelEnv):
         if set(actions) != set(self.agents):
             missing, unknown = sorted(set(self.agents) - set(actions)), sorted(set(actions) - set(self.agents))
             raise ValueError(f"actions must name every agent once: missing {missing}, unknown {unknown}; agents: {self.agents}")
-        stacked = np.stack([action_array(self.env, actions[a], self._shape) for a in self.possible_agents])
-        self._td.set(ACTION, action_tensor(self.env, stacked, (1, self.n_agents)))
+        stacked = np.stack([self._actions.array(actions[a], self._shape) for a in self.possible_agents])
+        self._td.set(ACTION, self._actions.tensor(stacked))
         nxt = self.env.step(self._td).get(NEXT)
         self._td = nxt
         if self._trail is not None:

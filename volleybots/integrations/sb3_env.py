@@ -63,16 +63,18 @@ class VolleySB3VecEnv(VecEnv):
         if self._actions is None:
             raise RuntimeError("step_wait() without step_async(actions)")
         actions, self._actions = self._actions, None
-        obs, reward, term, trunc, info = self.venv.step(actions)
+        obs, reward, term, trunc, info = self.venv.step32(actions)
         dones = term | trunc
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
-        for i in np.flatnonzero(dones):
-            infos[i] = {
-                "terminal_observation": info["final_obs"][i],
-                "TimeLimit.truncated": bool(trunc[i] and not term[i]),
-                STATS_KEY: {k: float(v[i]) for k, v in info[STATS_KEY].items()},
-            }
-        return obs, reward.astype(np.float32), dones, infos
+        if info:  # some world ended: only its dict is filled
+            stats, final = info[STATS_KEY], info["final_obs"]
+            for i in np.flatnonzero(dones).tolist():
+                infos[i] = {
+                    "terminal_observation": final[i],
+                    "TimeLimit.truncated": bool(trunc[i] and not term[i]),
+                    STATS_KEY: {k: float(v[i]) for k, v in stats.items()},
+                }
+        return obs, reward, dones, infos
 
     def seed(self, seed: int | None = None) -> list[int | None]:
         """Seed every world with ``seed`` at the next ``reset()`` (the worlds share one generator)."""

@@ -97,32 +97,41 @@ def action_space(env: VolleyEnv) -> spaces.Space:
     return agent_space(env.action_spec[ACTION])
 
 
-def action_array(env: VolleyEnv, action, shape: tuple[int, ...]) -> np.ndarray:
-    """``action`` (numpy, a number or a sequence) checked against what the caller's API promises:
-    exactly ``shape`` (``(4,)`` for one continuous agent, ``()`` for one discrete one, ``(N, 4)`` or
-    ``(N,)`` for a batch), real numbers for a ``Box``, integers for a ``Discrete``. A ``ValueError``
-    names the bad shape or type and what is allowed; nothing is reshaped, rounded or cast silently."""
-    discrete = isinstance(env.action_spec[ACTION], Categorical)
-    arr = np.asarray(action.detach().cpu() if isinstance(action, torch.Tensor) else action)
-    kind = "integers (a Discrete action)" if discrete else "real numbers (a Box action)"
-    if tuple(arr.shape) != tuple(shape):
-        raise ValueError(f"{env.name}: got an action of shape {arr.shape}; expected shape {tuple(shape)} of {kind}")
-    allowed = "iu" if discrete else "iuf"
-    if arr.dtype.kind not in allowed:
-        shown = np.array2string(arr.ravel()[:6], separator=", ") + (" ..." if arr.size > 6 else "")
-        raise ValueError(f"{env.name}: got an action of dtype {arr.dtype} ({shown}); expected {kind}")
-    return arr
+class Actions:
+    """One env's actions as an adapter takes them: checked against what the adapter's API promises, then
+    the env's ``("agents", "action")`` tensor. The spec is read once here: TorchRL builds ``action_spec``
+    anew on every access, a tenth of a millisecond per step on a batched step of a few milliseconds.
 
+    ``batch`` is the env's batch of agents' actions (``(N, 1)`` for the vector env, ``(1, A)`` for one
+    world of ``A`` agents); ``shape(api_batch)`` the shape an API's action has."""
 
-def action_tensor(env: VolleyEnv, arr: np.ndarray, batch: tuple[int, ...]) -> torch.Tensor:
-    """A checked action (``action_array``) as the env's ``("agents", "action")`` of batch ``batch`` ([N, A])."""
-    spec = env.action_spec[ACTION]
-    return torch.as_tensor(arr.reshape(*batch, *spec.shape[2:]), dtype=spec.dtype, device=env.device)
+    def __init__(self, env: VolleyEnv, batch: tuple[int, ...]):
+        spec = env.action_spec[ACTION]
+        self.name, self.device, self.batch = env.name, env.device, tuple(batch)
+        self.discrete = isinstance(spec, Categorical)
+        self.dtype, self.one = spec.dtype, tuple(spec.shape[2:])  # one agent's action: (4,) or ()
 
+    def shape(self, batch: tuple[int, ...] = ()) -> tuple[int, ...]:
+        """The shape an API's action has: ``batch`` followed by one agent's (``(4,)`` or ``()``)."""
+        return (*batch, *self.one)
 
-def action_shape(env: VolleyEnv, batch: tuple[int, ...] = ()) -> tuple[int, ...]:
-    """The shape an API's action has: ``batch`` followed by one agent's (``(4,)`` or ``()``)."""
-    return (*batch, *env.action_spec[ACTION].shape[2:])
+    def array(self, action, shape: tuple[int, ...]) -> np.ndarray:
+        """``action`` (numpy, a number or a sequence) checked: exactly ``shape`` (``(4,)`` for one
+        continuous agent, ``()`` for one discrete one, ``(N, 4)`` or ``(N,)`` for a batch), real numbers
+        for a ``Box``, integers for a ``Discrete``. A ``ValueError`` names the bad shape or type and what
+        is allowed; nothing is reshaped, rounded or cast silently."""
+        arr = np.asarray(action.detach().cpu() if isinstance(action, torch.Tensor) else action)
+        kind = "integers (a Discrete action)" if self.discrete else "real numbers (a Box action)"
+        if arr.shape != tuple(shape):
+            raise ValueError(f"{self.name}: got an action of shape {arr.shape}; expected shape {tuple(shape)} of {kind}")
+        if arr.dtype.kind not in ("iu" if self.discrete else "iuf"):
+            shown = np.array2string(arr.ravel()[:6], separator=", ") + (" ..." if arr.size > 6 else "")
+            raise ValueError(f"{self.name}: got an action of dtype {arr.dtype} ({shown}); expected {kind}")
+        return arr
+
+    def tensor(self, arr: np.ndarray) -> torch.Tensor:
+        """A checked action (``array``) as the env's ``("agents", "action")`` [*batch, *one]."""
+        return torch.as_tensor(arr.reshape(*self.batch, *self.one), dtype=self.dtype, device=self.device)
 
 
 def to_numpy(x: torch.Tensor) -> np.ndarray:
