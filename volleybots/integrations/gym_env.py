@@ -83,6 +83,8 @@ class VolleyVectorEnv(_Closable, VectorEnv):
         device: where the env's tensors live (arrays always come back on the CPU).
         seed: the generator's seed until ``reset(seed=...)`` gives another.
         autoreset_mode: ``"same_step"`` (the batched env's own) or ``"next_step"`` (Gymnasium's default).
+        clip_obs: declare finite bounds for the positions and velocities and clip observations into
+            them (``bounds``; for wrappers that scale by the bounds); ``obs_clip`` counts the clipped values.
         render_mode: None only (render one world with ``VolleyGymEnv(render_mode="rgb_array")``).
         **task_overrides: as for ``volleybots.make_env`` (``episode_len``, ``reward_shaping``, ...).
     """
@@ -90,17 +92,20 @@ class VolleyVectorEnv(_Closable, VectorEnv):
     metadata: ClassVar[dict] = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
 
     def __init__(self, task: str = "solo_bump", num_envs: int = 1, action_space: str = "prt", physics: str = "torch",
-                 device="cpu", seed: int = 0, render_mode: str | None = None, autoreset_mode="same_step", **task_overrides):
+                 device="cpu", seed: int = 0, render_mode: str | None = None, autoreset_mode="same_step", clip_obs: bool = False,
+                 **task_overrides):
         if render_mode is not None:
             raise ValueError(f"render_mode must be None for the vector env, got {render_mode!r}; "
                              "VolleyGymEnv(render_mode='rgb_array') renders one world")
         self.render_mode = None
         mode = _autoreset_mode(autoreset_mode)
         self.env = _make(task, num_envs, action_space=action_space, physics=physics, device=device, seed=seed, **task_overrides)
+        self._observe = sp.Observations(self.env, clip_obs)
+        self.obs_clip = self._observe.clip
         self.metadata = {**type(self).metadata, "autoreset_mode": mode}
         self.next_step = mode == AutoresetMode.NEXT_STEP
         self.task, self.num_envs = task, int(num_envs)
-        self.single_observation_space = sp.observation_space(self.env)
+        self.single_observation_space = self._observe.space
         self.single_action_space = sp.action_space(self.env)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
@@ -118,7 +123,7 @@ class VolleyVectorEnv(_Closable, VectorEnv):
             self.env.set_seed(seed)
         self._td = self.env.reset()
         self._pending[:] = False
-        return to_numpy(self._td.get(OBS)[:, 0]), {}
+        return self._observe(self._td.get(OBS)[:, 0]), {}
 
     def step(self, actions):
         obs, reward, term, trunc, info = self.step32(actions)
@@ -140,11 +145,11 @@ class VolleyVectorEnv(_Closable, VectorEnv):
         done = term | trunc
         info: dict[str, Any] = {}
         if done.any():
-            info["final_obs"] = to_numpy(nxt.get(OBS)[:, 0])
+            info["final_obs"] = self._observe(nxt.get(OBS)[:, 0])
             info["_final_obs"] = done
             info[STATS_KEY] = episode_stats(self.env, nxt)
             info["_" + STATS_KEY] = done.copy()
-        return to_numpy(self._td.get(OBS)[:, 0]), to_numpy(nxt.get(REWARD)[:, 0, 0]), term, trunc, info
+        return self._observe(self._td.get(OBS)[:, 0]), to_numpy(nxt.get(REWARD)[:, 0, 0]), term, trunc, info
 
     def _step_next(self, arr: np.ndarray):
         """Gymnasium's next-step autoreset: the worlds whose episode ended last step are stepped with a
@@ -155,13 +160,13 @@ class VolleyVectorEnv(_Closable, VectorEnv):
             arr[pending] = 0
         self._td.set(ACTION, self._actions.tensor(arr))
         nxt = self.env.step(self._td).get(NEXT)
-        obs = to_numpy(nxt.get(OBS)[:, 0])
+        obs = self._observe(nxt.get(OBS)[:, 0])
         reward = to_numpy(nxt.get(REWARD)[:, 0, 0])
         term, trunc = to_numpy(nxt.get(TERMINATED).reshape(-1)), to_numpy(nxt.get(TRUNCATED).reshape(-1))
         if pending.any():
             mask = torch.as_tensor(pending, device=self.env.device).unsqueeze(-1)
             fresh = self.env.reset(TensorDict({"_reset": mask}, batch_size=[self.num_envs], device=self.env.device))
-            obs[pending] = to_numpy(fresh.get(OBS)[:, 0])[pending]
+            obs[pending] = self._observe(fresh.get(OBS)[:, 0][mask[:, 0]])
             reward[pending], term[pending], trunc[pending] = 0.0, False, False
         self._td = nxt
         done = term | trunc
@@ -189,11 +194,13 @@ class VolleyGymEnv(_Closable, gym.Env):
     metadata: ClassVar[dict] = {"render_modes": list(RENDER_MODES), "render_fps": 50}  # 50 control steps per second
 
     def __init__(self, task: str = "solo_bump", action_space: str = "prt", physics: str = "torch", device="cpu",
-                 seed: int = 0, render_mode: str | None = None, **task_overrides):
+                 seed: int = 0, render_mode: str | None = None, clip_obs: bool = False, **task_overrides):
         self.render_mode = check_render_mode(render_mode)
         self.env = _make(task, 1, action_space=action_space, physics=physics, device=device, seed=seed, **task_overrides)
+        self._observe = sp.Observations(self.env, clip_obs)
+        self.obs_clip = self._observe.clip
         self.task = task
-        self.observation_space = sp.observation_space(self.env)
+        self.observation_space = self._observe.space
         self.action_space = sp.action_space(self.env)
         self._actions = Actions(self.env, (1, 1))
         self._shape = self._actions.shape()
@@ -213,7 +220,7 @@ class VolleyGymEnv(_Closable, gym.Env):
         if self._trail is not None:
             self._trail.clear()
             self._trail.record(after_step=False)
-        return to_numpy(self._td.get(OBS)[0, 0]), {}
+        return self._observe(self._td.get(OBS)[0, 0]), {}
 
     def step(self, action):
         self._check_open()
@@ -229,7 +236,7 @@ class VolleyGymEnv(_Closable, gym.Env):
         if self._trail is not None:
             self._trail.record(after_step=True)
         info = {STATS_KEY: episode_stats(self.env, nxt, 0)} if self._ended else {}
-        return to_numpy(nxt.get(OBS)[0, 0]), float(nxt.get(REWARD)), terminated, truncated, info
+        return self._observe(nxt.get(OBS)[0, 0]), float(nxt.get(REWARD)), terminated, truncated, info
 
     def render(self):
         """The still picture of the episode so far ([H, W, 3] uint8), or None without a render mode."""
