@@ -32,6 +32,19 @@ from volleybots.integrations.gym_env import VolleyVectorEnv
 from volleybots.integrations.spaces import STATS_KEY, check_seed
 
 
+def ppo_kwargs(num_envs: int, n_steps: int = 128, minibatches: int = 4) -> dict[str, Any]:
+    """Keywords for SB3's ``PPO`` on ``num_envs`` batched worlds (docs/integrations.md, measured with
+    ``benchmarks/sb3_vecenv.py``): ``n_steps`` per world, each rollout of ``num_envs * n_steps`` split
+    into ``minibatches`` minibatches (SB3's default 64-sample minibatches, or 256, make the gradient
+    updates cost more than collecting), Adam with its foreach update and SB3's own ``eps`` (SB3 drops
+    that default when ``optimizer_kwargs`` is given). SB3's other defaults stand (10 epochs, ...)."""
+    rollout = num_envs * n_steps
+    if minibatches < 1 or rollout % minibatches:
+        raise ValueError(f"minibatches must divide the rollout of {num_envs} x {n_steps} = {rollout} samples, got {minibatches!r}")
+    return {"n_steps": n_steps, "batch_size": rollout // minibatches,
+            "policy_kwargs": {"optimizer_kwargs": {"eps": 1e-5, "foreach": True}}}
+
+
 class VolleySB3VecEnv(VecEnv):
     """``num_envs`` worlds of a single-drone task as one Stable-Baselines3 ``VecEnv``.
 
