@@ -23,10 +23,10 @@ from __future__ import annotations
 
 import numpy as np
 
-MARGIN = 3.0  # m beyond the court's lines: a drone or ball that far out has long ended its rally
-HEIGHT = (-1.0, 10.0)  # m: the ground is at 0 (a ball dips below it for one sub-step); no task serves above 8 m
-SPEED_CAP = 20.0  # m/s per component: a ball dropped from 10 m lands at 14 m/s; a drone flies at under 6
-SPIN_CAP = 20.0  # rad/s per component: the rate controller commands 2.5, a tumbling drone reaches about 9
+MARGIN = 3.0  # m beyond the court's lines on every side
+HEIGHT = (-1.0, 10.0)  # m: the ground is at 0 (a bouncing ball dips below it within a sub-step)
+SPEED_CAP = 20.0  # m/s per component: a ball dropped from 10 m lands at 14 m/s
+SPIN_CAP = 20.0  # rad/s per component: the CTBR rate controller commands at most 144 deg/s (2.5 rad/s)
 
 ABSOLUTE = ("pos", "positions")  # points in the (own-side) world frame
 RELATIVE = ("anchor", "ball", "other", "target")  # one point minus another
