@@ -13,6 +13,10 @@ by its length (for bootstrapping), and ``infos[i]["final_stats"]`` holds the tas
 (return, length, metric, reward terms). ``infos[i]["episode"]`` is left to SB3's ``VecMonitor``,
 which logs ``rollout/ep_rew_mean``: wrap it as ``VecMonitor(VolleySB3VecEnv(...))``.
 
+PPO. ``ppo_kwargs(num_envs)`` gives SB3's ``PPO`` keywords that suit many worlds (each rollout in 4
+minibatches, Adam's foreach update): with SB3's small default minibatches the gradient updates cost
+more than collecting (docs/integrations.md has the figures of ``benchmarks/sb3_vecenv.py``).
+
 Seeds. The worlds share one generator, so ``seed(s)`` (what ``PPO(seed=s)`` calls) seeds all of them
 with ``s`` at the next ``reset()``, as ``VolleyVectorEnv.reset(seed=s)`` does.
 """
@@ -49,7 +53,7 @@ class VolleySB3VecEnv(VecEnv):
     """``num_envs`` worlds of a single-drone task as one Stable-Baselines3 ``VecEnv``.
 
     Args: as for ``VolleyVectorEnv`` (``task``, ``num_envs``, ``action_space``, ``physics``,
-    ``device``, ``seed`` and the task's overrides); the autoreset is SB3's (same step).
+    ``device``, ``seed``, ``clip_obs`` and the task's overrides); the autoreset is SB3's (same step).
     """
 
     def __init__(self, task: str = "solo_bump", num_envs: int = 8, action_space: str = "prt", physics: str = "torch",
