@@ -53,15 +53,15 @@ def test_pass_reset_ball_comes_over_the_net_into_the_back_of_the_court():
 
 
 def test_pass_serves_share_draws_the_3v3_scripted_serve():
-    """``task.serves``: that share of the balls is the 3v3 scripted team's serve, struck at (-6, 0, 2.2)
-    and coming down through the contact height 2.2-2.8 m behind the net; the rest as before."""
+    """``task.serves``: that share of the balls is the 3v3 scripted team's serve, sent over from about
+    3.15 m before the net and coming down through the contact height 2.3-2.7 m behind it; the rest as before."""
     env, td, pos, bp, bv = reset("pass", n=256, seed=4, serves=0.5)
-    served = bp[:, 0] < -5.8
-    assert 90 < int(served.sum()) < 166  # about half of 256
     where, t = comes_down(bp, bv)
-    s = served
-    assert ((where[s, 0] >= 2.2 - 1e-3) & (where[s, 0] <= 2.8 + 1e-3) & (where[s, 1].abs() <= 1.6 + 1e-3)).all()
-    assert ((t[s] > 1.3) & (t[s] < 1.6)).all() and (bp[s, 2] < 2.35).all()
+    s = where[:, 0] < 4.0  # the drill's own balls come down 4.5-6.5 m behind the net
+    assert 90 < int(s.sum()) < 166  # about half of 256
+    assert ((bp[s, 0] >= -3.25 - 1e-4) & (bp[s, 0] <= -3.05 + 1e-4) & (bp[s, 2] >= 2.6 - 1e-4) & (bp[s, 2] <= 2.8 + 1e-4)).all()
+    assert ((where[s, 0] >= 2.3 - 1e-3) & (where[s, 0] <= 2.7 + 1e-3) & (where[s, 1].abs() <= 1.6 + 1e-3)).all()
+    assert ((t[s] > 1.29) & (t[s] < 1.41)).all()
     assert ((where[~s, 0] >= 4.5 - 1e-3) & (where[~s, 0] <= 6.5 + 1e-3)).all()
     from volleybots.config import ConfigError
 

@@ -10,7 +10,7 @@ import yaml
 from volleybots.config import ConfigError, load
 from volleybots.play.games import play_games
 from volleybots.policies import resolve_competitor
-from volleybots.policies.high_level import HighLevelNet, LearnedChooser, load_high_level, save_high_level
+from volleybots.policies.high_level import HighLevelNet, LearnedChooser, chooser_from_file, load_high_level, save_high_level
 from volleybots.scripted.hierarchical import ATTACK, CHOICES, FEATURES, HOVER, PASS, SET, HighLevel, features
 from volleybots.tasks.drills import BACK, FRONT_LEFT, FRONT_RIGHT
 from volleybots.train.high_level import HighLevelConfig, train_high_level, update
@@ -83,6 +83,9 @@ def test_a_high_level_file_round_trips_and_a_damaged_one_is_refused(tmp_path):
     ok = torch.ones(5, 3, dtype=torch.bool)
     assert torch.equal(back.logits("set", x, ok), net.logits("set", x, ok))
     assert torch.load(tmp_path / "h.pt", weights_only=True)["info"] == {"games": 3}
+    assert chooser_from_file(tmp_path / "h.pt").receive_coming is False  # the rules' event, unless trained otherwise
+    save_high_level(net, tmp_path / "c.pt", {"receive_coming": True})
+    assert chooser_from_file(tmp_path / "c.pt").receive_coming is True
     (tmp_path / "bad.pt").write_bytes(b"not a checkpoint")
     with pytest.raises(ConfigError, match="damaged or no learned high level"):
         load_high_level(tmp_path / "bad.pt")

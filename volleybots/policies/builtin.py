@@ -102,7 +102,7 @@ def hierarchical_policy(env, drills: dict | None = None) -> Callable[[TensorDict
     their mean, also where the competitor is asked for sampled play: a drill is a skill under the
     high level, whose own randomness is the choices (a Pass clone, seed 0, 100 episodes: 0.41 success
     on its mean, 0.24 sampling its Gaussian); the scripted drills are deterministic too."""
-    from volleybots.policies.high_level import LearnedChooser, load_high_level
+    from volleybots.policies.high_level import chooser_from_file
     from volleybots.scripted.hierarchical import DRILLS, make_hierarchical
 
     drills = dict(drills or {})
@@ -110,7 +110,7 @@ def hierarchical_policy(env, drills: dict | None = None) -> Callable[[TensorDict
     unknown = set(drills) - set(DRILLS)
     if unknown:
         raise ConfigError(f"competitor 'hierarchical': unknown drills {sorted(unknown)}; allowed: {', '.join((*DRILLS, HIGH_LEVEL))}")
-    chooser = LearnedChooser(load_high_level(high)) if high else None
+    chooser = chooser_from_file(high) if high else None
     try:
         return make_hierarchical(env, {k: learned_drill(k, v, env, True) for k, v in drills.items()}, chooser=chooser)
     except ValueError as e:

@@ -62,8 +62,10 @@ class LearnedChooser:
     global one if None). With ``record`` on, every choice is kept as (kind, env, step, features,
     legal, option) for training; ``step`` counts the calls of ``tick`` (one per control step)."""
 
-    def __init__(self, net: HighLevelNet, greedy: bool = False, generator: torch.Generator | None = None, record: bool = False):
+    def __init__(self, net: HighLevelNet, greedy: bool = False, generator: torch.Generator | None = None, record: bool = False,
+                 receive_coming: bool = False):
         self.net = net
+        self.receive_coming = receive_coming  # call a receiver only for balls that come down in the own half
         self.greedy = greedy
         self.generator = generator
         self.record = record
@@ -116,6 +118,11 @@ def _read(path) -> dict:
 
 def load_high_level(path) -> HighLevelNet:
     """The ``HighLevelNet`` saved at ``path``; anything else is one ``ConfigError`` line."""
+    return read_high_level(path)[0]
+
+
+def read_high_level(path) -> tuple[HighLevelNet, dict]:
+    """The ``HighLevelNet`` saved at ``path`` and its ``info`` (what ``save_high_level`` was given)."""
     state = _read(path)
     if not isinstance(state, dict) or state.get("format") != FORMAT:
         raise ConfigError(f"{str(path)!r} is no learned high level (expected a file written by save_high_level, format {FORMAT})")
@@ -128,7 +135,14 @@ def load_high_level(path) -> HighLevelNet:
     except (RuntimeError, KeyError, TypeError) as e:
         raise ConfigError(f"{str(path)!r}: its weights do not fit a high level ({' '.join(str(e).split())[:160]})") from None
     net.eval()
-    return net
+    info = state.get("info")
+    return net, info if isinstance(info, dict) else {}
 
 
-__all__ = ["FORMAT", "HighLevelNet", "LearnedChooser", "load_high_level", "save_high_level"]
+def chooser_from_file(path, generator: torch.Generator | None = None) -> LearnedChooser:
+    """A sampling ``LearnedChooser`` of the high level at ``path``, with the event setting it was trained with."""
+    net, info = read_high_level(path)
+    return LearnedChooser(net, generator=generator, receive_coming=bool(info.get("receive_coming", False)))
+
+
+__all__ = ["FORMAT", "HighLevelNet", "LearnedChooser", "chooser_from_file", "load_high_level", "read_high_level", "save_high_level"]

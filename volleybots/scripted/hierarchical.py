@@ -121,6 +121,9 @@ class HighLevel:
         # chooser(kind, features [N, F], legal [N, options], mask [N]) -> [N] option (rows outside mask ignored)
         self.chooser = chooser if chooser is not None else RuleChooser(generator)
         self.feats = torch.zeros(n, FEATURES, device=device)  # this step's features (``update`` sets them)
+        # the chooser may ask that an opponent's hit call a receiver only when the ball comes down in the own
+        # half (the 3v3 scripted team serves with a toss to itself first); the rules call one at every hit
+        self.receive_coming = bool(getattr(self.chooser, "receive_coming", False))
         self.fall = torch.tensor((0.0, 0.0, -gravity * dt), device=device)
         self.drill = torch.full((n, TEAM), HOVER, dtype=torch.long, device=device)
         self.side = torch.zeros(n, dtype=torch.long, device=device)  # of the attack: 0 left, 1 right
@@ -191,8 +194,9 @@ class HighLevel:
         own = fell.any(1) & ~fresh
         team_pos = parts["positions"][:, 0].unflatten(-1, (2 * TEAM, 3))  # own team first
         nearest = (team_pos - ball.unsqueeze(1)).norm(dim=-1).argmin(1)
-        opponent = jump & ~own & ~fresh & (nearest >= TEAM)
         self.feats = features(parts, self.touched & ~fresh.unsqueeze(-1), self.gravity)
+        coming = self.feats[:, 6] > 0 if self.receive_coming else torch.ones_like(fresh)
+        opponent = jump & ~own & ~fresh & (nearest >= TEAM) & coming
         self.on_rally(fresh, turn)
         self.on_opponent_hit(opponent)
         self.on_own_touch(own, fell.long().argmax(1))

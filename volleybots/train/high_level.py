@@ -40,6 +40,7 @@ class HighLevelConfig:
     value_coeff: float = 0.5  # weight of the value heads' squared error
     hidden: tuple[int, ...] = (64, 64)  # hidden sizes of every head
     seed: int = 0  # the run's seed: games, sampling and the networks' start
+    receive_coming: bool = False  # call a receiver only for balls coming down in the own half (saved with the net)
     time_limit: float = 0.0  # seconds; 0: none (the batch under way is finished)
 
     def check(self) -> None:
@@ -129,7 +130,7 @@ def train_high_level(match_cfg, drills: dict | None, opponent: str, cfg: HighLev
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     comp = resolve_competitor(opponent)
     envs, teams, opps = [], [], []
-    chooser = LearnedChooser(net, greedy=False, generator=gen, record=True)
+    chooser = LearnedChooser(net, greedy=False, generator=gen, record=True, receive_coming=cfg.receive_coming)
     for side in (0, 1):
         env = side_env(match_cfg, side, "any", cfg.batch, cfg.seed * 2 + side)
         lows = {k: learned_drill(k, v, env, True) for k, v in (drills or {}).items()}
