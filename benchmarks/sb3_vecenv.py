@@ -6,7 +6,10 @@ Three rates on one task and world count, each the median of ``--repeats``:
 - ``adapter``: ``VolleySB3VecEnv.step`` with random actions (the adapter's numpy and info cost);
 - ``sb3 collect`` and ``sb3 learn``: SB3 PPO's env-steps per second of rollout collection (policy
   forward, the adapter's step, the rollout buffer) and of the whole ``learn`` (collection and the
-  gradient updates), timed with SB3's rollout callbacks;
+  gradient updates), timed with SB3's rollout callbacks, with ``--batch-size`` minibatches and SB3's
+  default optimiser;
+- ``sb3 learn, recommended``: the same with ``volleybots.integrations.sb3_env.ppo_kwargs`` (the
+  rollout in ``--minibatches`` minibatches, Adam's foreach update), what docs/integrations.md advises;
 - ``--dummy N``: for comparison, SB3's ``DummyVecEnv`` over N single ``gym.make`` envs (each world a
   torch step of its own), collection only.
 
@@ -28,8 +31,9 @@ import statistics
 import time
 
 
-def sb3_rates(make_env, args, learn: bool) -> dict:
-    """SB3 PPO's collection (and with ``learn`` whole-run) env-steps/s on ``make_env()``."""
+def sb3_rates(make_env, args, learn: bool, ppo: dict | None = None) -> dict:
+    """SB3 PPO's collection (and with ``learn`` whole-run) env-steps/s on ``make_env()``, with the
+    PPO keywords ``ppo`` (default: ``--n-steps`` and ``--batch-size``, SB3's optimiser)."""
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
 
@@ -51,8 +55,8 @@ def sb3_rates(make_env, args, learn: bool) -> dict:
     env = make_env()
     n = env.num_envs
     rollout = args.n_steps * n
-    model = PPO("MlpPolicy", env, n_steps=args.n_steps, batch_size=min(args.batch_size, rollout), seed=args.seed, device="cpu",
-                n_epochs=args.n_epochs)
+    ppo = ppo or {"n_steps": args.n_steps, "batch_size": min(args.batch_size, rollout)}
+    model = PPO("MlpPolicy", env, seed=args.seed, device="cpu", n_epochs=args.n_epochs, **ppo)
     total = rollout * args.rollouts
     clock = Clock()
     start, cpu_start = time.perf_counter(), time.process_time()
@@ -97,7 +101,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--num-envs", type=int, default=64)
     ap.add_argument("--steps", type=int, default=200, help="batched steps per timed repeat of the env and the adapter")
     ap.add_argument("--n-steps", type=int, default=128, help="PPO's rollout length per world")
-    ap.add_argument("--batch-size", type=int, default=256, help="PPO's minibatch")
+    ap.add_argument("--batch-size", type=int, default=256, help="PPO's minibatch of the first learn row")
+    ap.add_argument("--minibatches", type=int, default=4, help="minibatches per rollout of the recommended row")
     ap.add_argument("--n-epochs", type=int, default=10, help="PPO's epochs per rollout (SB3's default)")
     ap.add_argument("--rollouts", type=int, default=3, help="rollouts per SB3 measurement")
     ap.add_argument("--repeats", type=int, default=3)
@@ -111,6 +116,7 @@ def main(argv=None) -> dict:
 
     from volleybots.bench import measure
     from volleybots.integrations import VolleySB3VecEnv
+    from volleybots.integrations.sb3_env import ppo_kwargs
 
     torch.set_num_threads(args.threads)
     # the three measured in turn, repeat by repeat, so that a shared machine's load falls on all alike; per
@@ -120,12 +126,17 @@ def main(argv=None) -> dict:
     for _ in range(args.repeats):
         m = measure(args.task, "torch", args.num_envs, steps=args.steps, repeats=1, seed=args.seed)
         a = adapter_rate(args)
-        r = sb3_rates(lambda: VolleySB3VecEnv(args.task, args.num_envs, seed=args.seed), args, learn=True)
+        make = lambda: VolleySB3VecEnv(args.task, args.num_envs, seed=args.seed)  # noqa: E731
+        r = sb3_rates(make, args, learn=True)
+        rec = sb3_rates(make, args, learn=True, ppo=ppo_kwargs(args.num_envs, args.n_steps, args.minibatches))
         rows.append({"env_steps_per_s": m["env_steps_per_s"], "env_steps_per_cpu_s": m["env_steps_per_cpu_s"],
-                     "adapter_steps_per_s": a[0], "adapter_steps_per_cpu_s": a[1], **r})
+                     "adapter_steps_per_s": a[0], "adapter_steps_per_cpu_s": a[1], **r,
+                     "sb3_rec_learn_steps_per_s": rec["sb3_learn_steps_per_s"],
+                     "sb3_rec_learn_steps_per_cpu_s": rec["sb3_learn_steps_per_cpu_s"]})
         load.append(os.getloadavg()[0])
     row = {"task": args.task, "num_envs": args.num_envs, "threads": args.threads, "load_1min": load, "repeats": rows,
-           "ppo": {"n_steps": args.n_steps, "batch_size": args.batch_size, "n_epochs": args.n_epochs, "rollouts": args.rollouts}}
+           "ppo": {"n_steps": args.n_steps, "batch_size": args.batch_size, "n_epochs": args.n_epochs, "rollouts": args.rollouts},
+           "ppo_recommended": {**ppo_kwargs(args.num_envs, args.n_steps, args.minibatches), "n_epochs": args.n_epochs}}
     for k in rows[0]:
         row[k] = statistics.median(r[k] for r in rows)
     if args.dummy:
@@ -141,7 +152,8 @@ def main(argv=None) -> dict:
         row["dummy_collect_steps_per_cpu_s"] = dummy["sb3_collect_steps_per_cpu_s"]
     print("| what | env-steps/s (wall) | x env | env-steps per CPU-s | x env |\n|---|---:|---:|---:|---:|")
     for label, k in (("env (batched, random actions)", "env"), ("adapter step", "adapter"), ("SB3 PPO collection", "sb3_collect"),
-                     ("SB3 PPO learn", "sb3_learn")):
+                     (f"SB3 PPO learn, batch {args.batch_size}", "sb3_learn"),
+                     (f"SB3 PPO learn, recommended (batch {args.num_envs * args.n_steps // args.minibatches}, foreach)", "sb3_rec_learn")):
         wall, cpu = row[k + "_steps_per_s"], row[k + "_steps_per_cpu_s"]
         row[k + "_vs_env"], row[k + "_cpu_vs_env"] = wall / row["env_steps_per_s"], cpu / row["env_steps_per_cpu_s"]
         print(f"| {label} | {wall:,.0f} | {row[k + '_vs_env']:.2f} | {cpu:,.0f} | {row[k + '_cpu_vs_env']:.2f} |")

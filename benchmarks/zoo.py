@@ -2,12 +2,17 @@
 a population run as a mixture, its members in ``<task>/<method>/``.
 
     python benchmarks/zoo.py RUN_DIR METHOD --games 400 --seed 9000
+    python benchmarks/zoo.py TEAM.yaml METHOD --games 400 --seed 9000 --command "..."   # a hierarchical 3v3 team
 
 A checkpoint keeps what acting needs and what ``load_algo_state`` reads (networks, observation
 statistics, counters) with a fresh optimiser state: a few hundred KB instead of the run's megabytes.
 A population run (``volleybots.runs.is_population_run``) ships its final meta-strategy: every member
 of nonzero weight, slimmed so, as ``<method>/<label>.pt``, and the card's ``mixture:`` lists them with
 their weights (``volleybots.zoo``).
+A hierarchical team's file (``hierarchical: {drill: run or checkpoint, high_level: file}``, as
+benchmarks/hcsp.py writes it) ships as a team entry: each drill's policy slimmed so and its learned
+high level as ``<method>/<drill>.pt`` and ``<method>/high_level.pt``, the card's ``hierarchical:``
+naming them (its frames: the drills' frames; its seed: the high level's).
 The card records the command, frames, seed and wall time from the run's files, and the figures of
 ``--games`` games per pair of the entry (a mixture as the one competitor it is) against ``random`` and
 ``scripted`` on the evaluation seed ``--seed`` (a seed no setting was chosen on), both sides equally.
@@ -110,6 +115,33 @@ def entry(run: RunDir, task_dir: Path, method: str) -> dict:
             "iteration": pop.iteration, "member": label}
 
 
+def team_entry(team: Path, task_dir: Path, method: str) -> dict:
+    """Write ``<method>/<drill>.pt`` and ``<method>/high_level.pt`` from the team file ``team`` and return
+    the card's fields (``hierarchical:`` naming them)."""
+    from volleybots.policies.builtin import HIGH_LEVEL, read_drills_file
+    from volleybots.policies.high_level import load_high_level
+
+    listed, files, frames, seed, wall = read_drills_file(team), {}, 0, None, 0.0
+    for old in (task_dir / method).glob("*.pt"):
+        old.unlink()
+    for drill, spec in listed.items():
+        file = f"{method}/{drill}.pt"
+        if drill == HIGH_LEVEL:
+            load_high_level(spec)  # checked before it ships
+            state = torch.load(spec, weights_only=True)
+            seed = int(state["info"].get("seed", 0))
+            save(state, task_dir / file)
+        else:
+            src = Path(spec)
+            slim = slim_checkpoint(run_policy_checkpoint(src, f"drill {drill!r}") if src.is_dir() else src)
+            frames += int(slim["frames"])
+            wall += float(slim.get("wall_time", 0.0))
+            save(slim, task_dir / file)
+        files[drill] = file
+    return {"algo": "hcsp", "frames": frames, "seed": seed if seed is not None else 0, "wall_time": wall, "config": {},
+            "hierarchical": files}
+
+
 def figures(name: str, method: str, games: int, seed: int) -> dict:
     """The entry's figures against ``random`` and ``scripted``: ``games`` games per pair on ``seed``."""
     comps = resolve_all([f"{method}={PREFIX}{name}", "random", "scripted"])
@@ -146,13 +178,19 @@ def main(argv=None) -> int:
     a = p.parse_args(argv)
     if a.init and lookup(a.init) is None:
         p.error(f"--init {a.init!r} is not a zoo entry")
-    run = RunDir(a.run)
-    cfg = run.load_config()
-    task = cfg.task.name
-    task_dir = ZOO_DIR / task
-    fields = entry(run, task_dir, a.method)
-    init = fields["config"]["init"] = a.init or cfg.get("init")
-    summary = json.loads(run.summary_path.read_text()) if run.summary_path.is_file() else {}
+    if a.run.suffix in (".yaml", ".yml"):  # a hierarchical team's file
+        task, summary = "3v3", {}
+        task_dir = ZOO_DIR / task
+        fields = team_entry(a.run, task_dir, a.method)
+        init = None
+    else:
+        run = RunDir(a.run)
+        cfg = run.load_config()
+        task = cfg.task.name
+        task_dir = ZOO_DIR / task
+        fields = entry(run, task_dir, a.method)
+        init = fields["config"]["init"] = a.init or cfg.get("init")
+        summary = json.loads(run.summary_path.read_text()) if run.summary_path.is_file() else {}
     name = f"{task}/{a.method}"
     head = {
         "name": PREFIX + name,
@@ -163,7 +201,7 @@ def main(argv=None) -> int:
         **start_fields(init, fields["frames"]),
         "seed": fields["seed"],
         "wall_time_s": round(float(summary.get("wall_time_s", fields["wall_time"])), 1),
-        **{k: fields[k] for k in ("iteration", "member", "members", "mixture") if k in fields},
+        **{k: fields[k] for k in ("iteration", "member", "members", "mixture", "hierarchical") if k in fields},
         "evaluation": {"games_per_pair": a.games, "seed": a.seed, "note": NOTE},
     }
     card = task_dir / f"{a.method}.yaml"
@@ -171,7 +209,8 @@ def main(argv=None) -> int:
     card.write_text(yaml.safe_dump({**head, "config": fields["config"]}, sort_keys=False))
     figs = figures(name, a.method, a.games, a.seed)
     card.write_text(yaml.safe_dump({**head, "figures": figs, "config": fields["config"]}, sort_keys=False))
-    files = [task_dir / f"{a.method}.pt"] if "mixture" not in fields else [task_dir / m["file"] for m in fields["mixture"]]
+    files = ([task_dir / m["file"] for m in fields["mixture"]] if "mixture" in fields else
+             [task_dir / f for f in fields["hierarchical"].values()] if "hierarchical" in fields else [task_dir / f"{a.method}.pt"])
     print(f"wrote {PREFIX + name} ({', '.join(f'{f.stat().st_size / 1024:.0f} KB' for f in files)}) and its card: {figs}")
     return 0
 

@@ -40,14 +40,21 @@ def test_every_zoo_entry_loads_weights_only_fits_its_task_and_beats_random(name)
     # a mixture's card lists every member of the run's final meta-strategy with its frames (the card's
     # frames are the run's total); a single policy's frames are the card's
     listed = {m["label"]: int(m["frames"]) for m in e.card.get("members", ())}
-    assert len(e.members) == len(e.weights)
-    for f in e.members:
+    assert len(e.members) == len(e.weights) or e.is_team  # a team plays as one member, its files together
+    if e.is_team:  # a hierarchical team: each drill's file was trained on that drill; the card's frames are theirs
+        frames = 0
+        for key, f in zip(e.card["hierarchical"], e.members, strict=True):
+            state = torch.load(f, weights_only=True)
+            assert state["task"] == key if key != "high_level" else state["format"] == "volleybots-high-level/1"
+            frames += int(state.get("frames", 0))
+        assert frames == int(e.card["frames"])
+    for f in e.members if not e.is_team else ():
         state = torch.load(f, weights_only=True)
         assert state["task"] == e.task
         assert int(state["frames"]) == (listed[state["label"]] if e.is_mixture else int(e.card["frames"])) <= int(e.card["frames"])
     comps = resolve_all([PREFIX + name, "random"])
     assert comps[0].mixture == pytest.approx(list(e.weights)) and sum(comps[0].mixture) == pytest.approx(1.0)
-    assert len(comps[0].members) == len(e.members)
+    assert len(comps[0].members) == (1 if e.is_team else len(e.members))
     cfg = match_config(comps, ["threads=1"])  # checks task, action space and observation size of every member
     assert cfg.task.name == e.task
     res = crossplay(cfg, comps, games=16, seed=123, batch=16)
@@ -132,3 +139,31 @@ def test_every_card_gives_the_seed_its_command_names():
     for name, e in entries().items():
         said = re.search(r"\bseed=(\d+)", e.card["command"])
         assert said is None or int(said.group(1)) == int(e.card["seed"]), (name, e.card["seed"], e.card["command"])
+
+
+def test_a_team_entry_is_the_hierarchical_competitor_with_its_files(tmp_path, monkeypatch):
+    """A card with ``hierarchical:`` (drills and a learned high level, files beside it) plays as the
+    hierarchical team; a missing file is one line naming it."""
+    import yaml
+
+    from volleybots import zoo
+    from volleybots.policies import resolve_competitor
+    from volleybots.policies.high_level import HighLevelNet, save_high_level
+    from volleybots.policies.store import parse_spec
+
+    save_high_level(HighLevelNet((8,)), tmp_path / "3v3" / "team" / "high_level.pt")
+    card = {"command": "a test's", "frames": 0, "seed": 0, "figures": {}, "evaluation": {},
+            "hierarchical": {"high_level": "team/high_level.pt"}}
+    (tmp_path / "3v3" / "team.yaml").write_text(yaml.safe_dump(card))
+    monkeypatch.setattr(zoo, "ZOO_DIR", tmp_path)
+    e = entries()["3v3/team"]
+    assert e.is_team and e.checkpoint is None and e.members == (tmp_path / "3v3" / "team" / "high_level.pt",)
+    assert parse_spec("zoo:3v3/team").kind == "drills"
+    comp = resolve_competitor("zoo:3v3/team")
+    assert comp.label == "zoo:3v3/team" and comp.members[0].source["kind"] == "hierarchical"
+    assert comp.members[0].source["drill_files"]["high_level"]["path"].endswith("team/high_level.pt")
+    res = CliRunner().invoke(app, ["list"])
+    assert "zoo:3v3/team" in res.output and "a hierarchical team (high_level)" in res.output
+    (tmp_path / "3v3" / "team" / "high_level.pt").unlink()
+    with pytest.raises(ConfigError, match="file 'team/high_level.pt' is missing"):
+        entries()

@@ -12,6 +12,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecMonitor
 
 from volleybots.integrations import VolleySB3VecEnv, VolleyVectorEnv
+from volleybots.integrations.sb3_env import ppo_kwargs
 
 
 def test_sb3_vecenv_steps_the_batched_env_with_sb3_conventions():
@@ -56,7 +57,8 @@ def test_sb3_ppo_trains_through_the_vecenv_on_solo_bump():
             ends.extend(i for i in self.locals["infos"] if "episode" in i)
             return True
 
-    model = PPO("MlpPolicy", env, n_steps=128, batch_size=128, n_epochs=2, seed=0, device="cpu")
+    model = PPO("MlpPolicy", env, n_epochs=2, seed=0, device="cpu", **ppo_kwargs(4, n_steps=128))  # the documented keywords
+    assert model.batch_size == 128 and model.policy.optimizer.defaults["foreach"] and model.policy.optimizer.defaults["eps"] == 1e-5
     before = [p.detach().clone() for p in model.policy.parameters()]
     model.learn(total_timesteps=3072, callback=Ends())
     assert model.num_timesteps == 3072
@@ -84,3 +86,12 @@ def test_supersuit_vector_conversion_trains_sb3_on_a_match():
     assert model.num_timesteps == 512
     obs = vec.reset()
     np.testing.assert_array_equal(obs[:, -2:], [[1, 0], [0, 1], [1, 0], [0, 1]])  # blue, red in each copy
+
+
+def test_ppo_kwargs_split_the_rollout_into_minibatches():
+    kw = ppo_kwargs(64)
+    assert (kw["n_steps"], kw["batch_size"]) == (128, 2048)  # 64 worlds x 128 steps in 4 minibatches
+    assert kw["policy_kwargs"] == {"optimizer_kwargs": {"eps": 1e-5, "foreach": True}}  # SB3's own eps kept
+    assert ppo_kwargs(8, n_steps=64, minibatches=8)["batch_size"] == 64
+    with pytest.raises(ValueError, match="minibatches must divide the rollout of 3 x 128 = 384 samples, got 5"):
+        ppo_kwargs(3, minibatches=5)

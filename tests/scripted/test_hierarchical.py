@@ -289,3 +289,25 @@ def test_a_trained_drill_drives_its_drone_on_the_drill_observation(tmp_path):
         torch.testing.assert_close(td["agents", "action"][:, FRONT_LEFT], one_drone_actions(hover, hover_obs))
         td = env.step(td)
         td = step_mdp(td, keep_other=True, exclude_action=True)
+
+
+def test_a_chooser_may_call_the_receiver_only_for_a_ball_coming_to_the_own_half():
+    """The 3v3 scripted team serves with a toss to itself: with ``receive_coming`` the toss calls no
+    receiver, the hit over does; without it (the rules) the toss does."""
+    from volleybots.scripted.hierarchical import RuleChooser
+
+    class Coming(RuleChooser):
+        receive_coming = True
+
+    nobody = torch.zeros(N, 3, dtype=torch.bool)
+    theirs = torch.zeros(N, dtype=torch.bool)
+    ball = torch.tensor((-3.0, 0.0, 2.7)).expand(N, 3)
+    toss = torch.tensor((-1.0, 0.0, 6.0)).expand(N, 3)  # comes down in their own half
+    over = torch.tensor((4.2, 0.0, 6.7)).expand(N, 3)  # comes down 2.5 m behind our side of the net
+    for chooser, after_toss in ((Coming(), HOVER), (None, PASS)):
+        h = HighLevel(N, "cpu", chooser=chooser)
+        h.update(parts_of(ball, torch.zeros(N, 3), nobody, theirs, True))  # a new rally, their serve
+        h.update(parts_of(ball, toss, nobody, theirs, True))
+        assert (h.drill[:, BACK] == after_toss).all()
+        h.update(parts_of(ball, over, nobody, theirs, True))
+        assert (h.drill[:, BACK] == PASS).all()

@@ -52,6 +52,23 @@ def test_pass_reset_ball_comes_over_the_net_into_the_back_of_the_court():
     assert (parts["may_hit"][..., 0] == 0).all()
 
 
+def test_pass_serves_share_draws_the_3v3_scripted_serve():
+    """``task.serves``: that share of the balls is the 3v3 scripted team's serve, sent over from about
+    3.15 m before the net and coming down through the contact height 2.3-2.7 m behind it; the rest as before."""
+    env, td, pos, bp, bv = reset("pass", n=256, seed=4, serves=0.5)
+    where, t = comes_down(bp, bv)
+    s = where[:, 0] < 4.0  # the drill's own balls come down 4.5-6.5 m behind the net
+    assert 90 < int(s.sum()) < 166  # about half of 256
+    assert ((bp[s, 0] >= -3.25 - 1e-4) & (bp[s, 0] <= -3.05 + 1e-4) & (bp[s, 2] >= 2.6 - 1e-4) & (bp[s, 2] <= 2.8 + 1e-4)).all()
+    assert ((where[s, 0] >= 2.3 - 1e-3) & (where[s, 0] <= 2.7 + 1e-3) & (where[s, 1].abs() <= 1.6 + 1e-3)).all()
+    assert ((t[s] > 1.29) & (t[s] < 1.41)).all()
+    assert ((where[~s, 0] >= 4.5 - 1e-3) & (where[~s, 0] <= 6.5 + 1e-3)).all()
+    from volleybots.config import ConfigError
+
+    with pytest.raises(ConfigError, match="bad value for 'serves': 1.5 \\(must be in \\[0, 1\\]\\)"):
+        reset("pass", n=2, serves=1.5)
+
+
 # where the previous touch sent the ball from: the pass zone of the back drone, the setter's anchor +- 0.5
 SOURCES = {"set": ((4.5, -1.0), (6.5, 1.0)), "attack": ((2.5, -2.0), (3.5, -1.0))}
 

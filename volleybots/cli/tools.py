@@ -46,6 +46,7 @@ def list_cmd() -> None:
     for name, e in entries().items() or ():
         figures = ", ".join(f"{k} {v}" for k, v in (e.card.get("figures") or {}).items())
         mixture = f"a mixture of {len(e.members)} policies, " if e.is_mixture else ""
+        mixture = f"a hierarchical team ({', '.join(e.card['hierarchical'])}), " if e.is_team else mixture
         typer.echo(f"  {PREFIX + name:<20} {mixture}{e.card.get('frames', '?')} frames, seed {e.card.get('seed', '?')}; {figures}")
     if not entries():
         typer.echo("  (none in this install)")

@@ -36,8 +36,8 @@ from tensordict import TensorDict
 
 from volleybots.integrations import spaces as sp
 from volleybots.integrations.render import RENDER_MODES, Trail, check_render_mode
-from volleybots.integrations.spaces import SINGLE_TASKS, STATS_KEY, action_array, action_tensor, check_seed, episode_stats, to_numpy
-from volleybots.keys import ACTION, DONE, NEXT, OBS, REWARD, TERMINATED, TRUNCATED
+from volleybots.integrations.spaces import SINGLE_TASKS, STATS_KEY, Actions, check_seed, episode_stats, to_numpy
+from volleybots.keys import ACTION, NEXT, OBS, REWARD, TERMINATED, TRUNCATED
 from volleybots.tasks import TASKS
 
 NAMESPACE = "volleybots"
@@ -83,6 +83,8 @@ class VolleyVectorEnv(_Closable, VectorEnv):
         device: where the env's tensors live (arrays always come back on the CPU).
         seed: the generator's seed until ``reset(seed=...)`` gives another.
         autoreset_mode: ``"same_step"`` (the batched env's own) or ``"next_step"`` (Gymnasium's default).
+        clip_obs: declare finite bounds for the positions and velocities and clip observations into
+            them (``bounds``; for wrappers that scale by the bounds); ``obs_clip`` counts the clipped values.
         render_mode: None only (render one world with ``VolleyGymEnv(render_mode="rgb_array")``).
         **task_overrides: as for ``volleybots.make_env`` (``episode_len``, ``reward_shaping``, ...).
     """
@@ -90,21 +92,25 @@ class VolleyVectorEnv(_Closable, VectorEnv):
     metadata: ClassVar[dict] = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
 
     def __init__(self, task: str = "solo_bump", num_envs: int = 1, action_space: str = "prt", physics: str = "torch",
-                 device="cpu", seed: int = 0, render_mode: str | None = None, autoreset_mode="same_step", **task_overrides):
+                 device="cpu", seed: int = 0, render_mode: str | None = None, autoreset_mode="same_step", clip_obs: bool = False,
+                 **task_overrides):
         if render_mode is not None:
             raise ValueError(f"render_mode must be None for the vector env, got {render_mode!r}; "
                              "VolleyGymEnv(render_mode='rgb_array') renders one world")
         self.render_mode = None
         mode = _autoreset_mode(autoreset_mode)
         self.env = _make(task, num_envs, action_space=action_space, physics=physics, device=device, seed=seed, **task_overrides)
+        self._observe = sp.Observations(self.env, clip_obs)
+        self.obs_clip = self._observe.clip
         self.metadata = {**type(self).metadata, "autoreset_mode": mode}
         self.next_step = mode == AutoresetMode.NEXT_STEP
         self.task, self.num_envs = task, int(num_envs)
-        self.single_observation_space = sp.observation_space(self.env)
+        self.single_observation_space = self._observe.space
         self.single_action_space = sp.action_space(self.env)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self._shape = sp.action_shape(self.env, (self.num_envs,))
+        self._actions = Actions(self.env, (self.num_envs, 1))
+        self._shape = self._actions.shape((self.num_envs,))
         self._td = None
         self._pending = np.zeros(self.num_envs, bool)  # next_step: worlds whose episode ended last step
 
@@ -117,32 +123,33 @@ class VolleyVectorEnv(_Closable, VectorEnv):
             self.env.set_seed(seed)
         self._td = self.env.reset()
         self._pending[:] = False
-        return to_numpy(self._td.get(OBS)[:, 0]), {}
+        return self._observe(self._td.get(OBS)[:, 0]), {}
 
     def step(self, actions):
+        obs, reward, term, trunc, info = self.step32(actions)
+        return obs, reward.astype(np.float64), term, trunc, info
+
+    def step32(self, actions):
+        """``step`` with the reward as the env's float32 (what SB3's buffers hold: ``VolleySB3VecEnv``
+        takes it as it is; Gymnasium's ``step`` gives float64)."""
         self._check_open()
         if self._td is None:
             raise RuntimeError("call reset() before step()")
-        arr = action_array(self.env, actions, self._shape)
+        arr = self._actions.array(actions, self._shape)
         if self.next_step:
             return self._step_next(arr)
-        self._td.set(ACTION, action_tensor(self.env, arr, (self.num_envs, 1)))
+        self._td.set(ACTION, self._actions.tensor(arr))
         cur, self._td = self.env.step_and_maybe_reset(self._td)
         nxt = cur.get(NEXT)
-        done = to_numpy(nxt.get(DONE).reshape(-1))
+        term, trunc = to_numpy(nxt.get(TERMINATED).reshape(-1)), to_numpy(nxt.get(TRUNCATED).reshape(-1))
+        done = term | trunc
         info: dict[str, Any] = {}
         if done.any():
-            info["final_obs"] = to_numpy(nxt.get(OBS)[:, 0])
+            info["final_obs"] = self._observe(nxt.get(OBS)[:, 0])
             info["_final_obs"] = done
             info[STATS_KEY] = episode_stats(self.env, nxt)
             info["_" + STATS_KEY] = done.copy()
-        return (
-            to_numpy(self._td.get(OBS)[:, 0]),
-            to_numpy(nxt.get(REWARD)[:, 0, 0]).astype(np.float64),
-            to_numpy(nxt.get(TERMINATED).reshape(-1)),
-            to_numpy(nxt.get(TRUNCATED).reshape(-1)),
-            info,
-        )
+        return self._observe(self._td.get(OBS)[:, 0]), to_numpy(nxt.get(REWARD)[:, 0, 0]), term, trunc, info
 
     def _step_next(self, arr: np.ndarray):
         """Gymnasium's next-step autoreset: the worlds whose episode ended last step are stepped with a
@@ -151,15 +158,15 @@ class VolleyVectorEnv(_Closable, VectorEnv):
         if pending.any():  # their actions are ignored, as Gymnasium's next-step mode says: nothing of them reaches the env
             arr = arr.copy()
             arr[pending] = 0
-        self._td.set(ACTION, action_tensor(self.env, arr, (self.num_envs, 1)))
+        self._td.set(ACTION, self._actions.tensor(arr))
         nxt = self.env.step(self._td).get(NEXT)
-        obs = to_numpy(nxt.get(OBS)[:, 0])
-        reward = to_numpy(nxt.get(REWARD)[:, 0, 0]).astype(np.float64)
+        obs = self._observe(nxt.get(OBS)[:, 0])
+        reward = to_numpy(nxt.get(REWARD)[:, 0, 0])
         term, trunc = to_numpy(nxt.get(TERMINATED).reshape(-1)), to_numpy(nxt.get(TRUNCATED).reshape(-1))
         if pending.any():
             mask = torch.as_tensor(pending, device=self.env.device).unsqueeze(-1)
             fresh = self.env.reset(TensorDict({"_reset": mask}, batch_size=[self.num_envs], device=self.env.device))
-            obs[pending] = to_numpy(fresh.get(OBS)[:, 0])[pending]
+            obs[pending] = self._observe(fresh.get(OBS)[:, 0][mask[:, 0]])
             reward[pending], term[pending], trunc[pending] = 0.0, False, False
         self._td = nxt
         done = term | trunc
@@ -187,13 +194,16 @@ class VolleyGymEnv(_Closable, gym.Env):
     metadata: ClassVar[dict] = {"render_modes": list(RENDER_MODES), "render_fps": 50}  # 50 control steps per second
 
     def __init__(self, task: str = "solo_bump", action_space: str = "prt", physics: str = "torch", device="cpu",
-                 seed: int = 0, render_mode: str | None = None, **task_overrides):
+                 seed: int = 0, render_mode: str | None = None, clip_obs: bool = False, **task_overrides):
         self.render_mode = check_render_mode(render_mode)
         self.env = _make(task, 1, action_space=action_space, physics=physics, device=device, seed=seed, **task_overrides)
+        self._observe = sp.Observations(self.env, clip_obs)
+        self.obs_clip = self._observe.clip
         self.task = task
-        self.observation_space = sp.observation_space(self.env)
+        self.observation_space = self._observe.space
         self.action_space = sp.action_space(self.env)
-        self._shape = sp.action_shape(self.env)
+        self._actions = Actions(self.env, (1, 1))
+        self._shape = self._actions.shape()
         self._td: TensorDict | None = None
         self._ended = False
         self._trail = Trail(self.env) if self.render_mode else None
@@ -210,7 +220,7 @@ class VolleyGymEnv(_Closable, gym.Env):
         if self._trail is not None:
             self._trail.clear()
             self._trail.record(after_step=False)
-        return to_numpy(self._td.get(OBS)[0, 0]), {}
+        return self._observe(self._td.get(OBS)[0, 0]), {}
 
     def step(self, action):
         self._check_open()
@@ -218,8 +228,7 @@ class VolleyGymEnv(_Closable, gym.Env):
             raise RuntimeError("call reset() before step()")
         if self._ended:
             raise RuntimeError("the episode has ended (terminated or truncated): call reset() before step()")
-        arr = action_array(self.env, action, self._shape)
-        self._td.set(ACTION, action_tensor(self.env, arr, (1, 1)))
+        self._td.set(ACTION, self._actions.tensor(self._actions.array(action, self._shape)))
         nxt = self.env.step(self._td).get(NEXT)
         self._td = nxt
         terminated, truncated = bool(nxt.get(TERMINATED)), bool(nxt.get(TRUNCATED))
@@ -227,7 +236,7 @@ class VolleyGymEnv(_Closable, gym.Env):
         if self._trail is not None:
             self._trail.record(after_step=True)
         info = {STATS_KEY: episode_stats(self.env, nxt, 0)} if self._ended else {}
-        return to_numpy(nxt.get(OBS)[0, 0]), float(nxt.get(REWARD)), terminated, truncated, info
+        return self._observe(nxt.get(OBS)[0, 0]), float(nxt.get(REWARD)), terminated, truncated, info
 
     def render(self):
         """The still picture of the episode so far ([H, W, 3] uint8), or None without a render mode."""

@@ -32,7 +32,7 @@ from gymnasium import spaces
 
 from volleybots.integrations import spaces as sp
 from volleybots.integrations.render import RENDER_MODES, Trail, check_render_mode
-from volleybots.integrations.spaces import STATS_KEY, action_array, action_tensor, check_seed, episode_stats, to_numpy
+from volleybots.integrations.spaces import STATS_KEY, Actions, check_seed, episode_stats, to_numpy
 from volleybots.keys import ACTION, AGENTS, NEXT, OBS, REWARD, TERMINATED, TRUNCATED
 from volleybots.replay.style import TEAM_NAMES
 
@@ -61,18 +61,22 @@ class VolleyParallelEnv(ParallelEnv):
         seed: the generator's seed until ``reset(seed=...)`` gives another.
         render_mode: None or ``rgb_array`` (``render()``: the replay's still picture of the episode so far).
         legacy_names: a match's agents named ``team0_drone0`` ... as they were first.
+        clip_obs: declare finite bounds for the positions and velocities and clip observations into
+            them (for SuperSuit's ``normalize_obs_v0``); ``obs_clip`` counts the clipped values.
         **task_overrides: as for ``volleybots.make_env`` (``episode_len``, ``serve``, ...).
     """
 
     metadata: ClassVar[dict] = {"name": "volleybots_v0", "render_modes": list(RENDER_MODES), "render_fps": 50, "is_parallelizable": True}
 
     def __init__(self, task: str = "3v3", action_space: str = "prt", physics: str = "torch", device="cpu", seed: int = 0,
-                 render_mode: str | None = None, legacy_names: bool = False, **task_overrides):
+                 render_mode: str | None = None, legacy_names: bool = False, clip_obs: bool = False, **task_overrides):
         if not isinstance(legacy_names, (bool, np.bool_)):
             raise ValueError(f"legacy_names must be True or False, got {legacy_names!r}")
         self.render_mode = check_render_mode(render_mode)
         self.env = sp.build(task, 1, action_space=action_space, physics=physics, device=device, seed=seed, **task_overrides)
         self._trail = Trail(self.env) if self.render_mode else None
+        self._observe = sp.Observations(self.env, clip_obs)
+        self.obs_clip = self._observe.clip
         self.task = task
         teams = tuple(self.env.teams)
         self.possible_agents = agent_names(teams, self.env.competitive, bool(legacy_names))
@@ -84,11 +88,12 @@ class VolleyParallelEnv(ParallelEnv):
             self.groups = {AGENTS: list(self.possible_agents)}
         # one space object per agent, the same on every call (the API test asks for it; seeding one agent's
         # action space must not seed the others')
-        self.observation_spaces = {a: sp.observation_space(self.env) for a in self.possible_agents}
+        self.observation_spaces = {a: sp.observation_space(self.env, self._observe.clip_obs) for a in self.possible_agents}
         self.action_spaces = {a: sp.action_space(self.env) for a in self.possible_agents}
         one = self.observation_spaces[self.possible_agents[0]]
         self.state_space = spaces.Box(np.tile(one.low, self.n_agents), np.tile(one.high, self.n_agents), dtype=np.float32)
-        self._shape = sp.action_shape(self.env)
+        self._actions = Actions(self.env, (1, self.n_agents))
+        self._shape = self._actions.shape()
         self.agents: list[str] = []
         self._td = None
         self._closed = False
@@ -104,7 +109,7 @@ class VolleyParallelEnv(ParallelEnv):
         return self.action_spaces[agent]
 
     def _obs(self, td) -> dict[str, np.ndarray]:
-        obs = to_numpy(td.get(OBS)[0])
+        obs = self._observe(td.get(OBS)[0])
         return {a: obs[i] for i, a in enumerate(self.possible_agents)}
 
     def reset(self, seed: int | None = None, options: dict | None = None):
@@ -128,8 +133,8 @@ class VolleyParallelEnv(ParallelEnv):
         if set(actions) != set(self.agents):
             missing, unknown = sorted(set(self.agents) - set(actions)), sorted(set(actions) - set(self.agents))
             raise ValueError(f"actions must name every agent once: missing {missing}, unknown {unknown}; agents: {self.agents}")
-        stacked = np.stack([action_array(self.env, actions[a], self._shape) for a in self.possible_agents])
-        self._td.set(ACTION, action_tensor(self.env, stacked, (1, self.n_agents)))
+        stacked = np.stack([self._actions.array(actions[a], self._shape) for a in self.possible_agents])
+        self._td.set(ACTION, self._actions.tensor(stacked))
         nxt = self.env.step(self._td).get(NEXT)
         self._td = nxt
         if self._trail is not None:
@@ -159,7 +164,7 @@ class VolleyParallelEnv(ParallelEnv):
         self._check_open()
         if self._td is None:
             raise RuntimeError("call reset() before state()")
-        return to_numpy(self._td.get(OBS)[0]).reshape(-1)
+        return self._observe(self._td.get(OBS)[0]).reshape(-1)
 
     def close(self):
         self._closed = True

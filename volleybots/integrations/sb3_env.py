@@ -13,6 +13,10 @@ by its length (for bootstrapping), and ``infos[i]["final_stats"]`` holds the tas
 (return, length, metric, reward terms). ``infos[i]["episode"]`` is left to SB3's ``VecMonitor``,
 which logs ``rollout/ep_rew_mean``: wrap it as ``VecMonitor(VolleySB3VecEnv(...))``.
 
+PPO. ``ppo_kwargs(num_envs)`` gives SB3's ``PPO`` keywords that suit many worlds (each rollout in 4
+minibatches, Adam's foreach update): with SB3's small default minibatches the gradient updates cost
+more than collecting (docs/integrations.md has the figures of ``benchmarks/sb3_vecenv.py``).
+
 Seeds. The worlds share one generator, so ``seed(s)`` (what ``PPO(seed=s)`` calls) seeds all of them
 with ``s`` at the next ``reset()``, as ``VolleyVectorEnv.reset(seed=s)`` does.
 """
@@ -32,11 +36,24 @@ from volleybots.integrations.gym_env import VolleyVectorEnv
 from volleybots.integrations.spaces import STATS_KEY, check_seed
 
 
+def ppo_kwargs(num_envs: int, n_steps: int = 128, minibatches: int = 4) -> dict[str, Any]:
+    """Keywords for SB3's ``PPO`` on ``num_envs`` batched worlds (docs/integrations.md, measured with
+    ``benchmarks/sb3_vecenv.py``): ``n_steps`` per world, each rollout of ``num_envs * n_steps`` split
+    into ``minibatches`` minibatches (SB3's default 64-sample minibatches, or 256, make the gradient
+    updates cost more than collecting), Adam with its foreach update and SB3's own ``eps`` (SB3 drops
+    that default when ``optimizer_kwargs`` is given). SB3's other defaults stand (10 epochs, ...)."""
+    rollout = num_envs * n_steps
+    if minibatches < 1 or rollout % minibatches:
+        raise ValueError(f"minibatches must divide the rollout of {num_envs} x {n_steps} = {rollout} samples, got {minibatches!r}")
+    return {"n_steps": n_steps, "batch_size": rollout // minibatches,
+            "policy_kwargs": {"optimizer_kwargs": {"eps": 1e-5, "foreach": True}}}
+
+
 class VolleySB3VecEnv(VecEnv):
     """``num_envs`` worlds of a single-drone task as one Stable-Baselines3 ``VecEnv``.
 
     Args: as for ``VolleyVectorEnv`` (``task``, ``num_envs``, ``action_space``, ``physics``,
-    ``device``, ``seed`` and the task's overrides); the autoreset is SB3's (same step).
+    ``device``, ``seed``, ``clip_obs`` and the task's overrides); the autoreset is SB3's (same step).
     """
 
     def __init__(self, task: str = "solo_bump", num_envs: int = 8, action_space: str = "prt", physics: str = "torch",
@@ -63,16 +80,18 @@ class VolleySB3VecEnv(VecEnv):
         if self._actions is None:
             raise RuntimeError("step_wait() without step_async(actions)")
         actions, self._actions = self._actions, None
-        obs, reward, term, trunc, info = self.venv.step(actions)
+        obs, reward, term, trunc, info = self.venv.step32(actions)
         dones = term | trunc
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
-        for i in np.flatnonzero(dones):
-            infos[i] = {
-                "terminal_observation": info["final_obs"][i],
-                "TimeLimit.truncated": bool(trunc[i] and not term[i]),
-                STATS_KEY: {k: float(v[i]) for k, v in info[STATS_KEY].items()},
-            }
-        return obs, reward.astype(np.float32), dones, infos
+        if info:  # some world ended: only its dict is filled
+            stats, final = info[STATS_KEY], info["final_obs"]
+            for i in np.flatnonzero(dones).tolist():
+                infos[i] = {
+                    "terminal_observation": final[i],
+                    "TimeLimit.truncated": bool(trunc[i] and not term[i]),
+                    STATS_KEY: {k: float(v[i]) for k, v in stats.items()},
+                }
+        return obs, reward, dones, infos
 
     def seed(self, seed: int | None = None) -> list[int | None]:
         """Seed every world with ``seed`` at the next ``reset()`` (the worlds share one generator)."""

@@ -21,6 +21,7 @@ from volleybots.keys import ACTION, AGENTS
 from volleybots.runs import read_checkpoint
 
 HIERARCHICAL_TASK = "3v3"
+HIGH_LEVEL = "high_level"  # the key of a team file's learned high level, beside its drills
 RECEIVER_TASK = "1v1"
 
 
@@ -95,19 +96,23 @@ def learned_drill(name: str, spec, env, deterministic: bool = True):
 
 def hierarchical_policy(env, drills: dict | None = None) -> Callable[[TensorDictBase], TensorDictBase]:
     """The hierarchical 3v3 team (``volleybots.scripted.hierarchical``): scripted drills, or the
-    trained checkpoints of ``drills`` (drill name -> checkpoint file or run dir). **Decision:** trained
-    drills act on their mean, also where the competitor is asked for sampled play: a drill is a skill
-    under the high level, whose own randomness is the attack's side (a Pass clone, seed 0, 100
-    episodes: 0.41 success on its mean, 0.24 sampling its Gaussian); the scripted drills are
-    deterministic too."""
+    trained checkpoints of ``drills`` (drill name -> checkpoint file or run dir), under the rules or,
+    where ``drills`` names a ``high_level`` file, a learned high level (volleybots/policies/high_level.py),
+    which samples its choices as the rules draw the attack's side. **Decision:** trained drills act on
+    their mean, also where the competitor is asked for sampled play: a drill is a skill under the
+    high level, whose own randomness is the choices (a Pass clone, seed 0, 100 episodes: 0.41 success
+    on its mean, 0.24 sampling its Gaussian); the scripted drills are deterministic too."""
+    from volleybots.policies.high_level import chooser_from_file
     from volleybots.scripted.hierarchical import DRILLS, make_hierarchical
 
     drills = dict(drills or {})
+    high = drills.pop(HIGH_LEVEL, None)
     unknown = set(drills) - set(DRILLS)
     if unknown:
-        raise ConfigError(f"competitor 'hierarchical': unknown drills {sorted(unknown)}; allowed: {', '.join(DRILLS)}")
+        raise ConfigError(f"competitor 'hierarchical': unknown drills {sorted(unknown)}; allowed: {', '.join((*DRILLS, HIGH_LEVEL))}")
+    chooser = chooser_from_file(high) if high else None
     try:
-        return make_hierarchical(env, {k: learned_drill(k, v, env, True) for k, v in drills.items()})
+        return make_hierarchical(env, {k: learned_drill(k, v, env, True) for k, v in drills.items()}, chooser=chooser)
     except ValueError as e:
         raise ConfigError(f"competitor 'hierarchical': {e}") from None
 
@@ -122,8 +127,8 @@ def hierarchical_both_sides(env):
 
 
 def read_drills_file(path: Path) -> dict:
-    """A hierarchical team's drill checkpoints from a YAML file ``hierarchical: {drill: path}``
-    (relative paths are relative to the file)."""
+    """A hierarchical team's drill checkpoints (and learned high level, key ``high_level``) from a YAML
+    file ``hierarchical: {drill: path}`` (relative paths are relative to the file)."""
     import io
 
     from omegaconf import OmegaConf
@@ -138,9 +143,9 @@ def read_drills_file(path: Path) -> dict:
         raise ConfigError(f"{str(path)!r} is no hierarchical team: expected a mapping 'hierarchical: {{drill: checkpoint}}'")
     from volleybots.scripted.hierarchical import DRILLS
 
-    unknown = sorted(str(k) for k in drills if str(k) not in DRILLS)
+    unknown = sorted(str(k) for k in drills if str(k) not in (*DRILLS, HIGH_LEVEL))
     if unknown:
-        raise ConfigError(f"{str(path)!r}: unknown drills {unknown}; allowed: {', '.join(DRILLS)}")
+        raise ConfigError(f"{str(path)!r}: unknown drills {unknown}; allowed: {', '.join((*DRILLS, HIGH_LEVEL))}")
     return {str(k): str((Path(path).parent / v) if not Path(v).is_absolute() else v) for k, v in drills.items()}
 
 
@@ -171,6 +176,6 @@ PLAYERS: dict[str, Player] = {
 BUILTIN = tuple(PLAYERS)
 
 __all__ = [
-    "BUILTIN", "HIERARCHICAL_TASK", "PLAYERS", "RECEIVER_TASK", "Player", "acted", "hierarchical_both_sides", "hierarchical_policy",
-    "learned_drill", "random_policy", "read_drills_file", "receiver_policy", "scripted_policy",
+    "BUILTIN", "HIERARCHICAL_TASK", "HIGH_LEVEL", "RECEIVER_TASK", "Player", "acted", "hierarchical_both_sides",
+    "hierarchical_policy", "learned_drill", "random_policy", "read_drills_file", "receiver_policy", "scripted_policy",
 ]

@@ -193,7 +193,7 @@ def resolve_competitor(spec: str) -> Competitor:
     if s.kind == "builtin":
         return Competitor(s.label or s.target, [builtin_member(s.target)])
     if s.kind == "drills":
-        label = s.label or s.path.stem
+        label = s.label or s.zoo or s.path.stem
         return Competitor(label, [hierarchical_member(read_drills_file(s.path), label)])
     if s.kind == "checkpoint":
         m = checkpoint_member(s.path)

@@ -74,6 +74,8 @@ def parse_spec(spec: str, builtins=BUILTIN_NAMES, what: str = "competitor") -> S
             raise ConfigError(f"{what} {target!r} is not in the zoo; shipped: {shipped}")
         if entry.is_mixture:
             return Spec(label, "mixture", target, zoo=target)
+        if entry.is_team:  # the card is the team's file
+            return Spec(label, "drills", str(entry.card_file), zoo=target)
         return Spec(label, "checkpoint", str(entry.checkpoint), zoo=target)
     path = Path(target)
     if not exists(path):

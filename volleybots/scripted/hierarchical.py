@@ -29,6 +29,12 @@ may-hit flags per env): a new rally is a ball at rest (it never is in play); a h
 ball's velocity away from free flight; an own touch is a teammate's may-hit flag falling without the
 ball crossing the net, any other hit by the drone nearest the ball being an opponent's.
 
+Who plays is a **choice** handed to a chooser (``RuleChooser``, the rules above, by default): who
+receives an opponent's ball (``receive``: a role), who sets (``set``: a role that has not touched)
+and who attacks on which side (``attack``: a role that has not touched, times left/right). A learned
+chooser (volleybots/policies/high_level.py) makes the same choices from the same ``features``: the
+HCSP route, a learned high level over the drills.
+
 Low-level policies: the scripted drills (scripted/drills.py, Hover's scripted policy), or trained
 checkpoints where given (``checkpoints``: drill name -> checkpoint file or run dir, trained on that
 drill with the same action space). The decision log: the policy writes ``("agents", "drill")`` [N, 3]
@@ -55,6 +61,46 @@ SPACE = 1.3  # m: hovering drones steer away from teammates closer than this (0.
 SPACE_GAIN = 2.0  # ... by this many metres per metre inside it
 NET_KEEP = 1.2  # m: a drone making room stays this far from the net
 ROOM = 1.5  # m: a hovering drone keeps this far (horizontally) from a teammate playing the ball and from where it meets it
+# the high level's choices and their options: a role; a role and an attack side (role * 2 + side)
+CHOICES = {"receive": TEAM, "set": TEAM, "attack": 2 * TEAM}
+FEATURES = 30  # the size of ``features``: what a chooser sees when it chooses
+
+
+def features(parts: dict[str, torch.Tensor], touched: torch.Tensor, gravity: float = 9.81) -> torch.Tensor:
+    """[N, FEATURES] what a chooser sees, from a team's observation parts (drones in role order,
+    the team's mirrored view: its own half is x > 0): the ball (position, velocity), where and when it
+    comes down through the contact height (zeros and 0 s where it does not), the own drones' and the
+    opponents' positions, and which drones touched in this possession. Scaled to about unit size."""
+    ball = parts["root"][:, 0, :3] + parts["ball"][:, 0]
+    vel = parts["ball_vel"][:, 0]
+    fall, when = crossing(ball, vel, CONTACT_Z, gravity)
+    ok = torch.isfinite(fall).all(-1, keepdim=True) & torch.isfinite(when).reshape(-1, 1)
+    fall = torch.where(ok, fall, torch.zeros_like(fall))[:, :2]
+    when = torch.where(ok, when.reshape(-1, 1), torch.zeros_like(ok, dtype=fall.dtype)).clamp(0.0, 3.0)
+    everyone = parts["positions"][:, 0]  # [N, 18]: own team (by id), then the opponents
+    return torch.cat((ball / 6.0, vel / 10.0, fall / 6.0, when, everyone / 6.0, touched.float()), -1)
+
+
+class RuleChooser:
+    """The paper's rules as a chooser: the back drone receives; the first free drone of (front-left,
+    front-right, back) sets and of (front-right, front-left, back) attacks, on a random side."""
+
+    def __init__(self, generator: torch.Generator | None = None):
+        self.generator = generator
+
+    def __call__(self, kind: str, feats: torch.Tensor, legal: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        n = feats.shape[0]
+        if kind == "receive":
+            return torch.full((n,), BACK, dtype=torch.long, device=feats.device)
+        taken = ~(legal[:, ::2] if kind == "attack" else legal)  # a role is legal when it has not touched
+        order = (FRONT_LEFT, FRONT_RIGHT, BACK) if kind == "set" else (FRONT_RIGHT, FRONT_LEFT, BACK)
+        role = HighLevel.free_drone(taken, order)
+        if kind == "set":
+            return role
+        # one draw over the whole batch at every call, as the rules always did: a seed gives the same games
+        gen_device = feats.device if self.generator is None else self.generator.device
+        side = torch.randint(0, 2, (n,), generator=self.generator, device=gen_device).to(feats.device)
+        return role * 2 + side
 
 
 def drill_code(drill: torch.Tensor, side: torch.Tensor) -> torch.Tensor:
@@ -67,9 +113,17 @@ class HighLevel:
     """The event-driven assignment of drills for one team, per env of a batch (roles: tasks/drills.py
     FRONT_LEFT, FRONT_RIGHT, BACK, the drones' ids within the team)."""
 
-    def __init__(self, num_envs: int, device, generator: torch.Generator | None = None, dt: float = 0.02, gravity: float = 9.81):
+    def __init__(self, num_envs: int, device, generator: torch.Generator | None = None, dt: float = 0.02, gravity: float = 9.81,
+                 chooser=None):
         n = num_envs
         self.generator = generator
+        self.gravity = gravity
+        # chooser(kind, features [N, F], legal [N, options], mask [N]) -> [N] option (rows outside mask ignored)
+        self.chooser = chooser if chooser is not None else RuleChooser(generator)
+        self.feats = torch.zeros(n, FEATURES, device=device)  # this step's features (``update`` sets them)
+        # the chooser may ask that an opponent's hit call a receiver only when the ball comes down in the own
+        # half (the 3v3 scripted team serves with a toss to itself first); the rules call one at every hit
+        self.receive_coming = bool(getattr(self.chooser, "receive_coming", False))
         self.fall = torch.tensor((0.0, 0.0, -gravity * dt), device=device)
         self.drill = torch.full((n, TEAM), HOVER, dtype=torch.long, device=device)
         self.side = torch.zeros(n, dtype=torch.long, device=device)  # of the attack: 0 left, 1 right
@@ -87,31 +141,33 @@ class HighLevel:
         self.touched = self.touched & ~mask.unsqueeze(-1)
 
     def on_opponent_hit(self, mask: torch.Tensor) -> None:
-        """The opponents hit: a new possession is coming; the back drone receives it (Pass)."""
-        rally = torch.full_like(self.drill, HOVER)
-        rally[:, BACK] = PASS
+        """The opponents hit: a new possession is coming; the chosen drone (the rules: the back one)
+        receives it (Pass)."""
+        if not bool(mask.any()):
+            return
+        legal = torch.ones(mask.shape[0], CHOICES["receive"], dtype=torch.bool, device=mask.device)
+        who = self.chooser("receive", self.feats, legal, mask)
+        rally = torch.where(torch.arange(TEAM, device=mask.device) == who.unsqueeze(-1), PASS, HOVER)
         self.drill = torch.where(mask.unsqueeze(-1), rally, self.drill)
         self.touched = self.touched & ~mask.unsqueeze(-1)
 
     def on_own_touch(self, mask: torch.Tensor, toucher: torch.Tensor) -> None:
-        """Drone ``toucher`` [N] (a role) of the team touched the ball: after a pass the front-left
-        sets, after a set the front-right attacks (a random side), after a serve or an attack all hover;
-        a touch goes to a drone that has not touched in this possession."""
+        """Drone ``toucher`` [N] (a role) of the team touched the ball: after a pass a chosen drone sets,
+        after a set a chosen drone attacks on a chosen side, after a serve or an attack all hover; a
+        touch goes to a drone that has not touched in this possession (the legal options)."""
         served = self.drill.gather(1, toucher.unsqueeze(1)).squeeze(1) == SERVE
         touched = self.touched | (torch.nn.functional.one_hot(toucher, TEAM).bool() & mask.unsqueeze(-1))
         count = touched.sum(1)
         setting = ~served & (count == 1)
         attacking = ~served & (count == 2)
-        nxt = torch.full_like(self.drill, HOVER)
-        setter = self.free_drone(touched, (FRONT_LEFT, FRONT_RIGHT, BACK))
-        attacker = self.free_drone(touched, (FRONT_RIGHT, FRONT_LEFT, BACK))
-        who = torch.where(setting, setter, attacker)
+        legal = ~touched | touched.all(1, keepdim=True)  # all touched: any (never in a legal possession)
+        setter = self.chooser("set", self.feats, legal, mask & setting)
+        pick = self.chooser("attack", self.feats, legal.repeat_interleave(2, 1), mask & attacking)
+        who = torch.where(setting, setter, torch.div(pick, 2, rounding_mode="floor"))
         what = torch.where(setting, SET, ATTACK)
         play = (setting | attacking).unsqueeze(-1) & (torch.arange(TEAM, device=who.device) == who.unsqueeze(-1))
-        nxt = torch.where(play, what.unsqueeze(-1), nxt)
-        gen_device = self.side.device if self.generator is None else self.generator.device
-        side = torch.randint(0, 2, self.side.shape, generator=self.generator, device=gen_device).to(self.side.device)
-        self.side = torch.where(mask & attacking, side, self.side)
+        nxt = torch.where(play, what.unsqueeze(-1), torch.full_like(self.drill, HOVER))
+        self.side = torch.where(mask & attacking, pick % 2, self.side)
         self.drill = torch.where(mask.unsqueeze(-1), nxt, self.drill)
         self.touched = torch.where(mask.unsqueeze(-1), touched, self.touched)
 
@@ -138,7 +194,9 @@ class HighLevel:
         own = fell.any(1) & ~fresh
         team_pos = parts["positions"][:, 0].unflatten(-1, (2 * TEAM, 3))  # own team first
         nearest = (team_pos - ball.unsqueeze(1)).norm(dim=-1).argmin(1)
-        opponent = jump & ~own & ~fresh & (nearest >= TEAM)
+        self.feats = features(parts, self.touched & ~fresh.unsqueeze(-1), self.gravity)
+        coming = self.feats[:, 6] > 0 if self.receive_coming else torch.ones_like(fresh)
+        opponent = jump & ~own & ~fresh & (nearest >= TEAM) & coming
         self.on_rally(fresh, turn)
         self.on_opponent_hit(opponent)
         self.on_own_touch(own, fell.long().argmax(1))
@@ -148,14 +206,14 @@ class HighLevel:
 class HierarchicalPolicy:
     """The high level and the drills' low-level policies, acting for one team of a 3 vs 3 env."""
 
-    def __init__(self, env, lows: dict[str, callable], generator: torch.Generator | None = None):
+    def __init__(self, env, lows: dict[str, callable], generator: torch.Generator | None = None, chooser=None):
         if env.name != "3v3":
             raise ValueError(f"the hierarchical policy plays 3v3 only, not {env.name!r}")
         self.env = env
         self.lows = lows
         self.match_layout = env.layout
         self.layouts = {d: TASKS[d].obs_layout(env.with_throttle) for d in DRILLS}
-        self.high = HighLevel(env.num_envs, env.device, generator, env.params.dt, env.params.gravity)
+        self.high = HighLevel(env.num_envs, env.device, generator, env.params.dt, env.params.gravity, chooser)
 
     def drill_obs(self, drill: str, parts: dict[str, torch.Tensor], side: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         """The observations [..., obs] of ``drill`` from match parts [..., size]."""
@@ -227,10 +285,12 @@ def _act(policy, obs: torch.Tensor) -> torch.Tensor:
     return action.reshape(m, -1)
 
 
-def make_hierarchical(env, learned: dict[str, object] | None = None, generator: torch.Generator | None = None) -> HierarchicalPolicy:
+def make_hierarchical(env, learned: dict[str, object] | None = None, generator: torch.Generator | None = None,
+                      chooser=None) -> HierarchicalPolicy:
     """The hierarchical policy for one team of ``env`` (3v3): each drill's low-level policy is
     ``learned[drill]`` where given (a trained drill policy acting on that drill's observations, built
-    by ``volleybots.policies.learned_drill``), else the scripted one."""
+    by ``volleybots.policies.learned_drill``), else the scripted one; ``chooser`` makes the high
+    level's choices (None: ``RuleChooser``, the rules)."""
     from volleybots.scripted.policies import SCRIPTED_POLICIES
 
     learned = dict(learned or {})
@@ -240,7 +300,8 @@ def make_hierarchical(env, learned: dict[str, object] | None = None, generator: 
     if env.action_space_name not in ("prt", "ctbr"):
         raise ValueError(f"the hierarchical policy acts in env.action_space prt or ctbr, not {env.action_space_name!r}")
     lows = {name: learned[name] if name in learned else SCRIPTED_POLICIES[name](env.action_space_name, env.params) for name in DRILLS}
-    return HierarchicalPolicy(env, lows, generator)
+    return HierarchicalPolicy(env, lows, generator, chooser)
 
 
-__all__ = ["DRILLS", "DRILL_LABELS", "HighLevel", "HierarchicalPolicy", "drill_code", "make_hierarchical"]
+__all__ = ["CHOICES", "DRILLS", "DRILL_LABELS", "FEATURES", "HighLevel", "HierarchicalPolicy", "RuleChooser", "drill_code", "features",
+           "make_hierarchical"]

@@ -9,7 +9,12 @@ at the anchor of its role in the team, with the ball placed as it arrives there 
 - ``pass``. Drone: back, (6, 0, 2). Ball at reset: sent over the net by the opponents: from x in
   [-4.5, -2] it comes down through 2.75 m in the back of the court, x in [4.5, 6.5], y in
   [-1.5, 1.5], 1.3-1.7 s later. Done when: after the touch the ball comes down through 2.75 m.
-  Success: within 1 m (horizontally) of the front-left anchor (3, -1.5).
+  Success: within 1 m (horizontally) of the front-left anchor (3, -1.5). A share ``serves`` of the
+  balls are the 3 vs 3 scripted team's serve instead (two touches: the server tosses the ball up in
+  its own court, a teammate sends it over): from where the teammate sends it, x in [-3.25, -3.05],
+  y in [-1.5, 1.5], z in [2.6, 2.8], over the net high (about 4.9 m) and down through 2.75 m just
+  behind it, x in [2.3, 2.7], y in [-1.6, 1.6], 1.3-1.4 s later (measured on its serves: from
+  (-3.15, +-1.45, 2.7) at (4.2, 0, 6.7) m/s, down through 2.75 m at x 2.4-2.65 after 1.31-1.38 s).
 - ``set``. Drone: front-left, (3, -1.5, 2). Ball at reset: passed by the back drone: from its touch
   (x in [4.5, 6.5], y in [-1, 1], 2.75 m) it comes down through 2.75 m within 0.5 m of the
   front-left anchor, 1.2-1.6 s later. Done when: as Pass. Success: within 1 m of the front-right
@@ -246,8 +251,19 @@ class Pass(_PassDrill):
     target_role = FRONT_LEFT
     comes_over = True
 
+    def __init__(self, *args, serves: float = 0.0, **kw):
+        if not 0.0 <= float(serves) <= 1.0:
+            raise ValueError(f"serves must be a share in [0, 1]; got {serves!r}")
+        self.serves = float(serves)
+        super().__init__(*args, **kw)
+
     def ball_start(self):
-        return self.incoming((-4.5, -2.0, 2.5), (-2.0, 2.0, 3.0), (1.3, 1.7), (5.5, 0.0), (1.0, 1.5))
+        pos, vel = self.incoming((-4.5, -2.0, 2.5), (-2.0, 2.0, 3.0), (1.3, 1.7), (5.5, 0.0), (1.0, 1.5))
+        if self.serves > 0.0:  # drawn always when on, so a seed's balls do not depend on the share's draws
+            spos, svel = self.incoming((-3.25, -1.5, 2.6), (-3.05, 1.5, 2.8), (1.3, 1.4), (2.5, 0.0), (0.2, 1.6))
+            take = (self.uniform(0.0, 1.0, (self.num_envs,)) < self.serves).unsqueeze(-1)
+            pos, vel = torch.where(take, spos, pos), torch.where(take, svel, vel)
+        return pos, vel
 
 
 class Set(_PassDrill):

@@ -10,6 +10,9 @@ time, and the figures measured on held-out evaluation seeds) with either of:
 - **a mixture** (a population's final meta-strategy, e.g. PSRO-Nash): the card's ``mixture:`` lists
   ``{file: <method>/<member>.pt, weight: w}``, files relative to the task folder, members of nonzero
   weight only. It plays as one competitor that draws a member per game with those weights.
+- **a hierarchical team** (3v3): the card's ``hierarchical:`` maps drills (and ``high_level``) to files
+  relative to the task folder; the card is then also the team's file (``hierarchical: {drill: file}``,
+  volleybots/policies/builtin.py) and plays as the ``hierarchical`` competitor with those files.
 
 A leaf module: it only finds files and checks that a mixture's files exist and its weights sum to 1.
 """
@@ -35,6 +38,8 @@ class Entry:
     members: tuple[Path, ...]  # the checkpoint files: the one of a single policy, or a mixture's members
     weights: tuple[float, ...]  # the chance each member plays a game; (1.0,) for a single policy
     is_mixture: bool  # whether the card lists a mixture (even one of a single member)
+    is_team: bool = False  # whether the card is a hierarchical team's (its members: the drills' and high level's files)
+    card_file: Path | None = None  # the card itself (a team's file)
 
     @property
     def task(self) -> str:
@@ -42,8 +47,8 @@ class Entry:
 
     @property
     def checkpoint(self) -> Path | None:
-        """The file of a single policy; None for a mixture (its files are ``members``)."""
-        return None if self.is_mixture else self.members[0]
+        """The file of a single policy; None for a mixture or a team (their files are ``members``)."""
+        return None if self.is_mixture or self.is_team else self.members[0]
 
 
 def _mixture(card_path: Path, listed) -> tuple[tuple[Path, ...], tuple[float, ...]]:
@@ -65,6 +70,18 @@ def _mixture(card_path: Path, listed) -> tuple[tuple[Path, ...], tuple[float, ..
     return tuple(files), tuple(weights)
 
 
+def _team(card_path: Path, listed) -> tuple[Path, ...]:
+    """A team card's ``hierarchical:`` files; a damaged mapping is one ``ConfigError`` line."""
+    what = f"zoo card {str(card_path)!r}"
+    if not isinstance(listed, dict) or not listed or not all(isinstance(v, str) and v for v in listed.values()):
+        raise ConfigError(f"{what}: 'hierarchical' must map drills (and high_level) to files, e.g. {{pass: <method>/pass.pt}}")
+    files = tuple(card_path.parent / v for v in listed.values())
+    for f in files:
+        if not f.is_file():
+            raise ConfigError(f"{what}: file {str(f.relative_to(card_path.parent))!r} is missing")
+    return files
+
+
 def entries() -> dict[str, Entry]:
     """Every shipped policy by name, in name order (a checkpoint without its card is not listed)."""
     out = {}
@@ -74,6 +91,8 @@ def entries() -> dict[str, Entry]:
         name = f"{card_path.parent.name}/{card_path.stem}"
         if "mixture" in card:
             out[name] = Entry(name, card, *_mixture(card_path, card["mixture"]), is_mixture=True)
+        elif "hierarchical" in card:
+            out[name] = Entry(name, card, _team(card_path, card["hierarchical"]), (1.0,), False, True, card_path)
         elif card_path.with_suffix(".pt").is_file():
             out[name] = Entry(name, card, (card_path.with_suffix(".pt"),), (1.0,), is_mixture=False)
     return out

@@ -1,0 +1,75 @@
+"""What SB3 PPO's minibatch size costs in learning on Solo Bump through ``VolleySB3VecEnv``.
+
+One PPO run per ``--batch-sizes`` entry (64 worlds, ``n_steps=128``, 10 epochs, Adam with the foreach
+update and SB3's eps, as ``ppo_kwargs`` gives, so that only the minibatch differs), ``--steps`` env-steps
+each. Printed per run and quarter of training: the episodes that ended, their mean return and mean
+bumps (from ``infos[i]["final_stats"]``), and the run's wall and CPU seconds.
+
+    OMP_NUM_THREADS=1 python benchmarks/sb3_minibatches.py --batch-sizes 256,2048 --seed 0
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+import torch
+
+
+def run(batch_size: int, seed: int, steps: int, num_envs: int) -> dict:
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from volleybots.integrations import VolleySB3VecEnv
+    from volleybots.integrations.sb3_env import ppo_kwargs
+
+    ends = []
+
+    class Ends(BaseCallback):
+        def _on_step(self):
+            ends.extend((self.num_timesteps, i["final_stats"]["return"], i["final_stats"]["bumps"])
+                        for i in self.locals["infos"] if "final_stats" in i)
+            return True
+
+    env = VecMonitor(VolleySB3VecEnv("solo_bump", num_envs, seed=seed))
+    kw = {**ppo_kwargs(num_envs), "batch_size": batch_size}
+    model = PPO("MlpPolicy", env, seed=seed, device="cpu", **kw)
+    start, cpu = time.perf_counter(), time.process_time()
+    model.learn(steps, callback=Ends())
+    row = {"batch_size": batch_size, "seed": seed, "steps": steps, "wall_s": time.perf_counter() - start,
+           "cpu_s": time.process_time() - cpu, "quarters": []}
+    e = np.array(ends)
+    for q in range(4):
+        sel = e[(e[:, 0] > steps * q / 4) & (e[:, 0] <= steps * (q + 1) / 4)]
+        row["quarters"].append({"episodes": len(sel), "return": float(sel[:, 1].mean()), "bumps": float(sel[:, 2].mean())})
+    env.close()
+    return row
+
+
+def main(argv=None) -> list[dict]:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--batch-sizes", default="256,2048")
+    ap.add_argument("--steps", type=int, default=400_000)
+    ap.add_argument("--num-envs", type=int, default=64)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--json", default=None)
+    args = ap.parse_args(argv)
+    torch.set_num_threads(1)
+    rows = []
+    for bs in (int(b) for b in args.batch_sizes.split(",")):
+        r = run(bs, args.seed, args.steps, args.num_envs)
+        rows.append(r)
+        last = r["quarters"][-1]
+        print(f"batch {bs}, seed {args.seed}: last quarter {last['episodes']} episodes, return {last['return']:.1f}, "
+              f"bumps {last['bumps']:.2f}; {r['cpu_s']:.0f} CPU-s, {r['wall_s']:.0f} s", flush=True)
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(rows, f, indent=1)
+    return rows
+
+
+if __name__ == "__main__":
+    main()

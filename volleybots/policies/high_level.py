@@ -1,0 +1,148 @@
+"""A learned high level for the hierarchical 3 vs 3 team (the HCSP route; docs/hierarchical.md).
+
+The rule-based high level (``volleybots.scripted.hierarchical``) hands three choices to a chooser:
+who receives an opponent's ball, who sets, and who attacks on which side. ``HighLevelNet`` makes them
+from the same 30 features the rules could see (the ball, where and when it comes down, every
+drone's position, who touched), one small categorical head per choice with illegal options masked,
+and a value head per choice that training uses as a baseline. ``LearnedChooser`` plugs it into the
+high level: it samples its choices (a mixed strategy, as the rules draw the attack's side) or takes
+the likeliest, and can record every choice it made for training (volleybots/train/high_level.py).
+
+A high level is saved as a plain dict of tensors and numbers (``save_high_level``), read back with
+``torch.load(..., weights_only=True)``; a team file names it beside its drills (``high_level: FILE``).
+"""
+
+from __future__ import annotations
+
+import io
+import stat
+from pathlib import Path
+
+import torch
+from torch import nn
+
+from volleybots.errors import ConfigError
+from volleybots.files import write_atomic
+from volleybots.scripted.hierarchical import CHOICES, FEATURES
+
+FORMAT = "volleybots-high-level/1"
+MAX_BYTES = 16 * 2**20  # a high level is a few hundred KB: a larger file is not one
+
+
+def _mlp(sizes: list[int]) -> nn.Sequential:
+    layers: list[nn.Module] = []
+    for a, b in zip(sizes[:-1], sizes[1:]):
+        layers += [nn.Linear(a, b), nn.Tanh()]
+    return nn.Sequential(*layers[:-1])
+
+
+class HighLevelNet(nn.Module):
+    """Per choice (``CHOICES``): logits over its options and a value, from ``FEATURES`` features."""
+
+    def __init__(self, hidden: tuple[int, ...] = (64, 64)):
+        super().__init__()
+        self.hidden = tuple(int(h) for h in hidden)
+        self.heads = nn.ModuleDict({k: _mlp([FEATURES, *self.hidden, n]) for k, n in CHOICES.items()})
+        self.values = nn.ModuleDict({k: _mlp([FEATURES, *self.hidden, 1]) for k in CHOICES})
+        for head in self.heads.values():  # start near uniform: every option is tried before any is preferred
+            nn.init.zeros_(head[-1].weight)
+            nn.init.zeros_(head[-1].bias)
+
+    def logits(self, kind: str, feats: torch.Tensor, legal: torch.Tensor) -> torch.Tensor:
+        return self.heads[kind](feats).masked_fill(~legal, float("-inf"))
+
+    def value(self, kind: str, feats: torch.Tensor) -> torch.Tensor:
+        return self.values[kind](feats).squeeze(-1)
+
+
+class LearnedChooser:
+    """A chooser (``HighLevel``'s ``chooser``) backed by a ``HighLevelNet``.
+
+    ``greedy`` takes the likeliest option; otherwise options are drawn from ``generator`` (torch's
+    global one if None). With ``record`` on, every choice is kept as (kind, env, step, features,
+    legal, option) for training; ``step`` counts the calls of ``tick`` (one per control step)."""
+
+    def __init__(self, net: HighLevelNet, greedy: bool = False, generator: torch.Generator | None = None, record: bool = False,
+                 receive_coming: bool = False):
+        self.net = net
+        self.receive_coming = receive_coming  # call a receiver only for balls that come down in the own half
+        self.greedy = greedy
+        self.generator = generator
+        self.record = record
+        self.step = 0
+        self.memory: list[tuple[str, torch.Tensor, int, torch.Tensor, torch.Tensor, torch.Tensor]] = []
+
+    def tick(self) -> None:
+        self.step += 1
+
+    @torch.no_grad()
+    def __call__(self, kind: str, feats: torch.Tensor, legal: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        out = torch.zeros(feats.shape[0], dtype=torch.long, device=feats.device)
+        if not bool(mask.any()):
+            return out
+        f, ok = feats[mask], legal[mask]
+        logits = self.net.logits(kind, f, ok)
+        if self.greedy:
+            pick = logits.argmax(-1)
+        else:
+            pick = torch.multinomial(logits.softmax(-1), 1, generator=self.generator).squeeze(-1)
+        out[mask] = pick
+        if self.record:
+            self.memory.append((kind, mask.nonzero().squeeze(-1), self.step, f.clone(), ok.clone(), pick))
+        return out
+
+
+def save_high_level(net: HighLevelNet, path, info: dict | None = None) -> None:
+    """Write ``net`` to ``path`` as a weights-only checkpoint (with ``info``: frames, games, seed ...)."""
+    state = {"format": FORMAT, "hidden": list(net.hidden), "state_dict": net.state_dict(), "info": dict(info or {})}
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(path, lambda f: torch.save(state, f), "high level")
+
+
+def _read(path) -> dict:
+    """The file's checkpoint dict, read with a size bound and ``weights_only=True``."""
+    p = Path(path)
+    try:
+        st = p.stat()
+    except (OSError, ValueError):
+        raise ConfigError(f"high level {str(path)!r} does not exist") from None
+    if not stat.S_ISREG(st.st_mode) or st.st_size > MAX_BYTES:
+        raise ConfigError(f"high level {str(path)!r} is not a file of at most {MAX_BYTES:,} bytes")
+    try:
+        with open(p, "rb") as f:
+            state = torch.load(io.BytesIO(f.read(MAX_BYTES + 1)), map_location="cpu", weights_only=True)
+    except Exception as e:  # noqa: BLE001 - any unreadable file is the same user error
+        raise ConfigError(f"{str(path)!r} is damaged or no learned high level ({type(e).__name__})") from None
+    return state
+
+
+def load_high_level(path) -> HighLevelNet:
+    """The ``HighLevelNet`` saved at ``path``; anything else is one ``ConfigError`` line."""
+    return read_high_level(path)[0]
+
+
+def read_high_level(path) -> tuple[HighLevelNet, dict]:
+    """The ``HighLevelNet`` saved at ``path`` and its ``info`` (what ``save_high_level`` was given)."""
+    state = _read(path)
+    if not isinstance(state, dict) or state.get("format") != FORMAT:
+        raise ConfigError(f"{str(path)!r} is no learned high level (expected a file written by save_high_level, format {FORMAT})")
+    hidden = state.get("hidden")
+    if not isinstance(hidden, list) or not all(isinstance(h, int) and 0 < h <= 4096 for h in hidden):
+        raise ConfigError(f"{str(path)!r}: its 'hidden' sizes {hidden!r} are not a list of ints in 1..4096")
+    net = HighLevelNet(tuple(hidden))
+    try:
+        net.load_state_dict(state["state_dict"])
+    except (RuntimeError, KeyError, TypeError) as e:
+        raise ConfigError(f"{str(path)!r}: its weights do not fit a high level ({' '.join(str(e).split())[:160]})") from None
+    net.eval()
+    info = state.get("info")
+    return net, info if isinstance(info, dict) else {}
+
+
+def chooser_from_file(path, generator: torch.Generator | None = None) -> LearnedChooser:
+    """A sampling ``LearnedChooser`` of the high level at ``path``, with the event setting it was trained with."""
+    net, info = read_high_level(path)
+    return LearnedChooser(net, generator=generator, receive_coming=bool(info.get("receive_coming", False)))
+
+
+__all__ = ["FORMAT", "HighLevelNet", "LearnedChooser", "chooser_from_file", "load_high_level", "read_high_level", "save_high_level"]
