@@ -84,10 +84,9 @@ def _one_line(e: Exception) -> str:
 MAX_READ_BYTES = 256 * 2**20  # the largest file of this project's (a 100-competitor cross-play is a few MB)
 
 
-def read_text(path, what: str, limit: int = MAX_READ_BYTES) -> str:
-    """The text of the regular file ``path``, read with a bound: a folder, a device (``/dev/zero``), a
-    pipe, a file over ``limit`` bytes or one that is not UTF-8 is one line naming it, never a hang or
-    a MemoryError."""
+def read_bytes(path, what: str, limit: int = MAX_READ_BYTES) -> bytes:
+    """The bytes of the regular file ``path``, read with a bound: a folder, a device (``/dev/zero``), a
+    pipe or a file over ``limit`` bytes is one line naming it, never a hang or a MemoryError."""
     p = Path(path)
     try:
         st = p.stat()
@@ -107,6 +106,13 @@ def read_text(path, what: str, limit: int = MAX_READ_BYTES) -> str:
         raise ConfigError(f"{what} {str(path)!r} cannot be read: {e.strerror or e}") from None
     if len(data) > limit:
         raise too_big
+    return data
+
+
+def read_text(path, what: str, limit: int = MAX_READ_BYTES) -> str:
+    """The text of the regular file ``path``, read with a bound (``read_bytes``); a file that is not
+    UTF-8 is one line naming it."""
+    data = read_bytes(path, what, limit)
     try:
         return data.decode()
     except UnicodeDecodeError:
@@ -207,4 +213,5 @@ class Fields:
         return [float(w) for w in v]
 
 
-__all__ = ["MAX_READ_BYTES", "Fields", "exists", "read_json", "read_jsonl", "read_text", "sha256", "write_atomic", "write_json"]
+__all__ = ["MAX_READ_BYTES", "Fields", "exists", "read_bytes", "read_json", "read_jsonl", "read_text", "sha256", "write_atomic",
+           "write_json"]

@@ -89,6 +89,8 @@ def test_a_high_level_file_round_trips_and_a_damaged_one_is_refused(tmp_path):
     (tmp_path / "bad.pt").write_bytes(b"not a checkpoint")
     with pytest.raises(ConfigError, match="damaged or no learned high level"):
         load_high_level(tmp_path / "bad.pt")
+    with pytest.raises(ConfigError, match="is a folder, not a file"):  # the bounded read of volleybots.files
+        load_high_level(tmp_path)
     torch.save({"format": "volleybots-high-level/1", "hidden": [8], "state_dict": {}}, tmp_path / "empty.pt")
     with pytest.raises(ConfigError, match="do not fit"):
         load_high_level(tmp_path / "empty.pt")

@@ -15,14 +15,13 @@ A high level is saved as a plain dict of tensors and numbers (``save_high_level`
 from __future__ import annotations
 
 import io
-import stat
 from pathlib import Path
 
 import torch
 from torch import nn
 
 from volleybots.errors import ConfigError
-from volleybots.files import write_atomic
+from volleybots.files import read_bytes, write_atomic
 from volleybots.scripted.hierarchical import CHOICES, FEATURES
 
 FORMAT = "volleybots-high-level/1"
@@ -101,19 +100,11 @@ def save_high_level(net: HighLevelNet, path, info: dict | None = None) -> None:
 
 def _read(path) -> dict:
     """The file's checkpoint dict, read with a size bound and ``weights_only=True``."""
-    p = Path(path)
+    data = read_bytes(path, "high level", MAX_BYTES)
     try:
-        st = p.stat()
-    except (OSError, ValueError):
-        raise ConfigError(f"high level {str(path)!r} does not exist") from None
-    if not stat.S_ISREG(st.st_mode) or st.st_size > MAX_BYTES:
-        raise ConfigError(f"high level {str(path)!r} is not a file of at most {MAX_BYTES:,} bytes")
-    try:
-        with open(p, "rb") as f:
-            state = torch.load(io.BytesIO(f.read(MAX_BYTES + 1)), map_location="cpu", weights_only=True)
+        return torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
     except Exception as e:  # noqa: BLE001 - any unreadable file is the same user error
         raise ConfigError(f"{str(path)!r} is damaged or no learned high level ({type(e).__name__})") from None
-    return state
 
 
 def load_high_level(path) -> HighLevelNet:
