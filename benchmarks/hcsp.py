@@ -26,6 +26,7 @@ import os
 import platform
 import sys
 import time
+from dataclasses import asdict
 from pathlib import Path
 
 import yaml
@@ -37,7 +38,7 @@ from volleybots.policies import resolve_competitor
 from volleybots.policies.high_level import save_high_level
 from volleybots.ratings.intervals import wilson_interval
 from volleybots.scripted.hierarchical import DRILLS
-from volleybots.train.high_level import HighLevelConfig, asdict, train_high_level
+from volleybots.train.high_level import HighLevelConfig, train_high_level
 
 
 def drills_of(args) -> dict[str, str]:
@@ -94,6 +95,7 @@ def main(argv=None) -> int:
     rules = {"hierarchical": dict(drills)} if drills else None
     hc = HighLevelConfig(games=args.games, batch=args.batch, lr=args.lr, entropy=args.entropy, seed=args.seed, time_limit=args.time_limit,
                          receive_coming=args.receive_coming)
+    plain = {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(hc).items()}  # JSON / YAML-friendly
     load_before = os.getloadavg()
     start = time.monotonic()
     if not args.skip_train:
@@ -105,7 +107,6 @@ def main(argv=None) -> int:
                 log.flush()
                 print(json.dumps(row), file=sys.stderr, flush=True)
             net, history = train_high_level(cfg, drills, args.opponent, hc, write)
-        plain = {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(hc).items()}
         info = {"games": history[-1]["games"], "seed": args.seed, "opponent": args.opponent, "config": plain,
                 "receive_coming": args.receive_coming}
         save_high_level(net, out / "high_level.pt", info)
@@ -127,7 +128,7 @@ def main(argv=None) -> int:
                     raise SystemExit(str(e)) from None
                 rows.append(row)
                 print(json.dumps({k: row[k] for k in ("player", "vs", "seed", "wdl", "win_rate", "ci95", "touches")}), flush=True)
-    result = {"drills": drills, "config": {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(hc).items()},
+    result = {"drills": drills, "config": plain,
               "opponent": args.opponent, "train_s": round(train_s, 1), "eval": rows,
               "machine": {"cpus": os.cpu_count(), "load_at_start": load_before, "load_at_end": os.getloadavg(),
                           "platform": platform.platform()}}

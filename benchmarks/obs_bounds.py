@@ -13,12 +13,12 @@ largest |value| / bound of the declared parts (the headroom left).
 from __future__ import annotations
 
 import argparse
-import json
 
 import numpy as np
 import torch
 
 from volleybots.config import build_env
+from volleybots.files import write_json
 from volleybots.integrations.bounds import ObsClip
 from volleybots.integrations.spaces import observation_bounds
 from volleybots.keys import OBS
@@ -86,8 +86,7 @@ def main(argv=None) -> list[dict]:
             print(f"| {task} | {mode} | {r['agent_steps']:,} | {r['clipped']} ({100 * r['clipped_share']:.3f} %) | "
                   f"{', '.join(r['clipped_parts']) or '-'} | {r['peak_of_bound_max']:.2f} |", flush=True)
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(rows, f, indent=1)
+        write_json(args.json, rows)
     return rows
 
 

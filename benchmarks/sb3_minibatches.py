@@ -11,11 +11,12 @@ bumps (from ``infos[i]["final_stats"]``), and the run's wall and CPU seconds.
 from __future__ import annotations
 
 import argparse
-import json
 import time
 
 import numpy as np
 import torch
+
+from volleybots.files import write_json
 
 
 def run(batch_size: int, seed: int, steps: int, num_envs: int) -> dict:
@@ -66,8 +67,7 @@ def main(argv=None) -> list[dict]:
         print(f"batch {bs}, seed {args.seed}: last quarter {last['episodes']} episodes, return {last['return']:.1f}, "
               f"bumps {last['bumps']:.2f}; {r['cpu_s']:.0f} CPU-s, {r['wall_s']:.0f} s", flush=True)
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(rows, f, indent=1)
+        write_json(args.json, rows)
     return rows
 
 

@@ -25,10 +25,11 @@ Needs ``pip install 'volleybots[sb3]'``. Quote the machine load (``uptime``) bes
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import statistics
 import time
+
+from volleybots.files import write_json
 
 
 def sb3_rates(make_env, args, learn: bool, ppo: dict | None = None) -> dict:
@@ -163,8 +164,7 @@ def main(argv=None) -> dict:
               f"{row['dummy_collect_steps_per_s'] / row['env_steps_per_s']:.2f} | {d:,.0f} | {d / row['env_steps_per_cpu_s']:.2f} |")
     print(f"{args.task}, {args.num_envs} worlds, {args.threads} thread(s), 1-min load over the repeats {load}")
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(row, f, indent=1)
+        write_json(args.json, row)
     return row
 
 

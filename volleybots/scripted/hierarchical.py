@@ -66,14 +66,15 @@ CHOICES = {"receive": TEAM, "set": TEAM, "attack": 2 * TEAM}
 FEATURES = 30  # the size of ``features``: what a chooser sees when it chooses
 
 
-def features(parts: dict[str, torch.Tensor], touched: torch.Tensor, gravity: float = 9.81) -> torch.Tensor:
+def features(parts: dict[str, torch.Tensor], touched: torch.Tensor, gravity: float = 9.81, landing=None) -> torch.Tensor:
     """[N, FEATURES] what a chooser sees, from a team's observation parts (drones in role order,
     the team's mirrored view: its own half is x > 0): the ball (position, velocity), where and when it
     comes down through the contact height (zeros and 0 s where it does not), the own drones' and the
-    opponents' positions, and which drones touched in this possession. Scaled to about unit size."""
+    opponents' positions, and which drones touched in this possession. Scaled to about unit size.
+    ``landing``: ``crossing`` of this ball through the contact height, where the caller has it."""
     ball = parts["root"][:, 0, :3] + parts["ball"][:, 0]
     vel = parts["ball_vel"][:, 0]
-    fall, when = crossing(ball, vel, CONTACT_Z, gravity)
+    fall, when = crossing(ball, vel, CONTACT_Z, gravity) if landing is None else landing
     ok = torch.isfinite(fall).all(-1, keepdim=True) & torch.isfinite(when).reshape(-1, 1)
     fall = torch.where(ok, fall, torch.zeros_like(fall))[:, :2]
     when = torch.where(ok, when.reshape(-1, 1), torch.zeros_like(ok, dtype=fall.dtype)).clamp(0.0, 3.0)
@@ -194,7 +195,9 @@ class HighLevel:
         own = fell.any(1) & ~fresh
         team_pos = parts["positions"][:, 0].unflatten(-1, (2 * TEAM, 3))  # own team first
         nearest = (team_pos - ball.unsqueeze(1)).norm(dim=-1).argmin(1)
-        self.feats = features(parts, self.touched & ~fresh.unsqueeze(-1), self.gravity)
+        # where and when the ball comes down through the contact height: the features and the hovering drones' room use it
+        self.landing = crossing(ball, vel, CONTACT_Z, self.gravity)
+        self.feats = features(parts, self.touched & ~fresh.unsqueeze(-1), self.gravity, self.landing)
         coming = self.feats[:, 6] > 0 if self.receive_coming else torch.ones_like(fresh)
         opponent = jump & ~own & ~fresh & (nearest >= TEAM) & coming
         self.on_rally(fresh, turn)
@@ -233,8 +236,7 @@ class HierarchicalPolicy:
         never back, and stays ``NET_KEEP`` from the net."""
         pos = parts["root"][..., :3]
         anchor = pos - parts["anchor"]
-        ball = pos[:, 0] + parts["ball"][:, 0]
-        fall, _ = crossing(ball, parts["ball_vel"][:, 0], CONTACT_Z, self.env.params.gravity)
+        fall = self.high.landing[0]  # the high level's, from the same parts this step
         coming = (self.high.drill != HOVER).any(1) & torch.isfinite(fall).all(-1) & (fall[:, 0] > 0)
         d = anchor[..., :2] - torch.nan_to_num(fall[:, None, :2])  # [N, 3, 2]
         dist = d.norm(dim=-1, keepdim=True)

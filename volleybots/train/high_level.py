@@ -14,7 +14,7 @@ there is nothing to discount.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import torch
 
@@ -158,4 +158,4 @@ def train_high_level(match_cfg, drills: dict | None, opponent: str, cfg: HighLev
     return net, history
 
 
-__all__ = ["HighLevelConfig", "asdict", "play_batch", "train_high_level", "update"]
+__all__ = ["HighLevelConfig", "play_batch", "train_high_level", "update"]
