@@ -20,7 +20,7 @@ checkpoint of one member, or a record naming ``scripted`` / ``random``), ``popul
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
@@ -31,7 +31,7 @@ from volleybots import zoo
 from volleybots.errors import ConfigError
 from volleybots.keys import ACTION, AGENTS
 from volleybots.policies.builtin import BUILTIN, HIERARCHICAL_TASK, PLAYERS, acted, hierarchical_policy, read_drills_file
-from volleybots.policies.store import load_learner, parse_single, parse_spec, saved_config, sha256
+from volleybots.policies.store import load_learner, parse_single, parse_spec, saved_config, sha256, split_mixture
 from volleybots.runs import (
     META_FILE,
     POPULATION_DIR,
@@ -188,7 +188,10 @@ def read_meta(run_path: Path) -> list[list[float]]:
 def resolve_competitor(spec: str) -> Competitor:
     """``scripted``, ``random``, ``hierarchical``, a checkpoint, a run dir, a population run, a zoo entry
     or a hierarchical team's drills file (``*.yaml``: ``hierarchical: {drill: checkpoint}``); ``name=PATH``
-    labels it (the grammar of ``volleybots.policies.store.parse_spec``)."""
+    labels it; ``A+B`` or ``A*0.7+B*0.3`` mixes competitors (the grammar of ``volleybots.policies.store.parse_spec``)."""
+    mix = split_mixture(spec)
+    if mix is not None:
+        return mixed(*mix)
     s = parse_spec(spec)
     if s.kind == "builtin":
         return Competitor(s.label or s.target, [builtin_member(s.target)])
@@ -209,6 +212,17 @@ def resolve_competitor(spec: str) -> Competitor:
         return Competitor(s.label or path.name, ms, pop.mixture)
     ckpt = run_policy_checkpoint(path, f"run {s.target!r}")
     return Competitor(s.label or path.name, [checkpoint_member(ckpt, path.name)])
+
+
+def mixed(label: str, parts: list[tuple[str, float]]) -> Competitor:
+    """One competitor ``label`` of ``parts`` (spec, weight): every member of each, a population's
+    meta-strategy scaled by its part's weight; a one-policy part's member carries the part's label."""
+    members, weights = [], []
+    for spec, w in parts:
+        c = resolve_competitor(spec)
+        members += [replace(m, label=c.label) for m in c.members] if len(c.members) == 1 else c.members
+        weights += [w * float(x) for x in c.mixture]
+    return Competitor(label, members, weights)
 
 
 def single_policy(spec: str, what: str) -> Competitor:

@@ -19,6 +19,10 @@ The grammar (``parse_spec``), used by ``eval``, ``replay``, ``eval crossplay``, 
     zoo:TASK/METHOD                      a policy shipped in the package (``volleybots.zoo``), or a shipped
                                          mixture of policies (a population's meta-strategy)
     NAME=any of the above                the same, labelled NAME
+    A+B[+...]                            where a competitor plays (``opponent=``, ``eval crossplay``): a mixture,
+                                         one of A, B, ... drawn for each episode, uniformly ...
+    A*3+B                                ... or with these relative weights (1 where none is given); a population in
+                                         it counts with its own meta-strategy times its weight
 """
 
 from __future__ import annotations
@@ -34,6 +38,7 @@ from volleybots.files import exists, sha256
 from volleybots.overrides import split_arg
 from volleybots.runs import RunDir, load_algo_state, read_checkpoint, refuse_interpolation, run_policy_checkpoint
 
+MIX, WEIGHT = "+", "*"  # A+B, A*0.7+B*0.3: a mixture of competitors (a path holding them is that path)
 KINDS = ("builtin", "checkpoint", "run", "drills", "mixture")
 # (sha256, device, n_agents, obs_dim, action_space) -> the learner with its weights loaded; shared safely because
 # acting never changes a learner (observation statistics move only in ``update``)
@@ -91,6 +96,35 @@ def parse_spec(spec: str, builtins=BUILTIN_NAMES, what: str = "competitor") -> S
             raise ConfigError(f"{target!r} is not a run directory (no config.yaml) nor a checkpoint file")
         return Spec(label, "run", target)
     raise ConfigError(f"{what} {target!r} does not exist; expected {allowed}")
+
+
+def split_mixture(spec: str) -> tuple[str, list[tuple[str, float]]] | None:
+    """``(label, [(part, weight), ...])`` of ``[NAME=]A+B`` or ``[NAME=]A*3+B`` (relative weights, 1 where
+    none is given), the weights scaled to sum to 1, the label NAME or else the mixture as written; None
+    where ``spec`` names one competitor (no ``+``, or an existing path that holds one)."""
+    spec = str(spec)
+    if MIX not in spec or exists(spec):
+        return None
+    label, target = split_arg(spec)
+    if target is None or MIX not in target or exists(target):  # the '=' belongs to a part (B=PATH), not the whole
+        label, target = "", spec
+    parts, weights = [], []
+    for raw in target.split(MIX):
+        name, star, w = raw.rpartition(WEIGHT)
+        weight = None
+        if star and not exists(raw):
+            try:
+                weight = float(w)
+            except ValueError:
+                weight = None
+            if weight is None or not 0 < weight < float("inf"):
+                raise ConfigError(f"mixture {spec!r}: weight {w!r} of {name!r} is not a positive number; write A*3+B (weighted)")
+        parts.append(name if weight is not None else raw)
+        weights.append(weight)
+    if any(not p.strip() for p in parts):
+        raise ConfigError(f"mixture {spec!r} has an empty part; write A+B (uniform) or A*3+B (weighted)")
+    weights = [1.0 if w is None else w for w in weights]  # relative: a part without a weight weighs 1
+    return label or target, [(p, w / sum(weights)) for p, w in zip(parts, weights)]
 
 
 def learner_class(algo_cfg):
@@ -158,6 +192,8 @@ def load_policy(path, env, deterministic: bool = True, n_agents: int | None = No
 def parse_single(spec: str, what: str, builtins=BUILTIN_NAMES) -> Spec:
     """``parse_spec`` where one policy must play (``init=``, a target, ``algo.seed_members``): a zoo
     mixture is one ``ConfigError`` line naming its member files, which are what to give instead."""
+    if split_mixture(spec) is not None:
+        raise ConfigError(f"{what} {spec!r} is a mixture of {len(split_mixture(spec)[1])} competitors, not one policy; name one of them")
     s = parse_spec(spec, builtins, what=what)
     if s.kind == "mixture":
         e = zoo.lookup(s.target)
@@ -179,5 +215,5 @@ def policy_checkpoint(spec: str, what: str, builtins=BUILTIN_NAMES) -> Path:
 
 __all__ = [
     "BUILTIN_NAMES", "KINDS", "Spec", "build_learner", "learner_class", "load_learner", "load_policy", "parse_single",
-    "parse_spec", "policy_checkpoint", "saved_config", "sha256",
+    "parse_spec", "policy_checkpoint", "saved_config", "sha256", "split_mixture",
 ]
