@@ -81,6 +81,7 @@ def main(argv=None) -> int:
     ap.add_argument("--entropy", type=float, default=0.01)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--receive-coming", action="store_true", help="call a receiver only for balls coming down in the own half")
+    ap.add_argument("--receive-attack", action="store_true", help="a front drone called to receive returns the ball at once (attack drill)")
     ap.add_argument("--time-limit", type=float, default=0.0)
     ap.add_argument("--eval-games", type=int, default=400)
     ap.add_argument("--eval-seeds", default="9100,9101")
@@ -94,7 +95,7 @@ def main(argv=None) -> int:
     team = {"hierarchical": {**drills, "high_level": "high_level.pt"}}
     rules = {"hierarchical": dict(drills)} if drills else None
     hc = HighLevelConfig(games=args.games, batch=args.batch, lr=args.lr, entropy=args.entropy, seed=args.seed, time_limit=args.time_limit,
-                         receive_coming=args.receive_coming)
+                         receive_coming=args.receive_coming, receive_attack=args.receive_attack)
     plain = {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(hc).items()}  # JSON / YAML-friendly
     load_before = os.getloadavg()
     start = time.monotonic()
@@ -108,7 +109,7 @@ def main(argv=None) -> int:
                 print(json.dumps(row), file=sys.stderr, flush=True)
             net, history = train_high_level(cfg, drills, args.opponent, hc, write)
         info = {"games": history[-1]["games"], "seed": args.seed, "opponent": args.opponent, "config": plain,
-                "receive_coming": args.receive_coming}
+                "receive_coming": args.receive_coming, "receive_attack": args.receive_attack}
         save_high_level(net, out / "high_level.pt", info)
     train_s = time.monotonic() - start
     (out / "team.yaml").write_text(yaml.safe_dump(team))

@@ -71,6 +71,11 @@ def test_list_names_every_task_algorithm_backend_and_action_space():
     for name in [*TASKS, *ALGOS, *BACKENDS, *ACTION_SPACES]:
         assert name in lines, name
     assert "[no conf/task file]" not in res.stdout
+    # each algorithm's line names the tasks it trains: the population methods the three matches
+    tasks = {line.split()[0]: line.split("tasks:")[1].replace(",", " ").split() for line in res.stdout.splitlines() if "tasks:" in line}
+    for name in ("sp", "fsp", "psro_uniform", "psro_nash"):
+        assert tasks[name] == ["1v1", "3v3", "6v6"], (name, tasks[name])
+    assert "1v1" not in tasks["ppo"] and "hover" in tasks["ppo"]
 
 
 def test_train_writes_a_complete_run_directory(run_dir):

@@ -16,11 +16,12 @@ from volleybots.policies.store import parse_single, split_mixture
 
 def test_split_reads_relative_weights_and_labels():
     assert split_mixture("scripted") is None
-    assert split_mixture("scripted+random") == ("", [("scripted", 0.5), ("random", 0.5)])
+    assert split_mixture("scripted+random") == ("scripted+random", [("scripted", 0.5), ("random", 0.5)])
     label, parts = split_mixture("mix=scripted*3+random")
     assert label == "mix" and parts == [("scripted", 0.75), ("random", 0.25)]
     # a part's own label stays with the part
     assert split_mixture("scripted+b=random*1")[1] == [("scripted", 0.5), ("b=random", 0.5)]
+    assert split_mixture("scripted+b=random")[0] == "scripted+b=random"
 
 
 def test_an_existing_path_holding_plus_is_that_path(tmp_path):
@@ -48,7 +49,7 @@ def test_a_mixture_is_not_one_policy():
 
 def test_members_and_weights_flatten_and_each_episode_draws_by_weight():
     comp = resolve_competitor("scripted*3+random")
-    assert comp.label == "scripted+random"
+    assert comp.label == "scripted*3+random"  # as written: a differently weighted mixture is another competitor
     assert [m.label for m in comp.members] == ["scripted", "random"] and comp.mixture == [0.75, 0.25]
     env = make_env(load(["task=1v1"]), num_envs=2000, seed=0)
     gen = torch.Generator().manual_seed(0)
@@ -61,7 +62,7 @@ def test_members_and_weights_flatten_and_each_episode_draws_by_weight():
 def test_a_population_in_a_mixture_keeps_its_meta_strategy_scaled():
     from volleybots.policies.competitors import mixed
 
-    comp = mixed("", [("scripted", 0.5), ("random", 0.5)])
+    comp = mixed("m", [("scripted", 0.5), ("random", 0.5)])
     assert comp.mixture == [0.5, 0.5]
     # a mixture inside a mixture (the grammar has no brackets, so only through a population or zoo
     # mixture part): its weights multiply
@@ -69,7 +70,7 @@ def test_a_population_in_a_mixture_keeps_its_meta_strategy_scaled():
     from unittest import mock
 
     with mock.patch("volleybots.policies.competitors.resolve_competitor", side_effect=[inner, resolve_competitor("receiver")]):
-        comp = mixed("", [("pop", 0.8), ("receiver", 0.2)])
+        comp = mixed("m", [("pop", 0.8), ("receiver", 0.2)])
     assert [m.label for m in comp.members] == ["scripted", "random", "receiver"]
     assert comp.mixture == pytest.approx([0.4, 0.4, 0.2])
 

@@ -311,3 +311,30 @@ def test_a_chooser_may_call_the_receiver_only_for_a_ball_coming_to_the_own_half(
         assert (h.drill[:, BACK] == after_toss).all()
         h.update(parts_of(ball, over, nobody, theirs, True))
         assert (h.drill[:, BACK] == PASS).all()
+
+
+def test_a_chooser_may_have_a_front_drone_return_the_ball_at_once():
+    """With ``receive_attack`` a front drone called to receive plays the attack drill on the side the
+    chooser picks among its own two, and its touch ends the possession; the back drone still passes."""
+    from volleybots.scripted.hierarchical import RuleChooser
+
+    class FrontReturns(RuleChooser):
+        receive_attack = True
+
+        def __call__(self, kind, feats, legal, mask):
+            if kind == "receive":  # even envs: the front-right receives; odd: the back
+                return torch.where(torch.arange(feats.shape[0]) % 2 == 0, FRONT_RIGHT, BACK)
+            if kind == "attack" and bool(mask.any()):  # the receiver's own two sides only
+                assert (legal.sum(1)[mask] == 2).all() and legal[mask][:, 2 * FRONT_RIGHT:2 * FRONT_RIGHT + 2].all()
+            return super().__call__(kind, feats, legal, mask)
+
+    h = HighLevel(N, "cpu", torch.Generator().manual_seed(0), chooser=FrontReturns(torch.Generator().manual_seed(1)))
+    h.on_rally(ALL, torch.zeros(N, dtype=torch.bool))
+    h.on_opponent_hit(ALL)
+    even = torch.arange(N) % 2 == 0
+    assert torch.equal(h.drill[even], row(HOVER, ATTACK, HOVER)[even])
+    assert torch.equal(h.drill[~even], row(HOVER, HOVER, PASS)[~even])
+    assert 0 < int(h.side[even].sum()) < int(even.sum())  # both sides chosen
+    h.on_own_touch(ALL, torch.where(even, FRONT_RIGHT, BACK))
+    assert (h.drill[even] == HOVER).all()  # the return ends the possession
+    assert torch.equal(h.drill[~even], row(SET, HOVER, HOVER)[~even])

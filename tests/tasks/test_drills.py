@@ -69,6 +69,22 @@ def test_pass_serves_share_draws_the_3v3_scripted_serve():
         reset("pass", n=2, serves=1.5)
 
 
+def test_attack_serves_share_is_the_serve_which_the_drone_may_touch_once_it_has_crossed():
+    """``task.serves`` on the attack drill: the same serve as the pass drill's, returned at once by the
+    front-right drone; only those balls are the opponents' until they cross the net."""
+    env, td, pos, bp, bv = reset("attack", n=256, seed=4, serves=0.5)
+    where, t = comes_down(bp, bv)
+    s = env.served
+    assert 90 < int(s.sum()) < 166
+    assert torch.equal(s, bp[:, 0] < 0)  # a serve starts in the opponents' half, a set in the own
+    assert ((where[s, 0] >= 2.3 - 1e-3) & (where[s, 0] <= 2.7 + 1e-3) & (where[s, 1].abs() <= 1.6 + 1e-3)).all()
+    assert ((t[s] > 1.29) & (t[s] < 1.41)).all()
+    assert torch.equal(env.referee.may_hit[:, 0], ~s)
+    # the share off: the balls and the draws of the sets are unchanged
+    plain = reset("attack", n=256, seed=4)
+    assert not plain[0].served.any() and torch.equal(plain[3][~s], bp[~s])
+
+
 # where the previous touch sent the ball from: the pass zone of the back drone, the setter's anchor +- 0.5
 SOURCES = {"set": ((4.5, -1.0), (6.5, 1.0)), "attack": ((2.5, -2.0), (3.5, -1.0))}
 

@@ -125,14 +125,17 @@ class Preset:
         """The class of the learner the config ``cfg.algo`` trains (what its member checkpoints hold)."""
         return LEARNERS[cfg.get("learner") or self.learner]
 
-    def resolve(self, cfg) -> None:
+    def resolve(self, cfg, has_init: bool = False) -> None:
         """Fill ``learner_init`` and ``seed_members`` the config leaves unset (None) from ``algo.start``,
-        so that a saved config holds what the run did and reloads the same whatever the defaults become."""
+        so that a saved config holds what the run did and reloads the same whatever the defaults become.
+        ``has_init``: the run names ``init=``, which is then every learner's start (``scratch``: no clone;
+        the loop hands each learner ``init=`` with the fine-tuning recipe) where the start would clone."""
         if cfg.start not in STARTS:
             raise ConfigError(f"unknown algo.start {cfg.start!r}; allowed: {', '.join(STARTS)}")
         init, members = dict((s, (i, m)) for s, i, m in self.starts)[cfg.start]
         if cfg.learner_init is None:
-            cfg.learner_init = init
+            # init= and the clone both say where learners start (refused together): the command line's wins
+            cfg.learner_init = "scratch" if has_init and init == CLONE else init
         if cfg.seed_members is None:
             cfg.seed_members = list(members)
 

@@ -62,7 +62,10 @@ def _fits(algo: str, task: str) -> bool:
     try:
         from omegaconf import OmegaConf
 
-        cls.check(OmegaConf.structured(cls.config_cls), TASKS[task], EnvConfig(action_space=cls.action_spaces[0]))
+        cfg = OmegaConf.structured(cls.config_cls)
+        if hasattr(cls, "resolve"):  # a population preset fills its start's learner_init / seed_members first, as a run does
+            cls.resolve(cfg)
+        cls.check(cfg, TASKS[task], EnvConfig(action_space=cls.action_spaces[0]))
     except ConfigError:
         return False
     return True

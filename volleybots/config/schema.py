@@ -104,7 +104,7 @@ TASK_RANGES: dict[str, Range] = {
     "serve": Range(low=0, high=1),  # the serving team (null: random)
     "side": Range(low=0, high=1),  # the attack drill's target half: 0 left, 1 right (null: random)
     "deep": Range(low=0, high=1),  # the receive drill's share of deep, flat serves
-    "serves": Range(low=0, high=1),  # the pass drill's share of balls that are the 3v3 scripted team's serve
+    "serves": Range(low=0, high=1),  # the pass and attack drills' share of balls that are the 3v3 scripted team's serve
     "under_reward": Range(low=0),  # the receive drill's shaping coefficient (null: the task's own)
     "target": Range(length=3),  # a fixed hover target, x y z in m (null: random)
 }

@@ -215,15 +215,14 @@ def resolve_competitor(spec: str) -> Competitor:
 
 
 def mixed(label: str, parts: list[tuple[str, float]]) -> Competitor:
-    """One competitor of ``parts`` (spec, weight): every member of each, a population's meta-strategy
-    scaled by its part's weight; a one-policy part's member carries the part's label."""
-    members, weights, labels = [], [], []
+    """One competitor ``label`` of ``parts`` (spec, weight): every member of each, a population's
+    meta-strategy scaled by its part's weight; a one-policy part's member carries the part's label."""
+    members, weights = [], []
     for spec, w in parts:
         c = resolve_competitor(spec)
-        labels.append(c.label)
         members += [replace(m, label=c.label) for m in c.members] if len(c.members) == 1 else c.members
         weights += [w * float(x) for x in c.mixture]
-    return Competitor(label or "+".join(labels), members, weights)
+    return Competitor(label, members, weights)
 
 
 def single_policy(spec: str, what: str) -> Competitor:

@@ -62,9 +62,10 @@ class LearnedChooser:
     legal, option) for training; ``step`` counts the calls of ``tick`` (one per control step)."""
 
     def __init__(self, net: HighLevelNet, greedy: bool = False, generator: torch.Generator | None = None, record: bool = False,
-                 receive_coming: bool = False):
+                 receive_coming: bool = False, receive_attack: bool = False):
         self.net = net
         self.receive_coming = receive_coming  # call a receiver only for balls that come down in the own half
+        self.receive_attack = receive_attack  # a front drone called to receive returns the ball at once (Attack)
         self.greedy = greedy
         self.generator = generator
         self.record = record
@@ -133,7 +134,8 @@ def read_high_level(path) -> tuple[HighLevelNet, dict]:
 def chooser_from_file(path, generator: torch.Generator | None = None) -> LearnedChooser:
     """A sampling ``LearnedChooser`` of the high level at ``path``, with the event setting it was trained with."""
     net, info = read_high_level(path)
-    return LearnedChooser(net, generator=generator, receive_coming=bool(info.get("receive_coming", False)))
+    return LearnedChooser(net, generator=generator, receive_coming=bool(info.get("receive_coming", False)),
+                          receive_attack=bool(info.get("receive_attack", False)))
 
 
 __all__ = ["FORMAT", "HighLevelNet", "LearnedChooser", "chooser_from_file", "load_high_level", "read_high_level", "save_high_level"]

@@ -100,8 +100,8 @@ def parse_spec(spec: str, builtins=BUILTIN_NAMES, what: str = "competitor") -> S
 
 def split_mixture(spec: str) -> tuple[str, list[tuple[str, float]]] | None:
     """``(label, [(part, weight), ...])`` of ``[NAME=]A+B`` or ``[NAME=]A*3+B`` (relative weights, 1 where
-    none is given), the weights scaled to sum to 1; None where ``spec`` names one competitor (no ``+``,
-    or an existing path that holds one)."""
+    none is given), the weights scaled to sum to 1, the label NAME or else the mixture as written; None
+    where ``spec`` names one competitor (no ``+``, or an existing path that holds one)."""
     spec = str(spec)
     if MIX not in spec or exists(spec):
         return None
@@ -124,7 +124,7 @@ def split_mixture(spec: str) -> tuple[str, list[tuple[str, float]]] | None:
     if any(not p.strip() for p in parts):
         raise ConfigError(f"mixture {spec!r} has an empty part; write A+B (uniform) or A*3+B (weighted)")
     weights = [1.0 if w is None else w for w in weights]  # relative: a part without a weight weighs 1
-    return label, [(p, w / sum(weights)) for p, w in zip(parts, weights)]
+    return label or target, [(p, w / sum(weights)) for p, w in zip(parts, weights)]
 
 
 def learner_class(algo_cfg):

@@ -125,6 +125,9 @@ class HighLevel:
         # the chooser may ask that an opponent's hit call a receiver only when the ball comes down in the own
         # half (the 3v3 scripted team serves with a toss to itself first); the rules call one at every hit
         self.receive_coming = bool(getattr(self.chooser, "receive_coming", False))
+        # ... and that a front drone it calls to receive returns the ball at once (the attack drill, on a
+        # side it chooses) rather than pass it: the scripted team's serve comes down near the front drones
+        self.receive_attack = bool(getattr(self.chooser, "receive_attack", False))
         self.fall = torch.tensor((0.0, 0.0, -gravity * dt), device=device)
         self.drill = torch.full((n, TEAM), HOVER, dtype=torch.long, device=device)
         self.side = torch.zeros(n, dtype=torch.long, device=device)  # of the attack: 0 left, 1 right
@@ -143,12 +146,19 @@ class HighLevel:
 
     def on_opponent_hit(self, mask: torch.Tensor) -> None:
         """The opponents hit: a new possession is coming; the chosen drone (the rules: the back one)
-        receives it (Pass)."""
+        receives it (Pass; with ``receive_attack`` a front drone returns it at once: Attack)."""
         if not bool(mask.any()):
             return
         legal = torch.ones(mask.shape[0], CHOICES["receive"], dtype=torch.bool, device=mask.device)
         who = self.chooser("receive", self.feats, legal, mask)
-        rally = torch.where(torch.arange(TEAM, device=mask.device) == who.unsqueeze(-1), PASS, HOVER)
+        play = torch.full_like(who, PASS)
+        if self.receive_attack:
+            front = mask & (who != BACK)
+            own = torch.nn.functional.one_hot(who, TEAM).bool().repeat_interleave(2, 1)  # the receiver's two sides
+            pick = self.chooser("attack", self.feats, own, front)
+            play = torch.where(front, ATTACK, play)
+            self.side = torch.where(front, pick % 2, self.side)
+        rally = torch.where(torch.arange(TEAM, device=mask.device) == who.unsqueeze(-1), play.unsqueeze(-1), HOVER)
         self.drill = torch.where(mask.unsqueeze(-1), rally, self.drill)
         self.touched = self.touched & ~mask.unsqueeze(-1)
 
@@ -156,7 +166,9 @@ class HighLevel:
         """Drone ``toucher`` [N] (a role) of the team touched the ball: after a pass a chosen drone sets,
         after a set a chosen drone attacks on a chosen side, after a serve or an attack all hover; a
         touch goes to a drone that has not touched in this possession (the legal options)."""
-        served = self.drill.gather(1, toucher.unsqueeze(1)).squeeze(1) == SERVE
+        # a serve or an attack (also a receive returned at once) ends the team's possession
+        played = self.drill.gather(1, toucher.unsqueeze(1)).squeeze(1)
+        served = (played == SERVE) | (played == ATTACK)
         touched = self.touched | (torch.nn.functional.one_hot(toucher, TEAM).bool() & mask.unsqueeze(-1))
         count = touched.sum(1)
         setting = ~served & (count == 1)

@@ -22,7 +22,10 @@ at the anchor of its role in the team, with the ball placed as it arrives there 
 - ``attack``. Drone: front-right, (3, 1.5, 2). Ball at reset: set by the front-left drone: from
   (3, -1.5, 2.75) +- 0.5 m it comes down through 2.75 m within 0.5 m of the front-right anchor,
   1.2-1.6 s later. Done when: the ball lands. Success: in the opponent's court, in the half the
-  one-hot ``side`` says (left: y < 0, right: y > 0; the attacker faces -x).
+  one-hot ``side`` says (left: y < 0, right: y > 0; the attacker faces -x). A share ``serves`` of the
+  balls are the scripted team's serve as in ``pass`` (``SERVE_BALL``), which the front-right drone
+  returns at once (the drone may touch it once it has crossed the net): a one-touch possession, the
+  answer to a serve that comes down near the front drones, where a pass from the back would be late.
 
 2.75 m is where a drone at the scripted players' contact height (2.6 m) meets the ball's centre.
 Drones start at their anchor +- 0.1 m, level, at rest (as in the match).
@@ -70,6 +73,9 @@ HIT_REWARD = 5.0
 SUCCESS_REWARD = 10.0
 ACCURACY_REWARD = 5.0
 DIST_COEF = 0.05
+# the 3 vs 3 scripted team's serve as it comes to the receivers (module docstring, ``pass``): where the
+# teammate hits it over from (low, high), its flight (s), and where it comes down through CONTACT_Z (centre, spread)
+SERVE_BALL = ((-3.25, -1.5, 2.6), (-3.05, 1.5, 2.8), (1.3, 1.4), (2.5, 0.0), (0.2, 1.6))
 DRILL_PARTS = (("root", 23), ("anchor", 3), ("ball", 3), ("ball_vel", 3), ("may_hit", 2))
 
 
@@ -106,6 +112,7 @@ class _Drill(VolleyEnv):
         self.success = torch.zeros(n, device=dev)
         self.error = torch.zeros(n, device=dev)
         self._no_flip = torch.zeros(1, dtype=torch.bool, device=dev)
+        self.served = torch.zeros(n, dtype=torch.bool, device=dev)  # this reset's balls that are a serve (``serve_share``)
 
     def referee_config(self):
         return RefereeConfig(court=COURTS["3v3"], turns="possession", drone_min_z=0.4, out_at_any_height=False)
@@ -127,8 +134,10 @@ class _Drill(VolleyEnv):
         ball_pos, ball_vel = self.ball_start()
         self.place_ball(mask, ball_pos, ball_vel)
         self.referee.reset(mask, self.physics.state.ball_pos)
-        if self.comes_over:  # the opponents' possession until the ball crosses the net
-            self.referee.may_hit = self.referee.may_hit & ~mask.unsqueeze(1)
+        # the opponents' possession until the ball crosses the net: every ball of a drill that comes over,
+        # and the serves a drill mixes in
+        over = mask & (self.served | self.comes_over)
+        self.referee.may_hit = self.referee.may_hit & ~over.unsqueeze(1)
         self.aim = masked_select(mask, self.aim_point(), self.aim)
         self.prev_ball = masked_select(mask, self.physics.state.ball_pos, self.prev_ball)
         self.touched = self.touched & ~mask
@@ -137,6 +146,27 @@ class _Drill(VolleyEnv):
 
     def uniform_point(self, low, high) -> torch.Tensor:
         return self.uniform(low, high, (self.num_envs,))
+
+    def incoming(self, start_low, start_high, flight: tuple[float, float], centre, spread) -> tuple[torch.Tensor, torch.Tensor]:
+        """A ball sent from uniform in [start_low, start_high] to come down through ``CONTACT_Z``
+        uniformly within ``spread`` (x, y) of ``centre`` (xy), ``flight`` seconds later."""
+        start = self.uniform_point(start_low, start_high)
+        lo = (centre[0] - spread[0], centre[1] - spread[1], CONTACT_Z)
+        hi = (centre[0] + spread[0], centre[1] + spread[1], CONTACT_Z)
+        end = self.uniform_point(lo, hi)
+        t = self.uniform(flight[0], flight[1], (self.num_envs,))
+        return start, velocity_through(start, end, t, self.params.gravity)
+
+    def serve_share(self, pos: torch.Tensor, vel: torch.Tensor, share: float) -> tuple[torch.Tensor, torch.Tensor]:
+        """``pos``, ``vel`` with a ``share`` of the balls replaced by the scripted team's serve (``SERVE_BALL``);
+        ``self.served`` [N] says which. Drawn always when on, so a seed's balls do not depend on the share's draws."""
+        self.served = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
+        if share <= 0.0:
+            return pos, vel
+        spos, svel = self.incoming(*SERVE_BALL)
+        self.served = self.uniform(0.0, 1.0, (self.num_envs,)) < share
+        take = self.served.unsqueeze(-1)
+        return torch.where(take, spos, pos), torch.where(take, svel, vel)
 
     # ------------------------------------------------------------------ observation
     def observe_parts(self) -> dict[str, torch.Tensor]:
@@ -214,15 +244,6 @@ class _PassDrill(_Drill):
         over = self.touched & ev.ball_crossed
         return down | over, down & (error <= TARGET_RADIUS), torch.where(down, error, torch.full_like(error, ERROR_SCALE))
 
-    def incoming(self, start_low, start_high, flight: tuple[float, float], centre, spread) -> tuple[torch.Tensor, torch.Tensor]:
-        """A ball sent from uniform in [start_low, start_high] to come down through ``CONTACT_Z``
-        uniformly within ``spread`` (x, y) of ``centre`` (xy), ``flight`` seconds later."""
-        start = self.uniform_point(start_low, start_high)
-        lo = (centre[0] - spread[0], centre[1] - spread[1], CONTACT_Z)
-        hi = (centre[0] + spread[0], centre[1] + spread[1], CONTACT_Z)
-        end = self.uniform_point(lo, hi)
-        t = self.uniform(flight[0], flight[1], (self.num_envs,))
-        return start, velocity_through(start, end, t, self.params.gravity)
 
 
 class Serve(_Drill):
@@ -259,11 +280,7 @@ class Pass(_PassDrill):
 
     def ball_start(self):
         pos, vel = self.incoming((-4.5, -2.0, 2.5), (-2.0, 2.0, 3.0), (1.3, 1.7), (5.5, 0.0), (1.0, 1.5))
-        if self.serves > 0.0:  # drawn always when on, so a seed's balls do not depend on the share's draws
-            spos, svel = self.incoming((-3.25, -1.5, 2.6), (-3.05, 1.5, 2.8), (1.3, 1.4), (2.5, 0.0), (0.2, 1.6))
-            take = (self.uniform(0.0, 1.0, (self.num_envs,)) < self.serves).unsqueeze(-1)
-            pos, vel = torch.where(take, spos, pos), torch.where(take, svel, vel)
-        return pos, vel
+        return self.serve_share(pos, vel, self.serves)
 
 
 class Set(_PassDrill):
@@ -282,10 +299,12 @@ class Attack(_Drill):
     obs_parts = DRILL_PARTS + (("side", 2),)  # (left, right): y < 0 or y > 0 of the opponent's court, facing -x
     quarter = (-3.0, 1.5)  # the middle of a quarter of the opponent's court: (x, |y|)
 
-    def __init__(self, *args, side: int | None = None, **kw):
+    def __init__(self, *args, side: int | None = None, serves: float = 0.0, **kw):
         if side not in (None, 0, 1):
             raise ValueError(f"side must be None (random), 0 (left) or 1 (right); got {side!r}")
-        self.fixed_side = side
+        if not 0.0 <= float(serves) <= 1.0:
+            raise ValueError(f"serves must be a share in [0, 1]; got {serves!r}")
+        self.fixed_side, self.serves = side, float(serves)
         super().__init__(*args, **kw)
         self.side = torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
 
@@ -294,7 +313,8 @@ class Attack(_Drill):
         start = self.uniform_point((setter[0] - 0.5, setter[1] - 0.5, CONTACT_Z), (setter[0] + 0.5, setter[1] + 0.5, CONTACT_Z))
         end = self.uniform_point((me[0] - 0.5, me[1] - 0.5, CONTACT_Z), (me[0] + 0.5, me[1] + 0.5, CONTACT_Z))
         t = self.uniform(1.2, 1.6, (self.num_envs,))
-        return start, velocity_through(start, end, t, self.params.gravity)
+        # the serves: a front drone returning the opponents' serve at once, a one-touch possession
+        return self.serve_share(start, velocity_through(start, end, t, self.params.gravity), self.serves)
 
     def reset_task(self, mask):
         side = (self.uniform(0.0, 1.0, (self.num_envs,)) < 0.5).long()

@@ -41,6 +41,7 @@ class HighLevelConfig:
     hidden: tuple[int, ...] = (64, 64)  # hidden sizes of every head
     seed: int = 0  # the run's seed: games, sampling and the networks' start
     receive_coming: bool = False  # call a receiver only for balls coming down in the own half (saved with the net)
+    receive_attack: bool = False  # a front drone called to receive returns the ball at once with the attack drill (saved too)
     time_limit: float = 0.0  # seconds; 0: none (the batch under way is finished)
 
     def check(self) -> None:
@@ -130,7 +131,8 @@ def train_high_level(match_cfg, drills: dict | None, opponent: str, cfg: HighLev
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     comp = resolve_competitor(opponent)
     envs, teams, opps = [], [], []
-    chooser = LearnedChooser(net, greedy=False, generator=gen, record=True, receive_coming=cfg.receive_coming)
+    chooser = LearnedChooser(net, greedy=False, generator=gen, record=True, receive_coming=cfg.receive_coming,
+                             receive_attack=cfg.receive_attack)
     for side in (0, 1):
         env = side_env(match_cfg, side, "any", cfg.batch, cfg.seed * 2 + side)
         lows = {k: learned_drill(k, v, env, True) for k, v in (drills or {}).items()}
