@@ -54,7 +54,7 @@ def list_cmd() -> None:
 
 def _fits(algo: str, task: str) -> bool:
     """Whether ``algo`` accepts ``task`` in its own first action space (its ``check`` decides)."""
-    from volleybots.algos import ALGOS
+    from volleybots.algos import ALGOS, is_population
     from volleybots.config import EnvConfig
     from volleybots.tasks import TASKS
 
@@ -63,7 +63,7 @@ def _fits(algo: str, task: str) -> bool:
         from omegaconf import OmegaConf
 
         cfg = OmegaConf.structured(cls.config_cls)
-        if hasattr(cls, "resolve"):  # a population preset fills its start's learner_init / seed_members first, as a run does
+        if is_population(cls):  # a population preset fills its start's learner_init / seed_members first, as validate does
             cls.resolve(cfg)
         cls.check(cfg, TASKS[task], EnvConfig(action_space=cls.action_spaces[0]))
     except ConfigError:

@@ -188,7 +188,7 @@ def read_meta(run_path: Path) -> list[list[float]]:
 def resolve_competitor(spec: str) -> Competitor:
     """``scripted``, ``random``, ``hierarchical``, a checkpoint, a run dir, a population run, a zoo entry
     or a hierarchical team's drills file (``*.yaml``: ``hierarchical: {drill: checkpoint}``); ``name=PATH``
-    labels it; ``A+B`` or ``A*0.7+B*0.3`` mixes competitors (the grammar of ``volleybots.policies.store.parse_spec``)."""
+    labels it; ``A+B`` or ``A*3+B`` mixes competitors (the grammar of ``volleybots.policies.store.parse_spec``)."""
     mix = split_mixture(spec)
     if mix is not None:
         return mixed(*mix)

@@ -38,7 +38,7 @@ from volleybots.files import exists, sha256
 from volleybots.overrides import split_arg
 from volleybots.runs import RunDir, load_algo_state, read_checkpoint, refuse_interpolation, run_policy_checkpoint
 
-MIX, WEIGHT = "+", "*"  # A+B, A*0.7+B*0.3: a mixture of competitors (a path holding them is that path)
+MIX, WEIGHT = "+", "*"  # A+B, A*3+B: a mixture of competitors (a path holding them is that path)
 KINDS = ("builtin", "checkpoint", "run", "drills", "mixture")
 # (sha256, device, n_agents, obs_dim, action_space) -> the learner with its weights loaded; shared safely because
 # acting never changes a learner (observation statistics move only in ``update``)
@@ -192,8 +192,9 @@ def load_policy(path, env, deterministic: bool = True, n_agents: int | None = No
 def parse_single(spec: str, what: str, builtins=BUILTIN_NAMES) -> Spec:
     """``parse_spec`` where one policy must play (``init=``, a target, ``algo.seed_members``): a zoo
     mixture is one ``ConfigError`` line naming its member files, which are what to give instead."""
-    if split_mixture(spec) is not None:
-        raise ConfigError(f"{what} {spec!r} is a mixture of {len(split_mixture(spec)[1])} competitors, not one policy; name one of them")
+    mix = split_mixture(spec)
+    if mix is not None:
+        raise ConfigError(f"{what} {spec!r} is a mixture of {len(mix[1])} competitors, not one policy; name one of them")
     s = parse_spec(spec, builtins, what=what)
     if s.kind == "mixture":
         e = zoo.lookup(s.target)

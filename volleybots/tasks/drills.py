@@ -79,6 +79,13 @@ SERVE_BALL = ((-3.25, -1.5, 2.6), (-3.05, 1.5, 2.8), (1.3, 1.4), (2.5, 0.0), (0.
 DRILL_PARTS = (("root", 23), ("anchor", 3), ("ball", 3), ("ball_vel", 3), ("may_hit", 2))
 
 
+def serve_share_arg(serves) -> float:
+    """The ``serves`` argument of the drills that mix in the scripted serve (Pass, Attack), checked."""
+    if not 0.0 <= float(serves) <= 1.0:
+        raise ValueError(f"serves must be a share in [0, 1]; got {serves!r}")
+    return float(serves)
+
+
 def velocity_through(start: torch.Tensor, end: torch.Tensor, flight: torch.Tensor, g: float) -> torch.Tensor:
     """[N, 3] the launch velocity that carries a ball from ``start`` to ``end`` [N, 3] in ``flight`` [N]
     seconds (no drag): how a drill's reset sends the ball in as a teammate or an opponent would."""
@@ -101,6 +108,7 @@ class _Drill(VolleyEnv):
     role: int = BACK
     init_noise = 0.1  # m around the anchor, as in the match
     comes_over = False  # the ball starts in the opponents' half: the drone may touch it only once it crosses
+    serves = 0.0  # the share of balls that are the scripted team's serve (``serve_share``; Pass and Attack take it)
 
     def __init__(self, *args, **kw):
         super().__init__(*args, **kw)
@@ -157,14 +165,14 @@ class _Drill(VolleyEnv):
         t = self.uniform(flight[0], flight[1], (self.num_envs,))
         return start, velocity_through(start, end, t, self.params.gravity)
 
-    def serve_share(self, pos: torch.Tensor, vel: torch.Tensor, share: float) -> tuple[torch.Tensor, torch.Tensor]:
-        """``pos``, ``vel`` with a ``share`` of the balls replaced by the scripted team's serve (``SERVE_BALL``);
-        ``self.served`` [N] says which. Drawn always when on, so a seed's balls do not depend on the share's draws."""
-        self.served = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
-        if share <= 0.0:
+    def serve_share(self, pos: torch.Tensor, vel: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``pos``, ``vel`` with the share ``serves`` of the balls replaced by the scripted team's serve
+        (``SERVE_BALL``); ``self.served`` [N] says which. Drawn always when on, so a seed's balls do not
+        depend on the share's draws."""
+        if self.serves <= 0.0:
             return pos, vel
         spos, svel = self.incoming(*SERVE_BALL)
-        self.served = self.uniform(0.0, 1.0, (self.num_envs,)) < share
+        self.served = self.uniform(0.0, 1.0, (self.num_envs,)) < self.serves
         take = self.served.unsqueeze(-1)
         return torch.where(take, spos, pos), torch.where(take, svel, vel)
 
@@ -245,7 +253,6 @@ class _PassDrill(_Drill):
         return down | over, down & (error <= TARGET_RADIUS), torch.where(down, error, torch.full_like(error, ERROR_SCALE))
 
 
-
 class Serve(_Drill):
     name = "serve"
     role = BACK
@@ -273,14 +280,12 @@ class Pass(_PassDrill):
     comes_over = True
 
     def __init__(self, *args, serves: float = 0.0, **kw):
-        if not 0.0 <= float(serves) <= 1.0:
-            raise ValueError(f"serves must be a share in [0, 1]; got {serves!r}")
-        self.serves = float(serves)
+        self.serves = serve_share_arg(serves)
         super().__init__(*args, **kw)
 
     def ball_start(self):
         pos, vel = self.incoming((-4.5, -2.0, 2.5), (-2.0, 2.0, 3.0), (1.3, 1.7), (5.5, 0.0), (1.0, 1.5))
-        return self.serve_share(pos, vel, self.serves)
+        return self.serve_share(pos, vel)
 
 
 class Set(_PassDrill):
@@ -302,9 +307,7 @@ class Attack(_Drill):
     def __init__(self, *args, side: int | None = None, serves: float = 0.0, **kw):
         if side not in (None, 0, 1):
             raise ValueError(f"side must be None (random), 0 (left) or 1 (right); got {side!r}")
-        if not 0.0 <= float(serves) <= 1.0:
-            raise ValueError(f"serves must be a share in [0, 1]; got {serves!r}")
-        self.fixed_side, self.serves = side, float(serves)
+        self.fixed_side, self.serves = side, serve_share_arg(serves)
         super().__init__(*args, **kw)
         self.side = torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
 
@@ -314,7 +317,7 @@ class Attack(_Drill):
         end = self.uniform_point((me[0] - 0.5, me[1] - 0.5, CONTACT_Z), (me[0] + 0.5, me[1] + 0.5, CONTACT_Z))
         t = self.uniform(1.2, 1.6, (self.num_envs,))
         # the serves: a front drone returning the opponents' serve at once, a one-touch possession
-        return self.serve_share(start, velocity_through(start, end, t, self.params.gravity), self.serves)
+        return self.serve_share(start, velocity_through(start, end, t, self.params.gravity))
 
     def reset_task(self, mask):
         side = (self.uniform(0.0, 1.0, (self.num_envs,)) < 0.5).long()
