@@ -127,3 +127,28 @@ def test_draw_rates_stand_beside_bradley_terry_on_decisive_games():
     rep = ratings(_table({(0, 1): (10, 80, 10), (0, 2): (50, 0, 50), (1, 2): (0, 100, 0)}, 3), rounds=10, orders=2, resamples=5)
     assert rep["draw_rate"] == pytest.approx([80 / 200, 180 / 200, 100 / 200])
     assert rep["bradley_terry"]["draws"].startswith("left out")
+
+
+def test_a_rating_registered_in_the_registry_appears_in_the_table_the_json_and_the_plot(tmp_path, monkeypatch):
+    """`eval elo` knows no rating method by name: one added to RATINGS is computed, tabled, titled and
+    drawn with no edit to the verb."""
+    from volleybots.ratings.methods import RATINGS, Rating
+
+    drawn = []
+
+    def points(games):  # a toy rating: each competitor's total points, a draw half a win
+        return {"toy_points": (np.asarray(games.wdl, float) @ [1.0, 0.5, 0.0]).sum(1).tolist()}
+
+    toy = Rating(rate=points, columns=("toypts",), cells=lambda report, i: (f"{report['toy_points'][i]:.1f}",),
+                 title=lambda report: "toypts by points", plot=lambda report, ax, x: drawn.append(list(x)))
+    monkeypatch.setitem(RATINGS, "toy", toy)
+    src = _crossplay_file(tmp_path)  # a and b, 20 wins each
+    res = runner.invoke(app, ["eval", "elo", f"from={src}", "rounds=10", "orders=2", "--out", str(tmp_path / "t")], terminal_width=400)
+    assert res.exit_code == 0, res.output
+    assert "toypts" in res.stdout and "toypts by points" in res.stdout and "20.0" in res.stdout
+    assert json.loads((tmp_path / "t" / "ratings.json").read_text())["toy_points"] == [20.0, 20.0]
+    assert drawn == [[0, 1]] and (tmp_path / "t" / "ratings.png").is_file()
+    clash = Rating(rate=lambda games: {"elo": 0}, columns=(), cells=lambda report, i: ())
+    monkeypatch.setitem(RATINGS, "clash", clash)
+    with pytest.raises(ValueError, match="'clash' writes \\['elo'\\]"):
+        ratings(_even_pair("WL"), rounds=2, orders=1, resamples=1)
