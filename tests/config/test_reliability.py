@@ -125,6 +125,7 @@ def _cases():
                 yield task, algo, prefix + key, ([v] if listed and rng.length is None else v)
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_every_numeric_key_rejects_values_outside_its_range_by_name():
     bases, seen = {}, 0
     for task, algo, key, value in _cases():
@@ -144,6 +145,7 @@ def test_every_numeric_key_rejects_values_outside_its_range_by_name():
     assert seen > 120  # every algorithm's and task's keys, not a handful
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 @pytest.mark.parametrize(
     "args",
     [
@@ -256,6 +258,7 @@ def _hold_lock(path: Path) -> subprocess.Popen:
     return holder
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_claim_gives_a_fresh_suffix_when_the_default_dir_is_taken_or_in_use(tmp_path):
     from volleybots.runs import claim_run_dir, unlock
 
@@ -278,6 +281,7 @@ def test_claim_gives_a_fresh_suffix_when_the_default_dir_is_taken_or_in_use(tmp_
     assert claim_run_dir(second, unique=True) == base.with_name(base.name + "_2_2")
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_a_benchmark_rerun_never_removes_a_run_another_process_is_training(tmp_path):
     """benchmarks/table1.py removes an unfinished run dir to start it again, but not while another
     invocation on the same --out holds its lock (that collision once removed a live run)."""
@@ -306,6 +310,7 @@ def test_a_benchmark_rerun_never_removes_a_run_another_process_is_training(tmp_p
     assert finished_summary(live) == {"frames": 3}
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_two_starts_at_once_make_two_intact_runs(tmp_path):
     procs = [
         subprocess.Popen(
@@ -332,6 +337,7 @@ def test_two_starts_at_once_make_two_intact_runs(tmp_path):
         assert [int(x["frames"]) for x in train_rows(r)] == [FPB, 2 * FPB]
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_two_starts_into_one_dir_end_with_one_run_and_one_refusal(tmp_path):
     run = tmp_path / "run"
     procs = [
@@ -357,6 +363,7 @@ def test_two_starts_into_one_dir_end_with_one_run_and_one_refusal(tmp_path):
     assert [int(x["frames"]) for x in train_rows(run)] == [FPB, 2 * FPB] and (run / "summary.json").is_file()
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_two_resumes_at_once_train_once_and_lose_nothing(tmp_path):
     run = _tiny_run(tmp_path / "run", f"total_frames={FPB}")
     procs = [
@@ -377,6 +384,7 @@ def test_two_resumes_at_once_train_once_and_lose_nothing(tmp_path):
     assert torch.load(run / "checkpoints" / "final.pt", weights_only=True)["frames"] == 4 * FPB
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_a_run_killed_before_its_first_checkpoint_can_be_retried(tmp_path):
     run = tmp_path / "run"
     victim = subprocess.Popen(
@@ -418,6 +426,7 @@ def two_runs(tmp_path_factory):
     return hover, bump
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_resume_onto_a_mismatched_checkpoint_names_both_and_writes_nothing(two_runs, tmp_path):
     hover, bump = two_runs
     run = tmp_path / "hover"

@@ -95,6 +95,7 @@ def _hold_lock(path: Path) -> subprocess.Popen:
     return holder
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_two_writers_of_one_out_never_overwrite_each_other(no_games, tmp_path, monkeypatch):
     out = tmp_path / "o"
     holder = _hold_lock(out)
@@ -135,6 +136,7 @@ def test_a_match_replay_with_a_label_too_long_for_a_file_name_records(tmp_path, 
     assert len(files) == 1 and files[0].suffix == ".rrd" and files[0].stat().st_size > 0
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_a_run_dir_named_with_comma_and_equals_is_usable(tiny_1v1_run, tmp_path):
     run = Path(shutil.copytree(tiny_1v1_run, tmp_path / "a,b=c", ignore=shutil.ignore_patterns(".lock")))
     # (20-step games: every verb only has to read the run dir and play)

@@ -26,6 +26,7 @@ def _even_pair(outcomes: str) -> CrossPlay:
     return CrossPlay(["a", "b"], wdl, outcomes={"0,1": outcomes})
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_elo_of_played_games_does_not_depend_on_the_order_of_the_side_batches():
     # a side advantage, recorded batch by batch: a wins all 100 games on team 0, then loses all 100
     # on team 1. In play order the last batch decided Elo (a ended about 300 points below b).
@@ -78,6 +79,7 @@ def test_elo_cli_refuses_the_former_bootstrap_option(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_elo_cli_from_a_file_is_finite_and_the_same_for_a_seed(tmp_path):
     src = _crossplay_file(tmp_path)
     reps = []
@@ -112,6 +114,7 @@ def test_elo_is_reported_with_its_spread_over_seeded_game_orders():
     assert (np.asarray(small["order_high"]) - np.asarray(small["order_low"]) < widths / 3).all()
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_the_nash_weight_comes_with_how_often_each_member_carries_it_on_resampled_payoffs():
     """p0 beats p1 and p2 clearly: it carries the mixture in (nearly) every resample. A tie between p0
     and p1 (a 50/50 record) makes the weight move between them from resample to resample."""
