@@ -17,9 +17,10 @@ from helpers import QUIET, TINY_1V1
 
 SECONDS_KEY = "volleybots/test_seconds"  # pytest's cache (.pytest_cache): what each test took when it last ran here
 WORKER_KEY = "volleybots_test_seconds"  # the same, handed by the xdist controller to its workers
-# what a test never timed here (a fresh clone) is assumed to take: slow ones (training, sweeps, searches: 5 to 70 s)
-# well above quick ones, so that without a record the modules holding slow tests still start first
-UNTIMED_SLOW, UNTIMED = 30.0, 0.5
+# what a test never timed here (a fresh clone) is assumed to take: a learning test trains to a floor (the longest,
+# 45 to 140 s), other slow ones train, sweep or search (5 to 70 s), quick ones far less; so that without a record
+# the modules holding learning and slow tests still start first
+UNTIMED_LEARNING, UNTIMED_SLOW, UNTIMED = 60.0, 30.0, 0.5
 
 
 def pytest_collection_modifyitems(items):
@@ -37,7 +38,7 @@ class Schedule:
 
     A module's time is the sum over its *selected* tests of what each took in the last run that ran it
     (every phase, so a module's shared fixtures count), recorded in pytest's cache at the end of every
-    session; a test not timed yet counts ``UNTIMED_SLOW`` or ``UNTIMED`` seconds by its marker. The
+    session; a test not timed yet counts ``UNTIMED_LEARNING``, ``UNTIMED_SLOW`` or ``UNTIMED`` seconds by its marker. The
     controller reads the cache once and hands it to its workers, so that every worker orders the tests
     alike even while another session in the same checkout writes the cache (xdist refuses workers
     whose collections differ). Only the order changes: no test is selected or skipped by it."""
@@ -59,7 +60,8 @@ class Schedule:
     def pytest_collection_modifyitems(self, items):
         cost: dict[str, float] = {}
         for item in items:
-            guess = UNTIMED_SLOW if item.get_closest_marker("slow") else UNTIMED
+            guess = (UNTIMED_LEARNING if item.get_closest_marker("learning") else UNTIMED_SLOW if item.get_closest_marker("slow")
+                     else UNTIMED)
             cost[item.location[0]] = cost.get(item.location[0], 0.0) + self.seconds.get(item.nodeid, guess)
         items.sort(key=lambda item: (-cost[item.location[0]], item.location[0]))  # stable: a module's own order is kept
 
