@@ -175,6 +175,10 @@ def match_config(competitors, overrides=()):
     trained competitors unless ``task=`` / ``env.action_space=`` say (then they must fit), and the
     overrides; each competitor builds its team policy once here, so a bad one fails before any game."""
     keys = {split_arg(o)[0] for o in overrides}
+    if "task.serve" in keys:  # each game's serve is the scenario's: a task.serve would be overwritten, yet recorded
+        given = next(o for o in overrides if split_arg(o)[0] == "task.serve")
+        raise ConfigError(f"{given} is not a match setting: who serves is scenario=any|serve|receive (any: a random side "
+                          "each game; serve: the first competitor serves; receive: the other one does)")
     trained = [m for c in competitors for m in c.members if m.task is not None]
     extra = []
     if "task" not in keys:
