@@ -256,12 +256,12 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
         result = CrossPlay.load(source)
         if specs:
             _check_same_competitors(result, resolve_all(specs), source)
-        check_rounds(rounds, result.n)
+        check_rounds(rounds, result.n, orders)
         task, sample = result.meta.get("task", "task"), True
     else:
         if rounds % 2:
             raise ConfigError(f"rounds={rounds} must be even: the games of every pair are played half on each side")
-        check_rounds(rounds, max(2, len(specs)))  # before the competitors load: rounds are the games per pair
+        check_rounds(rounds, max(2, len(specs)), orders)  # before the competitors load: rounds are the games per pair
         play = [a for a in args if split_arg(a)[0] not in ELO_OPTIONS] + [f"games={rounds}"]
         comps, specs, play_opts, cfg = setup(play, OPTIONS)
         task, sample = cfg.task.name, opts.get("sample", False)
