@@ -173,6 +173,13 @@ class Fields:
             self.fail(f"{key!r} is {type(v).__name__}, not {' or '.join(k.__name__ for k in kinds)}")
         return v
 
+    def count(self, key: str, optional: bool = False):
+        """One non-negative integer count (a whole float is one: JSON may write 5.0); None where absent and ``optional``."""
+        if key not in self.data and optional:
+            return None
+        self._counts(self.need(key, (int, float)), (), key)
+        return int(self.data[key])
+
     def counts(self, key: str, shape: tuple) -> list:
         """A nested list of non-negative integers of exactly ``shape`` (no ragged rows)."""
         v = self.need(key, list)

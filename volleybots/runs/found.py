@@ -18,7 +18,7 @@ import numpy as np
 import yaml
 
 from volleybots.errors import ConfigError
-from volleybots.files import read_json, read_text
+from volleybots.files import Fields, read_json, read_text
 from volleybots.runs.metrics import read_metrics
 from volleybots.runs.rundir import RunDir, config_problem
 
@@ -108,6 +108,7 @@ def _read_run(d: Path, stale_after: float, now: float) -> Run:
             return Run(d, "not aggregated", "a population run: no final evaluation to average (its payoffs: population/payoffs.json)",
                        config, summary)
         value = float(summary["final_eval"]["stats"][summary["metric"]]["mean"])
+        Fields(summary, "summary.json").count("frames", optional=True)  # compared with total_frames below
     except (ValueError, KeyError, TypeError, AttributeError) as e:  # a ConfigError is a ValueError
         return Run(d, "failed", f"summary.json unreadable ({type(e).__name__}: {' '.join(str(e).split())[:160]})", config)
     if not config.get("time_limit") and summary.get("frames", 0) < config.get("total_frames", 0):

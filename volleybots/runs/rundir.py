@@ -15,7 +15,7 @@ from omegaconf import OmegaConf
 
 from volleybots.config import to_dict, validate
 from volleybots.errors import ConfigError
-from volleybots.files import read_text, write_atomic, write_json
+from volleybots.files import Fields, read_text, write_atomic, write_json
 from volleybots.runs.locks import InUseError, lock, make_dir, note, unlock
 from volleybots.runs.metrics import _is_number
 
@@ -266,7 +266,13 @@ def read_checkpoint(path, device="cpu") -> dict:
                           f"{' '.join(str(e).split())[:120]})") from None
     if not isinstance(state, dict) or state.get("format") != CKPT_FORMAT:
         raise ConfigError(f"{str(path)!r} is not a volleybots checkpoint (format {CKPT_FORMAT} expected)")
+    fields = Fields(state, f"checkpoint {str(path)!r}")
+    for key in COUNTS:  # read as int() by every verb: a tampered NaN or text would be a traceback there
+        fields.count(key, optional=True)
     return state
+
+
+COUNTS = ("frames", "iteration", "obs_dim", "n_agents")  # a checkpoint's counters
 
 
 def _to_device(state, device):
