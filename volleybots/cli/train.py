@@ -10,7 +10,7 @@ import typer
 
 from volleybots.cli.app import _PASS_THROUGH, _refuse_flags, _user_errors, app
 from volleybots.errors import ConfigError
-from volleybots.overrides import names_key, override_key, override_value, split_arg
+from volleybots.overrides import hydra_quote, names_key, override_key, override_value, split_arg
 
 
 def _jobs(overrides: list[str], multirun: bool) -> list[list[str]]:
@@ -44,7 +44,7 @@ def _quote_hint(overrides: list[str]) -> str:
             continue
         pathlike = "/" in value or override_key(o).endswith(("dir", "resume", "init", "opponent"))
         if pathlike and not value.startswith(("'", '"')) and (not value.isascii() or any(c in value for c in ",= ()[]{}")):
-            return f" (if {key} is one value, quote it for Hydra: \"{key}={_hydra_quote(value)}\")"
+            return f" (if {key} is one value, quote it for Hydra: \"{key}={hydra_quote(value)}\")"
     return ""
 
 
@@ -73,10 +73,6 @@ def _claim_dir(job: list[str], overrides: list[str], multirun: bool) -> str:
         raise ConfigError(f"{key} is empty; give it a directory")
     explicit = names_key(overrides, key)
     return str(claim_run_dir(path, unique=not explicit, sweep=multirun))
-
-
-def _hydra_quote(value: str) -> str:
-    return "'" + value.replace("\\", "\\\\").replace("'", "\\'") + "'"
 
 
 def _run_hydra(overrides: list[str], multirun: bool, extra: list[str]) -> None:
@@ -196,7 +192,7 @@ def train(
     run_dir = _claim_dir(_jobs(overrides, multirun)[0], overrides, multirun)
     try:
         pinned = [o for o in overrides if override_key(o) != key]
-        _run_hydra([*pinned, f"{key}={_hydra_quote(run_dir)}"], multirun, [])
+        _run_hydra([*pinned, f"{key}={hydra_quote(run_dir)}"], multirun, [])
     finally:
         unlock(run_dir)
     _sweep_report(run_dir)
