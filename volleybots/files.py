@@ -18,12 +18,21 @@ import json
 import math
 import os
 import stat
+import unicodedata
 from pathlib import Path
 from typing import Callable, Union
 
 from volleybots.errors import ConfigError
 
 Data = Union[str, bytes, Callable]  # text, bytes, or a function writing to a binary file object
+
+
+def printable(s) -> str:
+    """``s`` as a string with every control and format character written out as its escape: a label
+    from a received file or a name on a command line can then never retitle, recolour or rewrite the
+    terminal it is shown on (``\\x1b]0;...`` is shown, not obeyed)."""
+    s = str(s)
+    return "".join(c.encode("unicode_escape").decode() if unicodedata.category(c)[0] == "C" else c for c in s)
 
 
 def _write(f, data: Data) -> None:
