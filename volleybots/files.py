@@ -128,6 +128,23 @@ def read_text(path, what: str, limit: int = MAX_READ_BYTES) -> str:
         raise ConfigError(f"{str(path)!r} is damaged or not a {what} (not text: binary bytes)") from None
 
 
+def read_yaml_text(path, what: str) -> str:
+    """The text of the YAML file ``path`` (``read_text``), refused if it holds an alias: the byte bound
+    does not bound what a loader builds from ``*aliases`` (a few hundred bytes of nested ones expand
+    to billions of nodes), and no file of this project's needs one."""
+    import yaml
+
+    text = read_text(path, what)
+    try:
+        for event in yaml.parse(text, Loader=yaml.SafeLoader):  # events only: nothing is expanded
+            if isinstance(event, yaml.AliasEvent):
+                raise ConfigError(f"{what} {str(path)!r} holds a YAML alias (*{event.anchor}); a received YAML file is read "
+                                  "without aliases: write each value out")
+    except yaml.YAMLError:
+        pass  # malformed: the caller's loader names what is wrong
+    return text
+
+
 def read_json(path, what: str):
     """The JSON value in ``path``; a missing, unreadable, unbounded or malformed file is one line naming it."""
     p = Path(path)

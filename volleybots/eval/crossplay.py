@@ -105,6 +105,7 @@ class CrossPlay:
         n = len(labels)
         if n < 2 or not all(isinstance(x, str) for x in labels):
             f.fail("'labels' must name at least two competitors")
+        check_labels(labels, f"'labels' of {str(path)!r}")
         wdl = np.asarray(f.counts("wdl", (n, n, 3)), dtype=float)
         outcomes = f.need("outcomes", dict)
         for key, seq in outcomes.items():
@@ -158,12 +159,24 @@ def versions() -> dict:
 OPTIONS = {"games": int, "seed": int, "batch": int, "scenario": str, "deterministic": bool, "reuse": str, "pool": str}
 
 
+MAX_LABEL = 256  # characters: a file name's length; a table, a plot's legend and a line stay drawable
+
+
+def check_labels(labels, where: str) -> None:
+    """Refuse a label longer than ``MAX_LABEL``: every table and plot draws it (a 100,000-character one
+    took minutes to draw), and no file or run name is that long."""
+    long = next((lab for lab in labels if len(lab) > MAX_LABEL), None)
+    if long is not None:
+        raise ConfigError(f"{where}: {long[:40]!r}... is {len(long):,} characters long; a label has at most {MAX_LABEL}")
+
+
 def resolve_all(specs) -> list:
     """Competitors from their specs (``volleybots.policies.resolve_competitor``); labels must differ."""
     from volleybots.policies import resolve_competitor
 
     comps = [resolve_competitor(s) for s in specs]
     labels = [c.label for c in comps]
+    check_labels(labels, "a competitor's label")
     dup = sorted({lab for lab in labels if labels.count(lab) > 1})
     if dup:
         raise ConfigError(f"two competitors are labelled {dup[0]!r}; label them apart: name=PATH")

@@ -15,7 +15,7 @@ from omegaconf import OmegaConf
 
 from volleybots.config import to_dict, validate
 from volleybots.errors import ConfigError
-from volleybots.files import Fields, read_text, write_atomic, write_json
+from volleybots.files import Fields, read_yaml_text, write_atomic, write_json
 from volleybots.runs.locks import InUseError, lock, make_dir, note, unlock
 from volleybots.runs.metrics import _is_number
 
@@ -142,7 +142,7 @@ class RunDir:
         """The run's validated config; a damaged or hand-broken config.yaml is one line naming it."""
         if not self.is_run():
             raise ConfigError(f"{self.path} is not a run directory (no config.yaml)")
-        text = read_text(self.config_path, "the run's config")  # bounded: a folder or /dev/zero is one line
+        text = read_yaml_text(self.config_path, "the run's config")  # bounded: a folder or /dev/zero is one line
         try:
             # not resolved: a run dir may come from someone else, and ``${oc.env:VAR}`` would fill in
             # this machine's environment (then written in clear into the resumed run's files)
