@@ -43,14 +43,40 @@ def _write(f, data: Data) -> None:
         f.write(data.encode() if isinstance(data, str) else data)
 
 
+class _Watched:
+    """A binary file that keeps the ``OSError`` its last failed write raised, for writers that turn it
+    into another error of their own (``torch.save``)."""
+
+    def __init__(self, f):
+        self.f, self.error = f, None
+
+    def write(self, b):
+        try:
+            return self.f.write(b)
+        except OSError as e:
+            self.error = e
+            raise
+
+    def __getattr__(self, name):
+        return getattr(self.f, name)
+
+
 def write_atomic(path, data: Data, what: str = "") -> Path:
     """Write ``data`` to ``path`` atomically; an OS error (ENOSPC, EACCES, ...) is one line, and no
     temporary file is left behind."""
     path = Path(path)
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
     try:
-        with open(tmp, "wb") as f:
-            _write(f, data)
+        with open(tmp, "wb") as raw:
+            f = _Watched(raw)
+            try:
+                _write(f, data)
+            except RuntimeError:
+                # torch.save turns a short write (a full disk, a file size limit) into its own RuntimeError
+                # ("unexpected pos ..."); the OSError under it is the user's to fix, and said as such
+                if f.error is None:
+                    raise
+                raise f.error from None
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
