@@ -159,7 +159,7 @@ def versions() -> dict:
 OPTIONS = {"games": int, "seed": int, "batch": int, "scenario": str, "deterministic": bool, "reuse": str, "pool": str}
 
 
-MAX_LABEL = 256  # characters: a file name's length; a table, a plot's legend and a line stay drawable
+MAX_LABEL = 1000  # characters: past any file or run name (a long one still replays), short enough to draw at once
 
 
 def check_labels(labels, where: str) -> None:
