@@ -36,7 +36,8 @@ def test_weights_that_went_nan_are_named(tmp_path):
     collect(env, policy, env.reset(), 2)  # finite weights: it acts
     with torch.no_grad():
         policy[0].module.logits.fill_(float("nan"))
-    with pytest.raises(ConfigError, match=r"failed while acting \(RuntimeError: .*\) because its weight module\.0\.module\.logits holds NaN.*algo\.lr"):
+    named = r"failed while acting \(RuntimeError: .*\) because its weight module\.0\.module\.logits holds NaN.*algo\.lr"
+    with pytest.raises(ConfigError, match=named):
         collect(env, policy, env.reset(), 2)
 
 

@@ -20,7 +20,7 @@ from volleybots.runs import RunDir
 runner = CliRunner()
 # 378 bytes that a YAML loader expands to 9^9 strings
 BOMB = 'a: &a ["x","x","x","x","x","x","x","x","x"]\n' + "".join(
-    f"{c}: &{c} [*{p},*{p},*{p},*{p},*{p},*{p},*{p},*{p},*{p}]\n" for p, c in zip("abcdefgh", "bcdefghi")
+    f"{c}: &{c} [*{p},*{p},*{p},*{p},*{p},*{p},*{p},*{p},*{p}]\n" for p, c in zip("abcdefgh", "bcdefghi", strict=True)
 ) + "hierarchical: {attack: *i}\n"
 
 
