@@ -19,12 +19,13 @@ from volleybots.policies.competitors import (
     resolve_competitor,
     single_policy,
 )
+from volleybots.policies.foreign import callable_competitor, import_competitor, torchscript_competitor
 from volleybots.policies.store import load_learner, load_policy, parse_spec, policy_checkpoint, sha256
 from volleybots.policies.targets import EVAL_KEYS, Target, check_references, resolve_target
 
 __all__ = [
-    "BUILTIN", "EVAL_KEYS", "PLAYERS", "Competitor", "Member", "MixturePolicy", "Player", "Target", "builtin_member", "check_references",
-    "checkpoint_member", "hierarchical_member", "hierarchical_policy", "load_learner", "load_policy", "member_path", "parse_spec",
+    "BUILTIN", "EVAL_KEYS", "PLAYERS", "Competitor", "Member", "MixturePolicy", "Player", "Target", "builtin_member", "callable_competitor", "check_references",
+    "checkpoint_member", "hierarchical_member", "hierarchical_policy", "import_competitor", "load_learner", "load_policy", "member_path", "parse_spec",
     "policy_checkpoint", "population_members", "random_policy", "read_drills_file", "read_meta", "resolve_competitor", "resolve_target",
-    "scripted_policy", "sha256", "single_policy",
+    "scripted_policy", "sha256", "single_policy", "torchscript_competitor",
 ]

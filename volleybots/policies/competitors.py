@@ -31,6 +31,7 @@ from volleybots import zoo
 from volleybots.errors import ConfigError
 from volleybots.keys import ACTION, AGENTS
 from volleybots.policies.builtin import BUILTIN, HIERARCHICAL_TASK, PLAYERS, acted, hierarchical_policy, read_drills_file
+from volleybots.policies.foreign import import_competitor, torchscript_competitor
 from volleybots.policies.store import load_learner, parse_single, parse_spec, saved_config, sha256, split_mixture
 from volleybots.runs import (
     META_FILE,
@@ -186,7 +187,8 @@ def read_meta(run_path: Path) -> list[list[float]]:
 
 
 def resolve_competitor(spec: str) -> Competitor:
-    """``scripted``, ``random``, ``hierarchical``, a checkpoint, a run dir, a population run, a zoo entry
+    """``scripted``, ``random``, ``hierarchical``, a checkpoint, a run dir, a population run, a zoo entry,
+    a user's ``module:function`` or ``torchscript:FILE`` (``volleybots.policies.foreign``)
     or a hierarchical team's drills file (``*.yaml``: ``hierarchical: {drill: checkpoint}``); ``name=PATH``
     labels it; ``A+B`` or ``A*3+B`` mixes competitors (the grammar of ``volleybots.policies.store.parse_spec``)."""
     mix = split_mixture(spec)
@@ -198,6 +200,10 @@ def resolve_competitor(spec: str) -> Competitor:
     if s.kind == "drills":
         label = s.label or s.zoo or s.path.stem
         return Competitor(label, [hierarchical_member(read_drills_file(s.path), label)])
+    if s.kind == "import":
+        return import_competitor(s.target, s.label)
+    if s.kind == "torchscript":
+        return torchscript_competitor(s.target, s.label)
     if s.kind == "checkpoint":
         m = checkpoint_member(s.path)
         return Competitor(s.label or s.zoo or m.label, [m])

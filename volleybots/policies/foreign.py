@@ -1,0 +1,162 @@
+"""Policies trained elsewhere as competitors: a Python callable, a ``module:function`` named on the
+command line, and a TorchScript file (docs/integrations.md, "Your policy in every verb").
+
+The contract is the one every trainer can meet: a function from a batch of observations to a batch of
+actions. It sees one row per drone of its team, ``[B, obs_dim]`` (B = worlds x drones of the team),
+already mirrored to the +x side as every competitor sees it, and returns ``[B, 4]`` real numbers
+(``prt`` / ``ctbr``) or ``[B]`` integers (``discrete``), as a torch tensor or a numpy array. By default
+it is handed a torch tensor (on the env's device); ``numpy=True`` hands it a float32 numpy array
+(Stable-Baselines3's ``model.predict`` takes those). It is called under ``torch.no_grad()``.
+
+- ``callable_competitor(fn, label)``: the Python API; its result plays wherever a ``Competitor`` does
+  (``volleybots.eval.crossplay.crossplay``, the match envs of ``volleybots.integrations``).
+- ``module:function`` (``pkg.mod:attr``): the CLI spec of ``eval crossplay``, ``eval elo``, ``eval
+  exploitability`` and ``opponent=``. The module is imported by name from the Python path (the user's
+  own installed or importable code), never from a file a run directory or results file points to. The
+  attribute is a function (called as above with torch tensors) or a ``Competitor`` built with
+  ``callable_competitor`` (for numpy input or a declared task).
+- ``torchscript:FILE``: a module saved with ``torch.jit.save`` whose ``forward`` is the function above
+  (torch in, torch out); any other file is refused in one line.
+
+A callable's cross-play results are never copied by ``reuse=`` (nothing proves the code is the same);
+a TorchScript file is recognised by its sha256 as a checkpoint is.
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+from typing import Callable
+
+import numpy as np
+import torch
+from tensordict import TensorDictBase
+
+from volleybots.errors import ConfigError
+from volleybots.files import exists, sha256
+from volleybots.keys import ACTION, OBS
+
+TORCHSCRIPT = "torchscript:"  # the prefix of a TorchScript file's spec
+# pkg.mod:attr (dotted Python names on both sides): what a ``module:function`` spec looks like
+IMPORT_SPEC = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:[A-Za-z_]\w*(\.[A-Za-z_]\w*)*$")
+UNVERIFIED = ("callable", "import")  # member kinds whose code no hash pins down (``reuse=`` replays them)
+
+
+def is_import_spec(target: str) -> bool:
+    """Whether ``target`` reads as ``module:function`` (and is no existing path)."""
+    return bool(IMPORT_SPEC.match(target)) and not exists(target)
+
+
+class CallablePolicy:
+    """One team's ``td -> td`` policy from an obs-batch -> action-batch function (the module docstring)."""
+
+    def __init__(self, fn: Callable, env, label: str, numpy: bool = False):
+        self.fn, self.label, self.numpy = fn, label, numpy
+        acts = env.actions
+        self.device = env.device
+        self.continuous = acts.continuous
+        self.one = (acts.dim,) if acts.continuous else ()
+        self.dtype = torch.float32 if acts.continuous else torch.long
+
+    def __call__(self, td: TensorDictBase) -> TensorDictBase:
+        obs = td.get(OBS)
+        n, a = obs.shape[:2]
+        x = obs.reshape(n * a, obs.shape[-1])
+        with torch.no_grad():
+            y = self.fn(x.detach().cpu().numpy() if self.numpy else x)
+        td.set(ACTION, self.check(y, n * a).reshape(n, a, *self.one))
+        return td
+
+    def check(self, y, rows: int) -> torch.Tensor:
+        """The function's result as the env's action tensor: exactly ``[rows, *one]`` real numbers (a
+        Box action) or integers (a discrete one); anything else is one ``ValueError`` naming it."""
+        if isinstance(y, torch.Tensor):
+            t = y.detach()
+        else:
+            arr = np.asarray(y)
+            if arr.dtype == object:
+                raise ValueError(f"competitor {self.label!r} returned {type(y).__name__}, not an action batch (torch tensor or numpy array)")
+            t = torch.from_numpy(np.ascontiguousarray(arr))
+        want = (rows, *self.one)
+        kind = "real numbers (a Box action)" if self.continuous else "integers (a discrete action)"
+        if tuple(t.shape) != want:
+            raise ValueError(f"competitor {self.label!r} returned actions of shape {tuple(t.shape)} for {rows} observations; "
+                             f"expected shape {want} of {kind}")
+        if t.dtype == torch.bool or t.is_complex() or (not self.continuous and t.is_floating_point()):
+            raise ValueError(f"competitor {self.label!r} returned actions of dtype {t.dtype}; expected {kind}")
+        return t.to(self.device, self.dtype)
+
+
+def callable_competitor(fn: Callable, label: str = "", numpy: bool = False, task: str | None = None,
+                        action_space: str | None = None, obs_dim: int | None = None, source: dict | None = None):
+    """A user's policy as a ``Competitor``.
+
+    Args:
+        fn: observations ``[B, obs_dim]`` -> actions ``[B, 4]`` (or ``[B]`` discrete), torch or numpy.
+        label: its name in tables (default: the function's name).
+        numpy: hand ``fn`` a float32 numpy array instead of a torch tensor.
+        task, action_space, obs_dim: what it was made for, if known: a cross-play then refuses a match
+            it does not fit, and a cross-play of it and the built-ins alone takes its task.
+        source: its provenance in results files (default: kind ``callable`` and the function's name).
+
+    Returns:
+        A ``Competitor`` of one member; its ``team_policy(env)`` acts for one team of ``env``.
+    """
+    from volleybots.policies.competitors import Competitor, Member
+
+    if not callable(fn):
+        raise ConfigError(f"a callable competitor needs a function of the observation batch, got {type(fn).__name__}")
+    if not isinstance(numpy, (bool, np.bool_)):
+        raise ConfigError(f"numpy must be True or False, got {numpy!r}")
+    name = label or getattr(fn, "__name__", type(fn).__name__)
+    source = source or {"kind": "callable", "name": f"{getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', name)}"}
+
+    # ``deterministic`` is the user's to decide inside fn: a plain function acts one way only
+    def make(env, deterministic: bool = False):
+        return CallablePolicy(fn, env, name, bool(numpy))
+
+    return Competitor(name, [Member(name, make, source, task, action_space, obs_dim)])
+
+
+def import_competitor(spec: str, label: str = ""):
+    """The competitor a ``module:function`` spec names: the module imported by name, then its attribute
+    (a function, or a ``Competitor`` made with ``callable_competitor``); failures are one ``ConfigError``."""
+    from volleybots.policies.competitors import Competitor
+
+    module, _, attr = spec.partition(":")
+    try:
+        obj = importlib.import_module(module)
+    except ImportError as e:
+        raise ConfigError(f"competitor {spec!r}: cannot import module {module!r} ({e}); it must be importable by name "
+                          "(installed, or on PYTHONPATH)") from None
+    for part in attr.split("."):
+        if not hasattr(obj, part):
+            raise ConfigError(f"competitor {spec!r}: module {module!r} has no attribute {attr!r}")
+        obj = getattr(obj, part)
+    if isinstance(obj, Competitor):
+        if label:
+            obj.label = label
+        return obj
+    if not callable(obj):
+        raise ConfigError(f"competitor {spec!r} is a {type(obj).__name__}; expected a function of the observation batch or a Competitor")
+    return callable_competitor(obj, label or spec, source={"kind": "import", "spec": spec})
+
+
+def torchscript_competitor(path, label: str = ""):
+    """A TorchScript module (``torch.jit.save``) as a competitor: ``forward(obs [B, obs_dim]) -> actions``.
+    A file that is not TorchScript is one ``ConfigError`` line."""
+    path = str(path)
+    if not exists(path):
+        raise ConfigError(f"competitor {TORCHSCRIPT}{path!r} does not exist; expected a file written by torch.jit.save")
+    try:
+        module = torch.jit.load(path, map_location="cpu")
+    except Exception as e:  # noqa: BLE001 - torch raises RuntimeError, ValueError or zip errors alike for a foreign file
+        reason = " ".join(str(e).split())[:120]
+        raise ConfigError(f"competitor {TORCHSCRIPT}{path!r} is not a TorchScript file (torch.jit.save writes one): {reason}") from None
+    module.eval()
+    name = label or path.rsplit("/", 1)[-1].rsplit(".", 1)[0]
+    return callable_competitor(module, name, source={"kind": "torchscript", "path": path, "sha256": sha256(path)})
+
+
+__all__ = ["IMPORT_SPEC", "TORCHSCRIPT", "UNVERIFIED", "CallablePolicy", "callable_competitor", "import_competitor",
+           "is_import_spec", "torchscript_competitor"]
