@@ -24,8 +24,9 @@ from volleybots.policies.store import load_learner, load_policy, parse_spec, pol
 from volleybots.policies.targets import EVAL_KEYS, Target, check_references, resolve_target
 
 __all__ = [
-    "BUILTIN", "EVAL_KEYS", "PLAYERS", "Competitor", "Member", "MixturePolicy", "Player", "Target", "builtin_member", "callable_competitor", "check_references",
-    "checkpoint_member", "hierarchical_member", "hierarchical_policy", "import_competitor", "load_learner", "load_policy", "member_path", "parse_spec",
-    "policy_checkpoint", "population_members", "random_policy", "read_drills_file", "read_meta", "resolve_competitor", "resolve_target",
-    "scripted_policy", "sha256", "single_policy", "torchscript_competitor",
+    "BUILTIN", "EVAL_KEYS", "PLAYERS", "Competitor", "Member", "MixturePolicy", "Player", "Target", "builtin_member",
+    "callable_competitor", "check_references", "checkpoint_member", "hierarchical_member", "hierarchical_policy",
+    "import_competitor", "load_learner", "load_policy", "member_path", "parse_spec", "policy_checkpoint", "population_members",
+    "random_policy", "read_drills_file", "read_meta", "resolve_competitor", "resolve_target", "scripted_policy", "sha256",
+    "single_policy", "torchscript_competitor",
 ]

@@ -75,7 +75,8 @@ class CallablePolicy:
         else:
             arr = np.asarray(y)
             if arr.dtype == object:
-                raise ValueError(f"competitor {self.label!r} returned {type(y).__name__}, not an action batch (torch tensor or numpy array)")
+                raise ValueError(f"competitor {self.label!r} returned {type(y).__name__}, "
+                                 "not an action batch (torch tensor or numpy array)")
             t = torch.from_numpy(np.ascontiguousarray(arr))
         want = (rows, *self.one)
         kind = "real numbers (a Box action)" if self.continuous else "integers (a discrete action)"
