@@ -11,15 +11,17 @@ from volleybots.policies.competitors import (
     Member,
     MixturePolicy,
     builtin_member,
+    callable_competitor,
     checkpoint_member,
     hierarchical_member,
+    import_competitor,
     member_path,
     population_members,
     read_meta,
     resolve_competitor,
     single_policy,
+    torchscript_competitor,
 )
-from volleybots.policies.foreign import callable_competitor, import_competitor, torchscript_competitor
 from volleybots.policies.store import load_learner, load_policy, parse_spec, policy_checkpoint, sha256
 from volleybots.policies.targets import EVAL_KEYS, Target, check_references, resolve_target
 

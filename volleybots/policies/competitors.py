@@ -31,7 +31,7 @@ from volleybots import zoo
 from volleybots.errors import ConfigError
 from volleybots.keys import ACTION, AGENTS
 from volleybots.policies.builtin import BUILTIN, HIERARCHICAL_TASK, PLAYERS, acted, hierarchical_policy, read_drills_file
-from volleybots.policies.foreign import import_competitor, torchscript_competitor
+from volleybots.policies.foreign import TORCHSCRIPT, CallablePolicy, import_target, load_torchscript
 from volleybots.policies.store import load_learner, parse_single, parse_spec, saved_config, sha256, split_mixture
 from volleybots.runs import (
     META_FILE,
@@ -181,6 +181,56 @@ def checkpoint_member(path, label: str | None = None) -> Member:
     return Member(label, make, source, cfg.task.name, cfg.env.action_space, int(state["obs_dim"]))
 
 
+# ------------------------------------------------------------------------------- a user's policies
+def callable_competitor(fn: Callable, label: str = "", numpy: bool = False, task: str | None = None,
+                        action_space: str | None = None, obs_dim: int | None = None, source: dict | None = None) -> Competitor:
+    """A user's policy as a competitor (``volleybots.policies.foreign`` has the contract).
+
+    Args:
+        fn: observations ``[B, obs_dim]`` -> actions ``[B, 4]`` (or ``[B]`` discrete), torch or numpy.
+        label: its name in tables (default: the function's name).
+        numpy: hand ``fn`` a float32 numpy array instead of a torch tensor.
+        task, action_space, obs_dim: what it was made for, if known: a cross-play then refuses a match
+            it does not fit, and a cross-play of it and the built-ins alone takes its task.
+        source: its provenance in results files (default: kind ``callable`` and the function's name).
+
+    Returns:
+        A ``Competitor`` of one member; its ``team_policy(env)`` acts for one team of ``env``.
+    """
+    if not callable(fn):
+        raise ConfigError(f"a callable competitor needs a function of the observation batch, got {type(fn).__name__}")
+    if not isinstance(numpy, bool):
+        raise ConfigError(f"numpy must be True or False, got {numpy!r}")
+    name = label or getattr(fn, "__name__", type(fn).__name__)
+    source = source or {"kind": "callable", "name": f"{getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', name)}"}
+
+    # ``deterministic`` is the user's to decide inside fn: a plain function acts one way only
+    def make(env, deterministic: bool = False):
+        return CallablePolicy(fn, env, name, numpy)
+
+    return Competitor(name, [Member(name, make, source, task, action_space, obs_dim)])
+
+
+def import_competitor(spec: str, label: str = "") -> Competitor:
+    """The competitor a ``module:function`` spec names: a function (torch in, as ``callable_competitor``)
+    or a ``Competitor`` the module built (with ``callable_competitor``, for numpy input or a task)."""
+    obj = import_target(spec)
+    if isinstance(obj, Competitor):
+        return replace(obj, label=label) if label else obj
+    if not callable(obj):
+        raise ConfigError(f"competitor {spec!r} is a {type(obj).__name__}; expected a function of the observation batch or a Competitor")
+    return callable_competitor(obj, label or spec, source={"kind": "import", "spec": spec})
+
+
+def torchscript_competitor(path, label: str = "") -> Competitor:
+    """A TorchScript module (``torch.jit.save``) as a competitor: ``forward(obs [B, obs_dim]) -> actions``;
+    a file that is not TorchScript is one ``ConfigError`` line."""
+    path = str(path)
+    module = load_torchscript(path)
+    name = label or Path(path).stem
+    return callable_competitor(module, name, source={"kind": "torchscript", "path": path, "sha256": sha256(path)})
+
+
 def read_meta(run_path: Path) -> list[list[float]]:
     """Every meta-strategy a population run wrote, oldest first (each line checked)."""
     return [m["mixture"] for m in read_metas(run_path)]
@@ -242,7 +292,7 @@ def single_policy(spec: str, what: str) -> Competitor:
 
 
 __all__ = [
-    "META_FILE", "POPULATION_DIR", "AssignedPolicy", "Competitor", "Member", "MixturePolicy", "builtin_member", "checkpoint_member",
-    "hierarchical_member", "member_path", "population_members", "read_meta", "resolve_competitor",
-    "single_policy",
+    "META_FILE", "POPULATION_DIR", "TORCHSCRIPT", "AssignedPolicy", "Competitor", "Member", "MixturePolicy", "builtin_member",
+    "callable_competitor", "checkpoint_member", "hierarchical_member", "import_competitor", "member_path", "population_members",
+    "read_meta", "resolve_competitor", "single_policy", "torchscript_competitor",
 ]

@@ -33,7 +33,7 @@ import torch
 from tensordict import TensorDictBase
 
 from volleybots.errors import ConfigError
-from volleybots.files import exists, sha256
+from volleybots.files import exists
 from volleybots.keys import ACTION, OBS
 
 TORCHSCRIPT = "torchscript:"  # the prefix of a TorchScript file's spec
@@ -88,42 +88,9 @@ class CallablePolicy:
         return t.to(self.device, self.dtype)
 
 
-def callable_competitor(fn: Callable, label: str = "", numpy: bool = False, task: str | None = None,
-                        action_space: str | None = None, obs_dim: int | None = None, source: dict | None = None):
-    """A user's policy as a ``Competitor``.
-
-    Args:
-        fn: observations ``[B, obs_dim]`` -> actions ``[B, 4]`` (or ``[B]`` discrete), torch or numpy.
-        label: its name in tables (default: the function's name).
-        numpy: hand ``fn`` a float32 numpy array instead of a torch tensor.
-        task, action_space, obs_dim: what it was made for, if known: a cross-play then refuses a match
-            it does not fit, and a cross-play of it and the built-ins alone takes its task.
-        source: its provenance in results files (default: kind ``callable`` and the function's name).
-
-    Returns:
-        A ``Competitor`` of one member; its ``team_policy(env)`` acts for one team of ``env``.
-    """
-    from volleybots.policies.competitors import Competitor, Member
-
-    if not callable(fn):
-        raise ConfigError(f"a callable competitor needs a function of the observation batch, got {type(fn).__name__}")
-    if not isinstance(numpy, (bool, np.bool_)):
-        raise ConfigError(f"numpy must be True or False, got {numpy!r}")
-    name = label or getattr(fn, "__name__", type(fn).__name__)
-    source = source or {"kind": "callable", "name": f"{getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', name)}"}
-
-    # ``deterministic`` is the user's to decide inside fn: a plain function acts one way only
-    def make(env, deterministic: bool = False):
-        return CallablePolicy(fn, env, name, bool(numpy))
-
-    return Competitor(name, [Member(name, make, source, task, action_space, obs_dim)])
-
-
-def import_competitor(spec: str, label: str = ""):
-    """The competitor a ``module:function`` spec names: the module imported by name, then its attribute
-    (a function, or a ``Competitor`` made with ``callable_competitor``); failures are one ``ConfigError``."""
-    from volleybots.policies.competitors import Competitor
-
+def import_target(spec: str):
+    """The object a ``module:function`` spec names: the module imported by name from the Python path,
+    then its (dotted) attribute; a failure is one ``ConfigError`` line."""
     module, _, attr = spec.partition(":")
     try:
         obj = importlib.import_module(module)
@@ -134,19 +101,12 @@ def import_competitor(spec: str, label: str = ""):
         if not hasattr(obj, part):
             raise ConfigError(f"competitor {spec!r}: module {module!r} has no attribute {attr!r}")
         obj = getattr(obj, part)
-    if isinstance(obj, Competitor):
-        if label:
-            obj.label = label
-        return obj
-    if not callable(obj):
-        raise ConfigError(f"competitor {spec!r} is a {type(obj).__name__}; expected a function of the observation batch or a Competitor")
-    return callable_competitor(obj, label or spec, source={"kind": "import", "spec": spec})
+    return obj
 
 
-def torchscript_competitor(path, label: str = ""):
-    """A TorchScript module (``torch.jit.save``) as a competitor: ``forward(obs [B, obs_dim]) -> actions``.
-    A file that is not TorchScript is one ``ConfigError`` line."""
-    path = str(path)
+def load_torchscript(path: str):
+    """The module a TorchScript file holds (on the CPU, in eval mode); a file that is not TorchScript
+    (a checkpoint, a pickle, text) is one ``ConfigError`` line."""
     if not exists(path):
         raise ConfigError(f"competitor {TORCHSCRIPT}{path!r} does not exist; expected a file written by torch.jit.save")
     try:
@@ -155,9 +115,7 @@ def torchscript_competitor(path, label: str = ""):
         reason = " ".join(str(e).split())[:120]
         raise ConfigError(f"competitor {TORCHSCRIPT}{path!r} is not a TorchScript file (torch.jit.save writes one): {reason}") from None
     module.eval()
-    name = label or path.rsplit("/", 1)[-1].rsplit(".", 1)[0]
-    return callable_competitor(module, name, source={"kind": "torchscript", "path": path, "sha256": sha256(path)})
+    return module
 
 
-__all__ = ["IMPORT_SPEC", "TORCHSCRIPT", "UNVERIFIED", "CallablePolicy", "callable_competitor", "import_competitor",
-           "is_import_spec", "torchscript_competitor"]
+__all__ = ["IMPORT_SPEC", "TORCHSCRIPT", "UNVERIFIED", "CallablePolicy", "import_target", "is_import_spec", "load_torchscript"]
