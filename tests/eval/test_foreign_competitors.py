@@ -1,0 +1,111 @@
+"""A user's own policy in every verb (volleybots.policies.foreign, issue 55): a Python callable (torch or
+numpy), a ``module:function`` imported by name and a TorchScript file play a cross-play with exactly the
+figures of the same policy loaded as a checkpoint; bad ones are refused in one line, before any game."""
+
+from __future__ import annotations
+
+import json
+import textwrap
+
+import pytest
+import torch
+from helpers import one_line_exit_2, snapshot
+from typer.testing import CliRunner
+
+from volleybots.cli import app
+from volleybots.errors import ConfigError
+from volleybots.eval.crossplay import crossplay, match_config, resolve_all
+from volleybots.policies import callable_competitor, resolve_competitor
+
+runner = CliRunner()
+CHECKPOINT, OTHER = "zoo:1v1/bc", "zoo:1v1/bc_long"
+# the user's module: the zoo clone's deterministic actor as a plain function of the observation batch
+USER_MODULE = textwrap.dedent('''
+    import torch
+    from tensordict import TensorDict
+    from volleybots import make_env
+    from volleybots.policies import callable_competitor, load_learner
+    from volleybots.zoo import lookup
+
+    _actor = load_learner(lookup("zoo:1v1/bc").checkpoint, make_env("1v1", 1), 1)[0].policy(deterministic=True)
+
+    def act(obs):
+        td = TensorDict({"agents": TensorDict({"observation": obs[:, None]}, batch_size=[obs.shape[0], 1])}, batch_size=[obs.shape[0]])
+        return _actor(td).get(("agents", "action"))[:, 0]
+
+    def act_numpy(obs):
+        return act(torch.as_tensor(obs)).numpy()
+
+    numpy_player = callable_competitor(act_numpy, "numpy_player", numpy=True, task="1v1")
+    not_a_policy = 3
+''')
+
+
+@pytest.fixture
+def user_module(tmp_path, monkeypatch):
+    (tmp_path / "my_policies.py").write_text(USER_MODULE)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    yield "my_policies"
+
+
+def _play(specs, comps=None):
+    comps = comps or resolve_all(specs)
+    cfg = match_config(comps, ["task=1v1", "task.episode_len=120"])
+    res = crossplay(cfg, comps, games=2, seed=11, batch=2, deterministic=True, specs=specs)
+    return res.wdl.tolist(), res.outcomes, res.content
+
+
+@pytest.mark.slow  # about 15 s on the shared 2 cores: three cross-plays of two games
+def test_a_callable_and_a_module_function_play_the_checkpoints_games(user_module):
+    expected = _play([f"me={CHECKPOINT}", OTHER])
+    assert _play([f"me={user_module}:act", OTHER]) == expected
+    assert _play([f"me={user_module}:numpy_player", OTHER]) == expected  # a Competitor built by the module, numpy in
+    comp = resolve_competitor(f"{user_module}:act")
+    assert comp.label == f"{user_module}:act" and comp.sources == [{"kind": "import", "spec": f"{user_module}:act"}]
+
+
+def test_a_torchscript_file_plays_as_its_module_does(tmp_path):
+    torch.manual_seed(0)
+    net = torch.nn.Sequential(torch.nn.Linear(39, 4), torch.nn.Tanh())
+    path = tmp_path / "net.pt"
+    torch.jit.save(torch.jit.script(net), str(path))
+    comp = resolve_competitor(f"ts=torchscript:{path}")
+    assert comp.label == "ts" and comp.sources[0]["kind"] == "torchscript" and len(comp.sources[0]["sha256"]) == 64
+    with torch.no_grad():
+        as_callable = callable_competitor(lambda obs: net(obs), "ts")
+    assert _play(None, [comp, resolve_competitor(OTHER)]) == _play(None, [as_callable, resolve_competitor(OTHER)])
+
+
+def test_bad_user_policies_are_one_line(tmp_path, user_module):
+    for spec, words in ((f"{user_module}:nope", "has no attribute 'nope'"), ("no_such_module_x:act", "cannot import module"),
+                        (f"{user_module}:not_a_policy", "is a int; expected a function")):
+        with pytest.raises(ConfigError, match=words):
+            resolve_competitor(spec)
+    bad = callable_competitor(lambda obs: torch.zeros(obs.shape[0], 3), "short")
+    with pytest.raises(ValueError, match=r"returned actions of shape \((\d+), 3\) for \1 observations; expected shape \(\1, 4\)"):
+        _play(None, [bad, resolve_competitor(OTHER)])
+    text = tmp_path / "notes.pt"
+    text.write_text("not a model")
+    out = tmp_path / "out"
+    before = snapshot(tmp_path)
+    res = runner.invoke(app, ["eval", "crossplay", f"torchscript:{text}", "scripted", "task=1v1", "games=2", "--out", str(out)])
+    one_line_exit_2(res, "is not a TorchScript file", str(text))
+    assert snapshot(tmp_path) == before  # nothing written
+    ckpt = resolve_competitor(CHECKPOINT).sources[0]["path"]
+    with pytest.raises(ConfigError, match="is not a TorchScript file"):
+        resolve_competitor(f"torchscript:{ckpt}")  # a checkpoint is no TorchScript file either
+
+
+@pytest.mark.slow
+def test_the_cli_verbs_take_a_module_function(tmp_path, user_module):
+    out = tmp_path / "cp"
+    res = runner.invoke(app, ["eval", "crossplay", f"me={user_module}:act", OTHER, "task=1v1", "games=2", "batch=2",
+                              "deterministic=true", "--out", str(out), "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads((out / "crossplay.json").read_text())
+    assert data["labels"] == ["me", OTHER] and data["competitors"][0]["members"] == [{"kind": "import", "spec": f"{user_module}:act"}]
+    res = runner.invoke(app, ["eval", "elo", f"me={user_module}:act", OTHER, "task=1v1", "games=2", "batch=2", "rounds=10",
+                              "--out", str(tmp_path / "elo"), "--json"])
+    assert res.exit_code == 0, res.output
+    report = json.loads((tmp_path / "elo" / "ratings.json").read_text())
+    assert "me" in json.dumps(report["labels"] if "labels" in report else report)
