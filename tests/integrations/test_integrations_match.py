@@ -132,3 +132,18 @@ def test_sb3_ppo_learns_on_the_batched_match_with_a_snapshot_opponent():
     self_env = VolleyMatchSB3VecEnv("3v3", 2, opponent="self", episode_len=10)
     assert self_env.num_envs == 12  # both teams' drones learn
     PPO("MlpPolicy", self_env, n_steps=8, batch_size=48, n_epochs=1, seed=0, device="cpu").learn(96)
+
+
+@pytest.mark.slow
+def test_the_sb3_match_example_trains_exports_and_ranks(tmp_path):
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "examples" / "sb3_match_1v1.py"
+    spec = importlib.util.spec_from_file_location("sb3_match_1v1", path)
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    out = example.main(["--total-timesteps", "512", "--worlds", "4", "--games", "2", "--rivals", "zoo:1v1/bc", "--out", str(tmp_path)])
+    assert out["timesteps"] == 512 and out["labels"] == ["sb3_ppo", "zoo:1v1/bc"]
+    assert (tmp_path / "ppo_1v1.zip").is_file()
+    assert resolve_competitor(f"torchscript:{tmp_path / 'policy.pt'}").sources[0]["kind"] == "torchscript"
