@@ -69,7 +69,7 @@ def main(argv=None) -> dict:
     from rich.console import Console
 
     Console(width=120).print(format_table(result))
-    rank = sorted(zip(result.average_win_rate(), result.labels), key=lambda x: -np.nan_to_num(x[0], nan=-1.0))
+    rank = sorted(zip(result.average_win_rate(), result.labels, strict=True), key=lambda x: -np.nan_to_num(x[0], nan=-1.0))
     print("average win rate over decisive games: " + ", ".join(f"{lab} {wr:.2f}" for wr, lab in rank))
     print(f"wrote {out / 'ppo_1v1.zip'} and {out / 'policy.pt'}; rank the export by Elo with:\n"
           f"  volleybots eval elo mine=torchscript:{out / 'policy.pt'} {' '.join(args.rivals)} task=1v1 games=100")

@@ -68,7 +68,12 @@ class VolleyMatchVectorEnv(_Closable, VectorEnv):
         opponent: who plays the other team (module docstring), or ``"self"``.
         team: the learner's team, 0 (+x) or 1 (-x); with ``opponent="self"``, both.
         opponent_deterministic: the opponent acts on its mean (a trained one) instead of sampling.
-        action_space, physics, device, seed, clip_obs, **task_overrides: as for ``VolleyVectorEnv``.
+        action_space: ``prt``, ``ctbr`` or ``discrete``.
+        physics: ``torch`` or ``mujoco``.
+        device: where the env's tensors live (arrays always come back on the CPU).
+        seed: the generator's seed (the env's and the mixture's draws) until ``reset(seed=...)`` gives another.
+        clip_obs: clip observations into declared bounds, as ``VolleyVectorEnv`` does.
+        **task_overrides: as for ``volleybots.make_env`` (``episode_len``, ``serve``, ...).
     """
 
     metadata: ClassVar[dict] = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}

@@ -190,8 +190,10 @@ def callable_competitor(fn: Callable, label: str = "", numpy: bool = False, task
         fn: observations ``[B, obs_dim]`` -> actions ``[B, 4]`` (or ``[B]`` discrete), torch or numpy.
         label: its name in tables (default: the function's name).
         numpy: hand ``fn`` a float32 numpy array instead of a torch tensor.
-        task, action_space, obs_dim: what it was made for, if known: a cross-play then refuses a match
-            it does not fit, and a cross-play of it and the built-ins alone takes its task.
+        task: the task it was made for, if known: a cross-play then refuses a match it does not fit,
+            and a cross-play of it and the built-ins alone takes its task.
+        action_space: the action space it acts in, if known (checked as ``task`` is).
+        obs_dim: the observation size it takes, if known (checked as ``task`` is).
         source: its provenance in results files (default: kind ``callable`` and the function's name).
 
     Returns:
