@@ -76,6 +76,27 @@ def test_a_torchscript_file_plays_as_its_module_does(tmp_path):
     assert _play(None, [comp, resolve_competitor(OTHER)]) == _play(None, [as_callable, resolve_competitor(OTHER)])
 
 
+@pytest.mark.parametrize(("activation", "net_arch", "space"), [(None, None, "prt"), ("ReLU", [32, 16], "prt"), (None, [8], "discrete")])
+def test_an_sb3_zip_loads_without_unpickling_and_acts_as_predict(tmp_path, activation, net_arch, space):
+    from stable_baselines3 import PPO
+    from tensordict import TensorDict
+
+    from volleybots import make_env
+    from volleybots.integrations import VolleyMatchSB3VecEnv
+
+    kwargs = {k: v for k, v in (("activation_fn", getattr(torch.nn, activation) if activation else None), ("net_arch", net_arch)) if v}
+    model = PPO("MlpPolicy", VolleyMatchSB3VecEnv("1v1", 2, opponent="random", action_space=space), seed=0, device="cpu",
+                policy_kwargs=kwargs)
+    model.save(tmp_path / "model.zip")
+    comp = resolve_competitor(f"mine=sb3:{tmp_path / 'model.zip'}")
+    assert comp.label == "mine" and comp.sources[0]["kind"] == "sb3"
+    env = make_env("1v1", 6, seed=3, action_space=space)
+    team = TensorDict({"agents": env.select_team(env.reset(), 1)}, batch_size=[6])
+    expected = model.predict(team.get(("agents", "observation"))[:, 0].numpy(), deterministic=True)[0]
+    got = comp.team_policy(env)(team).get(("agents", "action"))[:, 0].numpy()
+    assert got.shape == expected.shape and abs(got - expected).max() < 1e-5
+
+
 def test_bad_user_policies_are_one_line(tmp_path, user_module):
     for spec, words in ((f"{user_module}:nope", "has no attribute 'nope'"), ("no_such_module_x:act", "cannot import module"),
                         (f"{user_module}:not_a_policy", "is a int; expected a function")):
@@ -94,6 +115,8 @@ def test_bad_user_policies_are_one_line(tmp_path, user_module):
     ckpt = resolve_competitor(CHECKPOINT).sources[0]["path"]
     with pytest.raises(ConfigError, match="is not a TorchScript file"):
         resolve_competitor(f"torchscript:{ckpt}")  # a checkpoint is no TorchScript file either
+    with pytest.raises(ConfigError, match="is not a saved Stable-Baselines3 model"):
+        resolve_competitor(f"sb3:{ckpt}")
 
 
 @pytest.mark.slow

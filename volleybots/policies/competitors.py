@@ -31,7 +31,7 @@ from volleybots import zoo
 from volleybots.errors import ConfigError
 from volleybots.keys import ACTION, AGENTS
 from volleybots.policies.builtin import BUILTIN, HIERARCHICAL_TASK, PLAYERS, acted, hierarchical_policy, read_drills_file
-from volleybots.policies.foreign import TORCHSCRIPT, CallablePolicy, import_target, load_torchscript
+from volleybots.policies.foreign import TORCHSCRIPT, CallablePolicy, import_target, load_sb3, load_torchscript
 from volleybots.policies.store import load_learner, parse_single, parse_spec, saved_config, sha256, split_mixture
 from volleybots.runs import (
     META_FILE,
@@ -224,13 +224,18 @@ def import_competitor(spec: str, label: str = "") -> Competitor:
     return callable_competitor(obj, label or spec, source={"kind": "import", "spec": spec})
 
 
-def torchscript_competitor(path, label: str = "") -> Competitor:
-    """A TorchScript module (``torch.jit.save``) as a competitor: ``forward(obs [B, obs_dim]) -> actions``;
-    a file that is not TorchScript is one ``ConfigError`` line."""
+def exported_competitor(path, label: str = "", kind: str = "torchscript") -> Competitor:
+    """A policy exported to a file as a competitor: a TorchScript module (``torch.jit.save``, ``forward(obs
+    [B, obs_dim]) -> actions``) or, with ``kind="sb3"``, a model saved by Stable-Baselines3; a file of
+    another kind is one ``ConfigError`` line. Known by its sha256 in results files, as a checkpoint is."""
     path = str(path)
-    module = load_torchscript(path)
-    name = label or Path(path).stem
-    return callable_competitor(module, name, source={"kind": "torchscript", "path": path, "sha256": sha256(path)})
+    module = load_torchscript(path) if kind == "torchscript" else load_sb3(path)
+    return callable_competitor(module, label or Path(path).stem, source={"kind": kind, "path": path, "sha256": sha256(path)})
+
+
+def torchscript_competitor(path, label: str = "") -> Competitor:
+    """A TorchScript module (``torch.jit.save``) as a competitor (``exported_competitor``)."""
+    return exported_competitor(path, label, "torchscript")
 
 
 def read_meta(run_path: Path) -> list[list[float]]:
@@ -254,8 +259,8 @@ def resolve_competitor(spec: str) -> Competitor:
         return Competitor(label, [hierarchical_member(read_drills_file(s.path), label)])
     if s.kind == "import":
         return import_competitor(s.target, s.label)
-    if s.kind == "torchscript":
-        return torchscript_competitor(s.target, s.label)
+    if s.kind in ("torchscript", "sb3"):
+        return exported_competitor(s.target, s.label, s.kind)
     if s.kind == "checkpoint":
         m = checkpoint_member(s.path)
         return Competitor(s.label or s.zoo or m.label, [m])
@@ -295,6 +300,6 @@ def single_policy(spec: str, what: str) -> Competitor:
 
 __all__ = [
     "META_FILE", "POPULATION_DIR", "TORCHSCRIPT", "AssignedPolicy", "Competitor", "Member", "MixturePolicy", "builtin_member",
-    "callable_competitor", "checkpoint_member", "hierarchical_member", "import_competitor", "member_path", "population_members",
-    "read_meta", "resolve_competitor", "single_policy", "torchscript_competitor",
+    "callable_competitor", "checkpoint_member", "exported_competitor", "hierarchical_member", "import_competitor", "member_path",
+    "population_members", "read_meta", "resolve_competitor", "single_policy", "torchscript_competitor",
 ]

@@ -17,6 +17,8 @@ it is handed a torch tensor (on the env's device); ``numpy=True`` hands it a flo
   ``callable_competitor`` (for numpy input or a declared task).
 - ``torchscript:FILE``: a module saved with ``torch.jit.save`` whose ``forward`` is the function above
   (torch in, torch out); any other file is refused in one line.
+- ``sb3:FILE.zip``: a PPO or A2C model saved by Stable-Baselines3, its actor rebuilt from the saved
+  weights and the readable parts of the archive, without unpickling anything (``load_sb3``).
 
 A callable's cross-play results are never copied by ``reuse=`` (nothing proves the code is the same);
 a TorchScript file is recognised by its sha256 as a checkpoint is.
@@ -37,6 +39,7 @@ from volleybots.files import exists
 from volleybots.keys import ACTION, OBS
 
 TORCHSCRIPT = "torchscript:"  # the prefix of a TorchScript file's spec
+SB3 = "sb3:"  # the prefix of a model saved by Stable-Baselines3 (its .zip)
 # pkg.mod:attr (dotted Python names on both sides): what a ``module:function`` spec looks like
 IMPORT_SPEC = re.compile(r"^[A-Za-z_]\w*(\.[A-Za-z_]\w*)*:[A-Za-z_]\w*(\.[A-Za-z_]\w*)*$")
 UNVERIFIED = ("callable", "import")  # member kinds whose code no hash pins down (``reuse=`` replays them)
@@ -118,4 +121,60 @@ def load_torchscript(path: str):
     return module
 
 
-__all__ = ["IMPORT_SPEC", "TORCHSCRIPT", "UNVERIFIED", "CallablePolicy", "import_target", "is_import_spec", "load_torchscript"]
+# SB3's activation classes by the name its saved "data" shows them (torch.nn.modules.activation.<Name>)
+SB3_ACTIVATIONS = {"Tanh": torch.nn.Tanh, "ReLU": torch.nn.ReLU, "ELU": torch.nn.ELU, "LeakyReLU": torch.nn.LeakyReLU,
+                   "SiLU": torch.nn.SiLU, "GELU": torch.nn.GELU}
+
+
+def load_sb3(path: str) -> torch.nn.Module:
+    """The deterministic actor of a model saved by Stable-Baselines3's ``model.save`` (PPO or A2C with an
+    ``MlpPolicy``), rebuilt without unpickling anything: the weights come from the archive's
+    ``policy.pth`` (``torch.load(weights_only=True)``), the layout from their names and shapes, the
+    activation from the readable text SB3 writes beside its pickles in ``data`` (JSON). The action is
+    the Gaussian's mean clipped into [-1, 1] (a Box, what SB3's ``predict(deterministic=True)`` gives)
+    or the most likely action (a Discrete). Anything else is one ``ConfigError`` line."""
+    import io
+    import json
+    import zipfile
+
+    what = f"competitor {SB3}{path!r}"
+    if not exists(path):
+        raise ConfigError(f"{what} does not exist; expected a .zip written by a Stable-Baselines3 model's save()")
+    try:
+        with zipfile.ZipFile(path) as z:
+            data = json.loads(z.read("data"))
+            state = torch.load(io.BytesIO(z.read("policy.pth")), map_location="cpu", weights_only=True)
+    except (zipfile.BadZipFile, KeyError, ValueError, RuntimeError, OSError) as e:
+        raise ConfigError(f"{what} is not a saved Stable-Baselines3 model ({' '.join(str(e).split())[:100]})") from None
+    init = str((data.get("policy_class") or {}).get("__init__", ""))
+    if "ActorCriticPolicy." not in init or data.get("use_sde"):
+        raise ConfigError(f"{what}: only an ActorCriticPolicy without gSDE (PPO or A2C, MlpPolicy) loads without unpickling")
+    named = str((data.get("policy_kwargs") or {}).get("activation_fn", "Tanh"))
+    act = next((cls for name, cls in SB3_ACTIVATIONS.items() if named.rstrip("'>").endswith(name)), None)
+    if act is None:
+        raise ConfigError(f"{what}: activation {named!r} is not one of {', '.join(SB3_ACTIVATIONS)}")
+    if any("features_extractor." in k for k in state):
+        raise ConfigError(f"{what}: a features extractor with weights (not SB3's flatten) needs SB3 itself: use callable_competitor")
+    layers, k = [], 0
+    while f"mlp_extractor.policy_net.{k}.weight" in state:
+        w = state[f"mlp_extractor.policy_net.{k}.weight"]
+        layers += [torch.nn.Linear(w.shape[1], w.shape[0]), act()]
+        layers[-2].load_state_dict({"weight": w, "bias": state[f"mlp_extractor.policy_net.{k}.bias"]})
+        k += 2  # SB3's Sequential puts the activation between: the linear layers are 0, 2, 4, ...
+    head = torch.nn.Linear(state["action_net.weight"].shape[1], state["action_net.weight"].shape[0])
+    head.load_state_dict({"weight": state["action_net.weight"], "bias": state["action_net.bias"]})
+    return _SB3Actor(torch.nn.Sequential(*layers, head), "log_std" in state).eval()
+
+
+class _SB3Actor(torch.nn.Module):
+    def __init__(self, net: torch.nn.Module, box: bool):
+        super().__init__()
+        self.net, self.box = net, box
+
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        out = self.net(obs.float())
+        return out.clamp(-1.0, 1.0) if self.box else out.argmax(-1)
+
+
+__all__ = ["IMPORT_SPEC", "SB3", "TORCHSCRIPT", "UNVERIFIED", "CallablePolicy", "import_target", "is_import_spec", "load_sb3",
+           "load_torchscript"]
