@@ -81,7 +81,7 @@ def _fits(algo: str, task: str) -> bool:
 
         cfg = OmegaConf.structured(cls.config_cls)
         if is_population(cls):  # a population preset fills its start's learner_init / seed_members first, as validate does
-            cls.resolve(cfg)
+            cls.resolve(cfg, task=task)
         cls.check(cfg, TASKS[task], EnvConfig(action_space=cls.action_spaces[0]))
     except ConfigError:
         return False

@@ -48,7 +48,7 @@ def validate(cfg) -> DictConfig:
     algo_schema = algo_cls.config_class(algo)
     typed_algo = _typed(algo_schema, algo, "algo.")
     if is_population(algo_cls):  # a population preset fills what algo.start leaves to it
-        algo_cls.resolve(typed_algo, has_init=data.get("init") is not None)
+        algo_cls.resolve(typed_algo, has_init=data.get("init") is not None, task=task["name"])
     rest = _typed(Config, {k: v for k, v in data.items() if k not in ("task", "algo")}, "")
     rest.task, rest.algo = typed_task, typed_algo
 

@@ -14,8 +14,8 @@ Rates per second of wall time and per second of this process's CPU time (``--thr
 the steadier figure on a shared machine). The PPO keywords are ``sb3_env.ppo_kwargs`` (the rollout in
 ``--minibatches`` minibatches, Adam's foreach update) with ``--n-epochs`` epochs.
 
-    OMP_NUM_THREADS=1 python benchmarks/sb3_match.py                  # 1v1, 64 worlds
-    OMP_NUM_THREADS=1 python benchmarks/sb3_match.py --json out.json
+    OMP_NUM_THREADS=1 python benchmarks/speed/sb3_match.py                  # 1v1, 64 worlds
+    OMP_NUM_THREADS=1 python benchmarks/speed/sb3_match.py --json out.json
 
 Needs ``pip install 'volleybots[sb3]'``. Quote the machine load (``uptime``) beside the figures.
 """
@@ -26,7 +26,7 @@ import argparse
 import os
 import statistics
 
-from sb3_vecenv import sb3_rates  # the same SB3 timing as the single-drone benchmark (this folder)
+from sb3_vecenv import sb3_rates  # the same SB3 timing as the single-drone benchmark (benchmarks/speed/)
 
 from volleybots.files import write_json
 
