@@ -41,7 +41,7 @@ def build_env(
     # generically): route ours to the env's own static-shape step and reset instead.
     if "compile" in task_overrides:
         task_overrides["compile_physics"] = task_overrides.pop("compile")
-    group_map = task_overrides.pop("group_map", "agents")
+    group_map = task_overrides.pop("group_map", GROUP_MAPS[0])  # the env's own layout unless asked
     if group_map not in GROUP_MAPS:
         raise ValueError(f"unknown group_map {group_map!r}; allowed: {list(GROUP_MAPS)}")
     if group_map == "teams" and not TASKS[task].competitive:

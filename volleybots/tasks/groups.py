@@ -27,7 +27,7 @@ from torchrl.envs import EnvBase
 from volleybots.keys import ACTION, AGENTS, DONE, OBS, REWARD, STATS, TEAM_NAMES, TERMINATED, TRUNCATED, leaf
 from volleybots.tasks.base import VolleyEnv
 
-GROUP_MAPS = ("agents", "teams")  # make_env's group_map: one group of every drone (the env's own), or one per team
+GROUP_MAPS = (AGENTS, "teams")  # make_env's group_map: one group of every drone (the env's own), or one per team
 FLAGS = (DONE, TERMINATED, TRUNCATED)
 
 
