@@ -29,17 +29,17 @@ team-0 return, ...) in ``info["final_stats"]``, rows where ``info["_final_obs"]`
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 import torch
-from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from volleybots.integrations import spaces as sp
-from volleybots.integrations.gym_env import _Closable
-from volleybots.integrations.spaces import STATS_KEY, Actions, check_seed, episode_stats, to_numpy
-from volleybots.keys import ACTION, NEXT, OBS, REWARD, TERMINATED, TRUNCATED
+from volleybots.integrations.gym_env import _BatchedVectorEnv
+from volleybots.integrations.spaces import Actions, to_numpy
+from volleybots.keys import ACTION, NEXT, OBS, REWARD
 from volleybots.policies import Competitor, callable_competitor, resolve_competitor
 from volleybots.tasks import TASKS
 from volleybots.tasks.multi import TeamPolicies
@@ -59,7 +59,7 @@ def as_competitor(opponent) -> Competitor:
     raise ValueError(f"opponent must be a competitor spec, a Competitor, a function or {SELF!r}, got {type(opponent).__name__}")
 
 
-class VolleyMatchVectorEnv(_Closable, VectorEnv):
+class VolleyMatchVectorEnv(_BatchedVectorEnv):
     """The learner's drones of ``n_worlds`` batched matches as one Gymnasium vector env (module docstring).
 
     Args:
@@ -140,24 +140,13 @@ class VolleyMatchVectorEnv(_Closable, VectorEnv):
         x = x[:, self.agents]
         return x.reshape(self.num_envs, *x.shape[2:])
 
-    def _per_row(self, x: torch.Tensor) -> np.ndarray:
-        """A per-world ``[n_worlds, 1]`` tensor as the learner's rows (each world's value once per drone)."""
-        return np.repeat(to_numpy(x.reshape(-1)), self.per_world)
+    def _per_row(self, x: np.ndarray) -> np.ndarray:
+        """A per-world array [n_worlds] as the learner's rows (each world's value once per drone)."""
+        return np.repeat(x, self.per_world)
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        """Reset every world; ``seed`` reseeds the env's generator (and the mixture's draws) first."""
-        self._check_open()
-        seed = check_seed(seed)
-        super().reset(seed=seed)
-        if seed is not None:
-            self.env.set_seed(seed)
-            self._draws.manual_seed(seed)
-        self._td = self.env.reset()
-        return self._observe(self._rows(self._td.get(OBS))), {}
-
-    def step(self, actions):
-        obs, reward, term, trunc, info = self.step32(actions)
-        return obs, reward.astype(np.float64), term, trunc, info
+    def _reseed(self, seed: int) -> None:
+        self.env.set_seed(seed)
+        self._draws.manual_seed(seed)  # the mixture's draws too: a seed fixes who plays which world
 
     def step32(self, actions):
         """``step`` with the reward as the env's float32 (what SB3's buffers hold)."""
@@ -171,20 +160,9 @@ class VolleyMatchVectorEnv(_Closable, VectorEnv):
             self._policy(self._td)
         cur, self._td = self.env.step_and_maybe_reset(self._td)
         nxt = cur.get(NEXT)
-        term, trunc = self._per_row(nxt.get(TERMINATED)), self._per_row(nxt.get(TRUNCATED))
-        done = term | trunc
-        info: dict[str, Any] = {}
-        if done.any():
-            info["final_obs"] = self._observe(self._rows(nxt.get(OBS)))
-            info["_final_obs"] = done
-            info[STATS_KEY] = {k: np.repeat(v, self.per_world) for k, v in episode_stats(self.env, nxt).items()}
-            info["_" + STATS_KEY] = done.copy()
+        term, trunc = self._flags(nxt)
         reward = to_numpy(self._rows(nxt.get(REWARD))[:, 0])
-        return self._observe(self._rows(self._td.get(OBS))), reward, term, trunc, info
-
-    def close_extras(self, **kwargs):
-        self._closed = True
-        self.env.close(raise_if_closed=False)
+        return self._observe(self._rows(self._td.get(OBS))), reward, term, trunc, self._ended_info(nxt, term | trunc)
 
 
 __all__ = ["MATCHES", "SELF", "VolleyMatchVectorEnv", "as_competitor"]
