@@ -5,7 +5,7 @@ figures of the same policy loaded as a checkpoint; bad ones are refused in one l
 from __future__ import annotations
 
 import json
-import textwrap
+from pathlib import Path
 
 import pytest
 import torch
@@ -19,33 +19,11 @@ from volleybots.policies import callable_competitor, resolve_competitor
 
 runner = CliRunner()
 CHECKPOINT, OTHER = "zoo:1v1/bc", "zoo:1v1/bc_long"
-# the user's module: the zoo clone's deterministic actor as a plain function of the observation batch
-USER_MODULE = textwrap.dedent('''
-    import torch
-    from tensordict import TensorDict
-    from volleybots import make_env
-    from volleybots.policies import callable_competitor, load_learner
-    from volleybots.zoo import lookup
-
-    _actor = load_learner(lookup("zoo:1v1/bc").checkpoint, make_env("1v1", 1), 1)[0].policy(deterministic=True)
-
-    def act(obs):
-        td = TensorDict({"agents": TensorDict({"observation": obs[:, None]}, batch_size=[obs.shape[0], 1])}, batch_size=[obs.shape[0]])
-        return _actor(td).get(("agents", "action"))[:, 0]
-
-    def act_numpy(obs):
-        return act(torch.as_tensor(obs)).numpy()
-
-    numpy_player = callable_competitor(act_numpy, "numpy_player", numpy=True, task="1v1")
-    not_a_policy = 3
-''')
-
-
 @pytest.fixture
-def user_module(tmp_path, monkeypatch):
-    (tmp_path / "my_policies.py").write_text(USER_MODULE)
-    monkeypatch.syspath_prepend(str(tmp_path))
-    yield "my_policies"
+def user_module(monkeypatch):
+    """examples/my_policy.py, importable by name as a user's own module would be (PYTHONPATH)."""
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "examples"))
+    yield "my_policy"
 
 
 def _play(specs, comps=None):
@@ -99,7 +77,7 @@ def test_an_sb3_zip_loads_without_unpickling_and_acts_as_predict(tmp_path, activ
 
 def test_bad_user_policies_are_one_line(tmp_path, user_module):
     for spec, words in ((f"{user_module}:nope", "has no attribute 'nope'"), ("no_such_module_x:act", "cannot import module"),
-                        (f"{user_module}:not_a_policy", "is a int; expected a function")):
+                        (f"{user_module}:__doc__", "is a str; expected a function")):
         with pytest.raises(ConfigError, match=words):
             resolve_competitor(spec)
     bad = callable_competitor(lambda obs: torch.zeros(obs.shape[0], 3), "short")
