@@ -47,3 +47,27 @@ def test_team_groups_refuse_what_has_no_teams():
         make_env("hover", 2, group_map="teams")
     with pytest.raises(ValueError, match=r"unknown group_map 'team'; allowed: \['agents', 'teams'\]"):
         make_env("1v1", 2, group_map="team")
+
+
+def test_a_torchrl_marl_collector_runs_on_the_team_groups_unedited():
+    """TorchRL's MARL tutorial pieces as they are: one MultiAgentMLP policy per group of env.group_map and
+    its Collector; the batch has each group's agent-level flags and rewards."""
+    from tensordict.nn import TensorDictModule, TensorDictSequential
+    from torchrl.collectors import Collector
+    from torchrl.modules import MultiAgentMLP
+
+    torch.manual_seed(0)
+    env = make_env("3v3", 4, group_map="teams", episode_len=10)
+    policy = TensorDictSequential(*[
+        TensorDictModule(torch.nn.Sequential(MultiAgentMLP(env.observation_spec[g, "observation"].shape[-1], 4, n_agents=len(agents),
+                                                           centralised=False, share_params=True), torch.nn.Tanh()),
+                         in_keys=[(g, "observation")], out_keys=[(g, "action")])
+        for g, agents in env.group_map.items()])
+    collector = Collector(env, policy, frames_per_batch=80, total_frames=80, auto_register_policy_transforms=False)
+    batch = next(iter(collector))
+    collector.shutdown()
+    assert batch.batch_size == (4, 20) and batch["next", "team0", "reward"].shape == (4, 20, 3, 1)
+    # episodes of 10 steps: every world ends at steps 10 and 20, all three drones of both teams at once
+    done = batch["next", "team1", "done"][..., 0]
+    assert done.all(-1).sum().item() == 8 and done.sum().item() == 24
+    assert torch.equal(batch["next", "team0", "done"], batch["next", "team1", "done"])
