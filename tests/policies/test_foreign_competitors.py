@@ -73,6 +73,8 @@ def test_an_sb3_zip_loads_without_unpickling_and_acts_as_predict(tmp_path, activ
     expected = model.predict(team.get(("agents", "observation"))[:, 0].numpy(), deterministic=True)[0]
     got = comp.team_policy(env)(team).get(("agents", "action"))[:, 0].numpy()
     assert got.shape == expected.shape and abs(got - expected).max() < 1e-5
+    with pytest.raises(ConfigError, match="sees observations of size 39, the task gives 57"):
+        comp.check_fits("3v3", space, 57)  # the saved network's input: a cross-play of 3v3 refuses it in one line
 
 
 def test_bad_user_policies_are_one_line(tmp_path, user_module):

@@ -248,7 +248,8 @@ def exported_competitor(path, label: str = "", kind: str = "torchscript") -> Com
     another kind is one ``ConfigError`` line. Known by its sha256 in results files, as a checkpoint is."""
     path = str(path)
     module = load_torchscript(path) if kind == "torchscript" else load_sb3(path)
-    return callable_competitor(module, label or Path(path).stem, source={"kind": kind, "path": path, "sha256": sha256(path)})
+    return callable_competitor(module, label or Path(path).stem, obs_dim=getattr(module, "obs_dim", None),
+                               source={"kind": kind, "path": path, "sha256": sha256(path)})
 
 
 def torchscript_competitor(path, label: str = "") -> Competitor:

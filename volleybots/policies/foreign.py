@@ -54,6 +54,8 @@ class CallablePolicy:
     """One team's ``td -> td`` policy from an obs-batch -> action-batch function (the module docstring)."""
 
     def __init__(self, fn: Callable, env, label: str, numpy: bool = False):
+        if isinstance(fn, torch.nn.Module) and not numpy:  # a loaded network (TorchScript, SB3) acts where the env's tensors are
+            fn = fn.to(env.device)
         self.fn, self.label, self.numpy = fn, label, numpy
         acts = env.actions
         self.device = env.device
@@ -163,7 +165,9 @@ def load_sb3(path: str) -> torch.nn.Module:
         k += 2  # SB3's Sequential puts the activation between: the linear layers are 0, 2, 4, ...
     head = torch.nn.Linear(state["action_net.weight"].shape[1], state["action_net.weight"].shape[0])
     head.load_state_dict({"weight": state["action_net.weight"], "bias": state["action_net.bias"]})
-    return _SB3Actor(torch.nn.Sequential(*layers, head), "log_std" in state).eval()
+    actor = _SB3Actor(torch.nn.Sequential(*layers, head), "log_std" in state).eval()
+    actor.obs_dim = int((layers[0] if layers else head).in_features)  # what a cross-play checks the task's against
+    return actor
 
 
 class _SB3Actor(torch.nn.Module):
