@@ -147,3 +147,13 @@ def test_the_sb3_match_example_trains_exports_and_ranks(tmp_path):
     assert out["timesteps"] == 512 and out["labels"] == ["sb3_ppo", "zoo:1v1/bc"]
     assert (tmp_path / "ppo_1v1.zip").is_file()
     assert resolve_competitor(f"torchscript:{tmp_path / 'policy.pt'}").sources[0]["kind"] == "torchscript"
+
+
+def test_a_seed_fixes_sb3_ppo_on_the_match_against_a_mixture():
+    def run():
+        env = VolleyMatchSB3VecEnv("1v1", 4, opponent="scripted+zoo:1v1/bc", episode_len=12)
+        model = PPO("MlpPolicy", env, n_steps=8, batch_size=32, n_epochs=1, seed=7, device="cpu").learn(64)
+        return torch.cat([p.detach().flatten() for p in model.policy.parameters()])
+
+    first, second = run(), run()
+    assert torch.equal(first, second)

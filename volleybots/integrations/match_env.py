@@ -108,7 +108,7 @@ class VolleyMatchVectorEnv(_BatchedVectorEnv):
         ``"self"``); checked against the task first. ``"self"`` changes the row count, so it is fixed
         at construction: a self-play env stays one and a learner's never becomes one."""
         selfplay = isinstance(opponent, str) and opponent == SELF
-        if self._td is not None and selfplay != (self.opponent is None):
+        if hasattr(self, "per_world") and selfplay != (self.opponent is None):  # set once by the constructor
             raise ValueError(f"opponent {SELF!r} changes the rows of the env: make a new env for it")
         if selfplay:
             self.opponent, self._policy = None, None
