@@ -112,3 +112,14 @@ def test_the_cli_verbs_take_a_module_function(tmp_path, user_module):
     assert res.exit_code == 0, res.output
     report = json.loads((tmp_path / "elo" / "ratings.json").read_text())
     assert "me" in json.dumps(report["labels"] if "labels" in report else report)
+
+
+def test_reuse_never_copies_a_user_functions_games(user_module):
+    """A cross-play's reuse= copies a pair only where its players are pinned by their records: a
+    checkpoint's or an exported file's sha256, a built-in's name; a user's function is played again."""
+    from volleybots.eval.crossplay import provenance
+    from volleybots.eval.reuse import verified
+
+    for spec, pinned in ((f"{user_module}:act", False), (f"{user_module}:numpy_player", False), (CHECKPOINT, True), ("scripted", True),
+                         (f"{user_module}:act+scripted", False)):
+        assert verified(provenance(resolve_competitor(spec), spec)) is pinned, spec
