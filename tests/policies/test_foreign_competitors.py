@@ -5,6 +5,7 @@ figures of the same policy loaded as a checkpoint; bad ones are refused in one l
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import pytest
@@ -83,8 +84,16 @@ def test_bad_user_policies_are_one_line(tmp_path, user_module):
         with pytest.raises(ConfigError, match=words):
             resolve_competitor(spec)
     bad = callable_competitor(lambda obs: torch.zeros(obs.shape[0], 3), "short")
-    with pytest.raises(ValueError, match=r"returned actions of shape \((\d+), 3\) for \1 observations; expected shape \(\1, 4\)"):
+    with pytest.raises(ConfigError, match=r"returned actions of shape \((\d+), 3\) for \1 observations; expected shape \(\1, 4\)"):
         _play(None, [bad, resolve_competitor(OTHER)])
+    (tmp_path / "bad_policies.py").write_text("import torch\n\ndef short(obs):\n    return torch.zeros(obs.shape[0], 3)\n")
+    sys.path.insert(0, str(tmp_path))
+    try:  # from the command line the same: one line, exit 2, no results folder
+        res = runner.invoke(app, ["eval", "crossplay", "bad_policies:short", "random", "task=1v1", "games=2", "--out", str(tmp_path / "o")])
+    finally:
+        sys.path.remove(str(tmp_path))
+    one_line_exit_2(res, "'bad_policies:short' returned actions of shape", "expected shape")
+    assert not (tmp_path / "o").exists()
     text = tmp_path / "notes.pt"
     text.write_text("not a model")
     out = tmp_path / "out"

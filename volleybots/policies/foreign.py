@@ -74,22 +74,23 @@ class CallablePolicy:
 
     def check(self, y, rows: int) -> torch.Tensor:
         """The function's result as the env's action tensor: exactly ``[rows, *one]`` real numbers (a
-        Box action) or integers (a discrete one); anything else is one ``ValueError`` naming it."""
+        Box action) or integers (a discrete one); anything else is one ``ConfigError`` line naming it
+        (bad input: the CLI's one line and exit code 2, not a traceback)."""
         if isinstance(y, torch.Tensor):
             t = y.detach()
         else:
             arr = np.asarray(y)
             if arr.dtype == object:
-                raise ValueError(f"competitor {self.label!r} returned {type(y).__name__}, "
+                raise ConfigError(f"competitor {self.label!r} returned {type(y).__name__}, "
                                  "not an action batch (torch tensor or numpy array)")
             t = torch.from_numpy(np.ascontiguousarray(arr))
         want = (rows, *self.one)
         kind = "real numbers (a Box action)" if self.continuous else "integers (a discrete action)"
         if tuple(t.shape) != want:
-            raise ValueError(f"competitor {self.label!r} returned actions of shape {tuple(t.shape)} for {rows} observations; "
+            raise ConfigError(f"competitor {self.label!r} returned actions of shape {tuple(t.shape)} for {rows} observations; "
                              f"expected shape {want} of {kind}")
         if t.dtype == torch.bool or t.is_complex() or (not self.continuous and t.is_floating_point()):
-            raise ValueError(f"competitor {self.label!r} returned actions of dtype {t.dtype}; expected {kind}")
+            raise ConfigError(f"competitor {self.label!r} returned actions of dtype {t.dtype}; expected {kind}")
         return t.to(self.device, self.dtype)
 
 
