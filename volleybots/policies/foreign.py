@@ -1,5 +1,6 @@
 """Policies trained elsewhere as competitors: a Python callable, a ``module:function`` named on the
-command line, and a TorchScript file (docs/integrations.md, "Your policy in every verb").
+command line, a TorchScript file and a Stable-Baselines3 archive (docs/matches.md, "Your policy in
+every verb").
 
 The contract is the one every trainer can meet: a function from a batch of observations to a batch of
 actions. It sees one row per drone of its team, ``[B, obs_dim]`` (B = worlds x drones of the team),
@@ -21,7 +22,9 @@ it is handed a torch tensor (on the env's device); ``numpy=True`` hands it a flo
   weights and the readable parts of the archive, without unpickling anything (``load_sb3``).
 
 A callable's cross-play results are never copied by ``reuse=`` (nothing proves the code is the same);
-a TorchScript file is recognised by its sha256 as a checkpoint is.
+a TorchScript file or an SB3 archive is recognised by its sha256 as a checkpoint is. Why a spec names
+a module and not a file: importing by name runs only code the user installed or put on the path
+themselves, while a file path could come from a run directory or a results file someone else wrote.
 """
 
 from __future__ import annotations
