@@ -159,13 +159,17 @@ class Preset:
         if cfg.members not in MEMBERS:
             raise ConfigError(f"unknown algo.members {cfg.members!r}; allowed: {', '.join(MEMBERS)}")
         if cfg.members == "auto":
-            # self-play has one learner on both teams: a flat policy
-            cfg.members = "hierarchical" if task in HIERARCHICAL_TASKS and not cfg.self_play else "flat"
+            # self-play has one learner on both teams: a flat policy; so are a named flat learner (algo.learner)
+            # and the from-scratch recipe (algo.start=scratch), as they were before hierarchical members
+            flat = cfg.self_play or cfg.learner != self.learner or cfg.start == "scratch"
+            cfg.members = "hierarchical" if task in HIERARCHICAL_TASKS and not flat else "flat"
         if cfg.start not in STARTS:
             raise ConfigError(f"unknown algo.start {cfg.start!r}; allowed: {', '.join(STARTS)}")
         if cfg.start == "auto":
             # self-play keeps the clone (table 3's sp); a hierarchical population starts from its drills' team
-            cfg.start = ZOO if task in ZOO_STARTS and cfg.members != "hierarchical" and not cfg.self_play else "clone"
+            # and init= names every learner's start itself (as it did beside algo.start=clone)
+            zoo = task in ZOO_STARTS and cfg.members != "hierarchical" and not cfg.self_play and not has_init
+            cfg.start = ZOO if zoo else "clone"
         fixed = (list(ZOO_FIXED[0]), ZOO_FIXED[1]) if cfg.start == ZOO else ([], 0.0)
         cfg.fixed_opponents = list(fixed[0]) if cfg.fixed_opponents is None else cfg.fixed_opponents
         cfg.fixed_share = (fixed[1] if cfg.fixed_opponents else 0.0) if cfg.fixed_share is None else cfg.fixed_share
@@ -242,6 +246,9 @@ class Preset:
         if task_cls.name not in HIERARCHICAL_TASKS:
             raise ConfigError(f"algo.members=hierarchical plays task {', '.join(HIERARCHICAL_TASKS)}, not {task_cls.name!r}; "
                               "give algo.members=flat")
+        if cfg.learner != self.learner:
+            raise ConfigError(f"algo.learner={cfg.learner} trains flat members; a hierarchical member's oracle trains its high level "
+                              "(algo.high_level_*): give algo.members=flat with it")
         if cfg.self_play:
             raise ConfigError(f"algo={self.name} has no hierarchical members (one learner plays both teams); use algo=fsp, "
                               "psro_uniform or psro_nash with algo.members=hierarchical, or algo.members=flat")
@@ -265,6 +272,19 @@ def check_team_learner(learner_cls: type, cfg, task_cls, env_cfg, what: str) -> 
         raise ConfigError(f"{what} cannot learn a team of {size} drone(s) (task {task_cls.name!r}); allowed learners: {', '.join(able)}")
     team = type(f"{task_cls.name}_team", (), {"name": f"{task_cls.name} (one team)", "n_drones": size, "competitive": False})
     learner_cls.check(cfg, team, env_cfg)
+
+
+# what a population config saved before algo.members existed did: flat members from algo.start=clone
+# with no fixed opponents; a saved config reads as the run it was, whatever the defaults became since
+LEGACY_KEYS = {"members": "flat", "start": "clone", "fixed_opponents": [], "fixed_share": 0.0}
+
+
+def with_legacy_keys(algo: dict) -> dict:
+    """``algo`` (a population's ``algo`` dict) with the keys it lacks from before ``members`` filled as
+    that version ran them; a config composed today holds every key and is returned as it is."""
+    if "members" in algo:
+        return algo
+    return {**{k: v for k, v in LEGACY_KEYS.items() if k not in algo}, **algo}
 
 
 def is_population(algo) -> bool:

@@ -45,6 +45,10 @@ def validate(cfg) -> DictConfig:
     task_cls_schema = task_schema(task["name"])
     typed_task = _typed(task_cls_schema, task, "task.")
     algo_cls = ALGOS[algo["name"]]
+    if is_population(algo_cls):  # a config saved before algo.members reads as the run it was
+        from volleybots.algos.population import with_legacy_keys
+
+        algo = with_legacy_keys(algo)
     algo_schema = algo_cls.config_class(algo)
     typed_algo = _typed(algo_schema, algo, "algo.")
     if is_population(algo_cls):  # a population preset fills what algo.start leaves to it
