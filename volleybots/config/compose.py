@@ -32,8 +32,22 @@ def _check_overrides(overrides: list[str]) -> None:
         if key in GROUPS and not o.is_delete():
             values = list(o.sweep_string_iterator()) if o.is_sweep_override() else [o.value()]
             for v in values:
-                if str(v) not in group_options(key):
-                    raise ConfigError(f"unknown {key} {v!r}; allowed: {', '.join(group_options(key))}")
+                check_group_value(key, v)
+
+
+def check_group_value(group: str, value) -> None:
+    """``value`` must be an option of config group ``group`` (a file of ``conf/<group>/``)."""
+    if str(value) not in group_options(group):
+        raise ConfigError(f"unknown {group} {value!r}; allowed: {', '.join(group_options(group))}")
+
+
+def check_group_args(args) -> None:
+    """The group choices (``task=``, ``algo=``, ``env=``) among a verb's words checked against ``conf/``
+    alone: a verb calls this first, so a mistyped task is reported before torch and the policies load."""
+    for arg in args:
+        key, value = split_arg(str(arg))
+        if value is not None and key in GROUPS:
+            check_group_value(key, value)
 
 
 def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = False) -> DictConfig:
@@ -61,9 +75,12 @@ def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = Fals
 def learner_keys(overrides: list[str]) -> list[str]:
     """A population's ``algo.learner=happo`` / ``mat`` brings keys of its own that the preset's file (MAPPO's
     keys) lacks: an override of one (``algo.embed_dim=64``) adds it, as ``+algo.embed_dim=64`` would."""
+    named = override_value(overrides, "algo.learner")
+    if named is None:  # the usual case, answered without importing the algorithms (torch): a bad key is reported in a second
+        return overrides
     from volleybots.algos import LEARNERS, PRESETS
 
-    learner = LEARNERS.get(str(override_value(overrides, "algo.learner")))
+    learner = LEARNERS.get(str(named))
     if learner is None:
         return overrides
     base = {f.name for f in dataclasses.fields(PRESETS["psro_nash"].config_cls)}
