@@ -22,10 +22,15 @@ runner = CliRunner()
 
 def test_ray_address_auto_with_no_cluster_is_refused_at_once(monkeypatch, tmp_path):
     pytest.importorskip("ray")
+    import ray._private.services as services
+
     from volleybots.play.pool import check_pool
 
+    def no_cluster(address):  # what Ray's lookup raises with no cluster on the machine; a real lookup would find
+        raise ConnectionError("Could not find any running Ray instance")  # the one a test beside this one started
+
     monkeypatch.setenv("RAY_ADDRESS", "auto")
-    monkeypatch.setenv("RAY_TMPDIR", str(tmp_path))  # where Ray looks for a running cluster: none here
+    monkeypatch.setattr(services, "canonicalize_bootstrap_address", no_cluster)
     with pytest.raises(ConfigError, match="RAY_ADDRESS=auto but no Ray cluster runs on this machine.*pool=serial"):
         check_pool("ray", "pool")
 

@@ -39,7 +39,7 @@ def test_members_auto_is_hierarchical_on_3v3_only_and_refused_where_it_cannot_pl
     with pytest.raises(ConfigError, match="unknown algo.members 'tree'; allowed: auto, flat, hierarchical"):
         load(["task=3v3", "algo=psro_nash", "algo.members=tree"])
     with pytest.raises(ConfigError, match="algo.fixed_share=0.5 needs algo.fixed_opponents"):
-        load(["task=3v3", "algo=psro_nash", "algo.fixed_share=0.5"])
+        load(["task=3v3", "algo=psro_nash", "algo.fixed_opponents=[]", "algo.fixed_share=0.5"])
 
 
 @pytest.mark.slow  # trains or plays 3v3 games

@@ -384,29 +384,35 @@ def test_a_bc_seeded_population_starts_from_a_clone_that_beats_random_and_resume
 
 @pytest.mark.parametrize("task", ["1v1", "3v3", "6v6"])
 def test_the_defaults_start_every_population_from_the_clone_and_fit_every_announced_iteration(task):
-    """A bare ``train task=T algo=M`` is the recipe that plays: the clone as every learner's start (FSP:
-    its first learner continues from it) and as the first member; the budget is the frames the announced
-    iterations take; ``algo.start=scratch`` is the from-scratch recipe, one setting away."""
+    """A bare ``train task=T algo=M`` is the recipe that plays: on 6v6 the clone as every learner's start
+    (FSP: its first learner continues from it) and as the first member, on 1v1 the zoo start
+    (zoo:1v1/dag_rally, sp keeping the clone), on 3v3 hierarchical members from zoo:3v3/hcsp_return's
+    team (sp flat from the clone); a flat budget is the frames the announced iterations take;
+    ``algo.start=scratch`` is the flat from-scratch recipe, one setting away."""
     want = {"sp": ("bc", []), "fsp": ("last", ["bc"]), "psro_uniform": ("bc", ["bc"]), "psro_nash": ("bc", ["bc"])}
+    if task == "1v1":
+        want.update(fsp=("last", ["zoo:1v1/dag_rally"]), psro_uniform=("zoo", ["zoo:1v1/dag_rally"]), psro_nash=("zoo", ["zoo:1v1/dag_rally"]))
+    if task == "3v3":
+        want.update({a: ("last", ["zoo:3v3/hcsp_return"]) for a in ("fsp", "psro_uniform", "psro_nash")})
     scratch = {"sp": ("scratch", []), "fsp": ("last", ["random"]), "psro_uniform": ("scratch", ["random"]),
                "psro_nash": ("scratch", ["random"])}
     for algo in want:
         cfg = load([f"task={task}", f"algo={algo}"])
         assert (cfg.algo.learner_init, list(cfg.algo.seed_members)) == want[algo]
         raw = load([f"task={task}", f"algo={algo}", "algo.start=scratch"]).algo
-        assert (raw.learner_init, list(raw.seed_members)) == scratch[algo]
-        if algo != "sp":
+        assert (raw.learner_init, list(raw.seed_members), raw.members) == (*scratch[algo], "flat")
+        if algo != "sp" and cfg.algo.members == "flat":
             per_batch = cfg.env.num_envs * cfg.algo.steps_per_batch
             assert cfg.total_frames == cfg.algo.iterations * cfg.algo.max_updates * per_batch
             loop = PopulationLoop.__new__(PopulationLoop)
-            loop.cfg, loop.m = cfg, cfg.algo
+            loop.cfg, loop.m, loop.hierarchical = cfg, cfg.algo, False
             assert loop._planned(1, 0) == cfg.algo.iterations  # the progress line's "iteration i/N"
             # a budget that leaves the last oracle fewer than min_updates batches announces one iteration less
             loop.cfg = load([f"task={task}", f"algo={algo}", f"total_frames={cfg.total_frames - per_batch * (cfg.algo.max_updates - 1)}"])
             assert loop._planned(1, 0) == cfg.algo.iterations - 1
     # an explicit value wins over algo.start; a bad start is one line
     assert load(["task=1v1", "algo=psro_nash", "algo.start=scratch", "algo.learner_init=bc"]).algo.learner_init == "bc"
-    with pytest.raises(ConfigError, match="unknown algo.start 'none'; allowed: clone, scratch"):
+    with pytest.raises(ConfigError, match="unknown algo.start 'none'; allowed: auto, clone, scratch, zoo"):
         load(["task=1v1", "algo=psro_nash", "algo.start=none"])
 
 
