@@ -391,7 +391,8 @@ def test_the_defaults_start_every_population_from_the_clone_and_fit_every_announ
     ``algo.start=scratch`` is the flat from-scratch recipe, one setting away."""
     want = {"sp": ("bc", []), "fsp": ("last", ["bc"]), "psro_uniform": ("bc", ["bc"]), "psro_nash": ("bc", ["bc"])}
     if task == "1v1":
-        want.update(fsp=("last", ["zoo:1v1/dag_rally"]), psro_uniform=("zoo", ["zoo:1v1/dag_rally"]), psro_nash=("zoo", ["zoo:1v1/dag_rally"]))
+        zoo = ["zoo:1v1/dag_rally"]
+        want.update(fsp=("last", zoo), psro_uniform=("zoo", zoo), psro_nash=("zoo", zoo))
     if task == "3v3":
         want.update({a: ("last", ["zoo:3v3/hcsp_return"]) for a in ("fsp", "psro_uniform", "psro_nash")})
     scratch = {"sp": ("scratch", []), "fsp": ("last", ["random"]), "psro_uniform": ("scratch", ["random"]),
