@@ -15,7 +15,7 @@ from volleybots.errors import ConfigError
 @app.command("list")
 def list_cmd() -> None:
     """List tasks, algorithms, physics backends and action spaces, one line each."""
-    from volleybots.algos import ALGOS
+    from volleybots.algos import ALGOS, LEARNERS, PRESETS
     from volleybots.algos.base import class_attr
     from volleybots.config import group_options
     from volleybots.physics import ACTION_SPACE_INFO, BACKEND_INFO
@@ -30,6 +30,10 @@ def list_cmd() -> None:
     for name, cls in ALGOS.items():
         fits = [t for t in TASKS if _fits(name, t)]
         typer.echo(f"  {name:<20} action spaces: {', '.join(cls.action_spaces)}; tasks: {', '.join(fits)}")
+    typer.echo("population methods (population=NAME, or algo=NAME; their learner is algo=, mappo by default):")
+    for name, preset in PRESETS.items():
+        fits = [t for t in TASKS if _fits(name, t)]
+        typer.echo(f"  {name:<20} solver: {preset.solver}; learners: {', '.join(LEARNERS)}; tasks: {', '.join(fits)}")
     typer.echo("physics backends (env.physics=NAME):")
     for name, text in BACKEND_INFO.items():
         typer.echo(f"  {name:<20} {text}")
@@ -53,19 +57,25 @@ def list_cmd() -> None:
 
 
 def _fits(algo: str, task: str) -> bool:
-    """Whether ``algo`` accepts ``task`` in its own first action space (its ``check`` decides)."""
-    from volleybots.algos import ALGOS, is_population
+    """Whether ``algo`` (or a population method with its default learner) accepts ``task`` in its own first
+    action space (its ``check`` decides)."""
+    from omegaconf import OmegaConf
+
+    from volleybots.algos import ALGOS, PRESETS
     from volleybots.config import EnvConfig
     from volleybots.tasks import TASKS
 
-    cls = ALGOS[algo]
+    preset = PRESETS.get(algo)
+    cls = preset.learner_cls if preset is not None else ALGOS[algo]
     try:
-        from omegaconf import OmegaConf
-
         cfg = OmegaConf.structured(cls.config_cls)
-        if is_population(cls):  # a population preset fills its start's learner_init / seed_members first, as validate does
-            cls.resolve(cfg)
-        cls.check(cfg, TASKS[task], EnvConfig(action_space=cls.action_spaces[0]))
+        env = EnvConfig(action_space=cls.action_spaces[0])
+        if preset is not None:  # a population preset fills its start's learner_init / seed_members first, as validate does
+            pop = OmegaConf.structured(preset.config_cls)
+            preset.resolve(pop)
+            preset.check(pop, cfg, TASKS[task], env)
+        else:
+            cls.check(cfg, TASKS[task], env)
     except ConfigError:
         return False
     return True

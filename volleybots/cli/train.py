@@ -134,7 +134,7 @@ def _echo_summary(summary: dict, run_dir) -> None:
             typer.echo("oracles: " + "; ".join(_oracle_text(i, o) for i, o in enumerate(oracles, 1)))
         if d := summary.get("dropped_oracle"):
             typer.echo(f"oracle {d['iteration']} dropped: the budget ended it after {d['updates']} update(s) ({d['frames']} frames), "
-                       f"before algo.min_updates; resume with more total_frames or time_limit to train it")
+                       f"before population.min_updates; resume with more total_frames or time_limit to train it")
         return
     ev = summary["final_eval"]["stats"][summary["metric"]]
     typer.echo(
@@ -174,6 +174,11 @@ def train(
         summary = resume(resume_dir, [o for o in overrides if not o.startswith("resume=")])
         _echo_summary(summary, resume_dir)
         return
+    from volleybots.config.spelling import respell
+
+    overrides, notes = respell(overrides)  # old spellings and the task's default method, once for every job
+    for note in notes:
+        typer.echo(f"note: {note}", err=True)
     if not multirun and show is None:
         _single_run(overrides)
         return
@@ -186,7 +191,7 @@ def train(
     if show is None:
         for c in cfgs:
             preflight(c)  # memory, opponent= / seed_members / init= files: before Hydra writes any run dir
-    overrides = [*overrides, *pin_default_algo(cfgs, overrides)]
+    overrides = pin_default_algo(cfgs, overrides)
     if show is not None:
         _run_hydra(overrides, multirun, ["--cfg", show])
         return

@@ -226,7 +226,7 @@ def mixed(label: str, parts: list[tuple[str, float]]) -> Competitor:
 
 
 def single_policy(spec: str, what: str) -> Competitor:
-    """The competitor ``spec`` names where one policy must play (``algo.seed_members``): a population
+    """The competitor ``spec`` names where one policy must play (``population.seed_members``): a population
     run or a zoo mixture is one ``ConfigError`` line."""
     parse_single(spec, what)
     comp = resolve_competitor(spec)

@@ -32,7 +32,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from volleybots.algos import population_of
 from volleybots.config import to_dict, validate
+from volleybots.config.spelling import respell
 from volleybots.errors import ConfigError
 from volleybots.files import sha256, write_atomic
 from volleybots.play.pool import payoff_row
@@ -62,7 +64,7 @@ class PopulationLoop:
     learner the preset names, ``Oracle.of(cfg)``)."""
 
     def __init__(self, cfg, run: RunDir, oracle: Oracle | None = None):
-        self.cfg, self.run, self.m = cfg, run, cfg.algo
+        self.cfg, self.run, self.m = cfg, run, population_of(cfg)  # the loop's keys (population.*)
         self.oracle = oracle or Oracle.of(cfg)
         self.dir = run.path / POPULATION_DIR
         self.meta_path = self.dir / "meta.jsonl"
@@ -147,7 +149,7 @@ class PopulationLoop:
             if str(spec) == CLONE:
                 clone_member(self.clone, path)
                 continue
-            src = single_policy(spec, "algo.seed_members entry").members[0].source
+            src = single_policy(spec, "population.seed_members entry").members[0].source
             if src["kind"] in BUILTIN:  # a record naming it (a hierarchical team also its drills' checkpoints)
                 record = {"format": CKPT_FORMAT, "builtin": src["kind"], "label": src["kind"], "frames": 0}
                 if src.get("drills"):
@@ -205,7 +207,7 @@ class PopulationLoop:
         elif data.get("init") is None:  # a learner from scratch has no policy to warm up for or hold to
             data["algo"].update(actor_freeze_updates=0, anchor_coeff=0.0)
         if not self.m.self_play:
-            per_batch = self.cfg.env.num_envs * self.m.steps_per_batch
+            per_batch = self.cfg.env.num_envs * self.cfg.algo.steps_per_batch
             data["total_frames"] = min(self.cfg.total_frames, frames + self.m.max_updates * per_batch)
         return validate(data)
 
@@ -216,7 +218,7 @@ class PopulationLoop:
         criterion could not judge it, so it would not join). Self-play: its one iteration."""
         if self.m.self_play:
             return self.m.iterations
-        per_batch = self.cfg.env.num_envs * self.m.steps_per_batch
+        per_batch = self.cfg.env.num_envs * self.cfg.algo.steps_per_batch
         full, rest = divmod(max(self.cfg.total_frames - frames, 0), self.m.max_updates * per_batch)
         return min(self.m.iterations, i - 1 + full + (rest >= self.m.min_updates * per_batch))
 
@@ -332,7 +334,7 @@ def start(cfg, run_dir) -> dict:
         return PopulationLoop(cfg, run).fit()
 
 
-RESUME_KEYS = (*TRAIN_RESUME_KEYS, "algo.iterations")  # a population run may also be given more iterations
+RESUME_KEYS = (*TRAIN_RESUME_KEYS, "population.iterations")  # a population run may also be given more iterations
 
 
 def resume(run_dir, overrides=(), check=None) -> dict:
@@ -344,7 +346,7 @@ def resume(run_dir, overrides=(), check=None) -> dict:
     from volleybots.policies.targets import check_references
 
     run = RunDir(run_dir)
-    cfg = resume_config(run_dir, overrides, RESUME_KEYS)
+    cfg = resume_config(run_dir, respell(overrides, population=True)[0], RESUME_KEYS)  # algo.iterations= as before
     check_writable(run.path, "the run directory")
     run.check_contained()
     check_references(cfg)
@@ -360,16 +362,16 @@ def resume(run_dir, overrides=(), check=None) -> dict:
     run.check_metrics()
     done = sum(1 for m in metas if m["iteration"] >= 1)
     frames = metas[-1]["frames"] if metas else 0
-    if cfg.algo.self_play and done >= 1:
+    if cfg.population.self_play and done >= 1:
         raise ConfigError(
             f"run {str(run_dir)!r} has finished: self-play trains one learner for the run's whole budget ({frames} frames), and its "
-            f"member is final; neither total_frames nor algo.iterations continues it. Start a new run from its policy: "
-            f"volleybots train task={cfg.task.name} algo=sp init={run_dir} total_frames=N"
+            f"member is final; neither total_frames nor population.iterations continues it. Start a new run from its policy: "
+            f"volleybots train task={cfg.task.name} population=sp init={run_dir} total_frames=N"
         )
-    if done >= cfg.algo.iterations or frames >= cfg.total_frames:
+    if done >= cfg.population.iterations or frames >= cfg.total_frames:
         raise ConfigError(
             f"run {str(run_dir)!r} has finished ({done} iteration(s), {frames} frames); raise "
-            + " and ".join(x for x, spent in ((f"algo.iterations (now {cfg.algo.iterations})", done >= cfg.algo.iterations),
+            + " and ".join(x for x, spent in ((f"population.iterations (now {cfg.population.iterations})", done >= cfg.population.iterations),
                                               (f"total_frames (now {cfg.total_frames})", frames >= cfg.total_frames)) if spent)
             + " to continue it"
         )
