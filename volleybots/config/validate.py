@@ -44,9 +44,9 @@ def validate(cfg) -> DictConfig:
         raise ConfigError(f"unknown algo {algo['name']!r}; allowed: {', '.join(ALGOS)}")
     task_cls_schema = task_schema(task["name"])
     typed_task = _typed(task_cls_schema, task, "task.")
-    algo_cls = ALGOS[algo["name"]]
-    typed_algo = _typed(algo_cls.config_cls, algo, "algo.")
     preset, typed_pop = _population(data.get("population"), data.get("init") is not None)
+    algo_cls = preset.learner_of(algo) if preset is not None else ALGOS[algo["name"]]  # a population's learner is one of LEARNERS
+    typed_algo = _typed(algo_cls.config_cls, algo, "algo.")
     rest = _typed(Config, {k: v for k, v in data.items() if k not in ("task", "algo", "population")}, "")
     rest.task, rest.algo, rest.population = typed_task, typed_algo, typed_pop
 
