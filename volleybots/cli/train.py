@@ -176,11 +176,11 @@ def train(
         return
     from volleybots.config.spelling import respell
 
-    overrides, notes = respell(overrides)  # old spellings and the task's default method, once for every job
-    for note in notes:
-        typer.echo(f"note: {note}", err=True)
+    # old spellings and the task's default method, once for every job; the notes on old spellings are
+    # printed once the config is accepted (a refusal stays one line)
+    overrides, notes = respell(overrides)
     if not multirun and show is None:
-        _single_run(overrides)
+        _single_run(overrides, notes)
         return
     from volleybots.config import compose, validate
     from volleybots.config.compose import pin_default_algo
@@ -192,6 +192,7 @@ def train(
         for c in cfgs:
             preflight(c)  # memory, opponent= / seed_members / init= files: before Hydra writes any run dir
     overrides = pin_default_algo(cfgs, overrides)
+    _echo_notes(notes)
     if show is not None:
         _run_hydra(overrides, multirun, ["--cfg", show])
         return
@@ -221,7 +222,12 @@ def _sweep_report(sweep_dir) -> None:
     typer.echo(f"sweep report: {files[0]}")
 
 
-def _single_run(overrides: list[str]) -> None:
+def _echo_notes(notes: list[str]) -> None:
+    for note in notes:
+        typer.echo(f"note: {note}", err=True)
+
+
+def _single_run(overrides: list[str], notes: list[str]) -> None:
     """One run without a sweep: the config is composed once (its ``hydra`` node gives the run dir) and
     validated once, every file it names is checked, and only then is the directory claimed and
     written. Hydra's launcher machinery is for sweeps; a single run records its overrides in
@@ -243,6 +249,7 @@ def _single_run(overrides: list[str]) -> None:
 
     cfg = validate(OmegaConf.masked_copy(full, [k for k in full if k != "hydra"]))
     preflight(cfg)
+    _echo_notes(notes)
     explicit = names_key(overrides, key)
     run_dir = claim_run_dir(Path(path).absolute(), unique=not explicit)  # absolute, as Hydra's output_dir is
     try:

@@ -76,11 +76,11 @@ def run_name(cfg) -> str:
 
 
 def run_tags(cfg) -> list[str]:
-    """The task, population method (if any), algorithm, action space and physics backend, then ``wandb.tags``
-    (each once, in order)."""
+    """The task, method (a population's, else the algorithm), action space and physics backend, then
+    ``wandb.tags`` (each once, in order)."""
     from volleybots.algos import method_name
 
-    tags = [cfg.task.name, method_name(cfg), cfg.algo.name, cfg.env.action_space, cfg.env.physics, *cfg.wandb.tags]
+    tags = [cfg.task.name, method_name(cfg), cfg.env.action_space, cfg.env.physics, *cfg.wandb.tags]
     return list(dict.fromkeys(str(t) for t in tags))
 
 
