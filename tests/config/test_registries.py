@@ -45,6 +45,7 @@ def test_the_yaml_of_every_population_equals_its_dataclass_defaults(name):
     yaml = OmegaConf.to_container(cfg.population)
     defaults = {**OmegaConf.to_container(OmegaConf.structured(preset.config_cls)), "name": name, "solver": preset.solver}
     assert yaml == defaults, f"conf/population/{name}.yaml differs from {preset.config_cls.__name__}"
+    assert cfg.algo.name == preset.learner  # the file's default learner is the preset's
     learner = OmegaConf.to_container(OmegaConf.structured(preset.learner_cls.config_cls))
     assert {k: v for k, v in OmegaConf.to_container(cfg.algo).items() if _plain(learner.get(k)) != _plain(v)} == FINE_TUNING
     missing = set(defaults) - set(yaml)

@@ -85,8 +85,6 @@ class Preset:
     solver: str  # the meta-solver (volleybots.ratings.solvers.SOLVERS) over the payoff table
     loop: type = LoopConfig  # the loop settings' dataclass
     learner: str = "mappo"  # the default learner (LEARNERS); algo= picks another
-    multi_agent: bool = True
-    task_kinds: tuple[str, ...] = ("competitive",)
     # the learner starts (population.learner_init) the method is defined by, and what any other start would
     # make it instead; empty: every start in INITS
     learner_inits: tuple[str, ...] = ()
@@ -123,13 +121,6 @@ class Preset:
             cfg.learner_init = "scratch" if has_init and init == CLONE else init
         if cfg.seed_members is None:
             cfg.seed_members = list(members)
-
-    @property
-    def action_spaces(self) -> tuple[str, ...]:
-        return self.learner_cls.action_spaces
-
-    def supported_kinds(self) -> tuple[str, ...]:
-        return self.task_kinds
 
     def check(self, pop, algo, task_cls, env_cfg) -> None:
         """The preset's own values (the ``population`` node ``pop``) and its learner's (``algo``); the files
