@@ -117,7 +117,8 @@ def test_the_jobs_of_a_sweep_compose_with_hydra_alone():
     (["task=3v3", "algo=ppo,psro_nash"], "^algo=ppo,psro_nash mixes learners and population methods"),
     (["task=hover", "algo.learner=mat"], "^algo.learner=mat names a population's learner, now spelt algo=mat, and this run trains no"),
     (["task=3v3", "algo=psro_nash", "algo=mat", "algo.learner=happo"], "^algo.learner=happo names .* algo=mat names it too"),
-    (["task=3v3", "population=psro_nash", "algo=qmix"], "^population=psro_nash cannot train algo=qmix as its learner; allowed: mappo, happo, mat$"),
+    (["task=3v3", "population=psro_nash", "algo=qmix"],
+     "^population=psro_nash cannot train algo=qmix as its learner; allowed: mappo, happo, mat$"),
     (["task=3v3", "population=nope"], "^unknown population 'nope'; allowed: fsp, psro_nash, psro_uniform, sp$"),
 ])
 def test_a_bad_population_word_is_one_line(words, match):

@@ -32,6 +32,8 @@ def test_the_yaml_of_every_algorithm_equals_its_dataclass_defaults(name):
     assert set(yaml) <= set(defaults), f"keys only in the YAML: {sorted(set(yaml) - set(defaults))}"
     differ = {k: (yaml[k], defaults[k]) for k in yaml if _plain(yaml[k]) != _plain(defaults[k])}
     assert differ == {}, f"conf/algo/{name}.yaml differs from {cls.config_cls.__name__}: {differ}"
+    missing = set(defaults) - set(yaml)
+    assert missing == set(), f"{cls.config_cls.__name__} keys missing from conf/algo/{name}.yaml: {sorted(missing)}"
 
 
 @pytest.mark.parametrize("name", sorted(PRESETS))
@@ -48,8 +50,6 @@ def test_the_yaml_of_every_population_equals_its_dataclass_defaults(name):
     assert cfg.algo.name == preset.learner  # the file's default learner is the preset's
     learner = OmegaConf.to_container(OmegaConf.structured(preset.learner_cls.config_cls))
     assert {k: v for k, v in OmegaConf.to_container(cfg.algo).items() if _plain(learner.get(k)) != _plain(v)} == FINE_TUNING
-    missing = set(defaults) - set(yaml)
-    assert missing == set(), f"{cls.config_cls.__name__} keys missing from conf/algo/{name}.yaml: {sorted(missing)}"
 
 
 def test_the_top_level_yaml_equals_the_config_dataclass():

@@ -40,7 +40,8 @@ def test_every_method_accepts_matches_only():
 def test_fsp_refuses_a_learner_start_that_would_make_it_psro_uniform(init):
     """A 3v3 run of algo=fsp algo.learner_init=bc repeated PSRO-uniform's run oracle for oracle: FSP's one
     difference is that each learner continues from the newest member, so any other start is refused."""
-    with pytest.raises(ConfigError, match=f"population=fsp continues .* not '{init}', which makes it population=psro_uniform.*seed_members=\\[bc\\]"):
+    fsp = f"population=fsp continues .* not '{init}', which makes it population=psro_uniform.*seed_members=\\[bc\\]"
+    with pytest.raises(ConfigError, match=fsp):
         tiny("fsp", f"algo.learner_init={init}")
     assert tiny("psro_uniform", f"algo.learner_init={init}").population.learner_init == init
     with pytest.raises(ConfigError, match="unknown population.solver 'best'; allowed: uniform, nash"):
@@ -402,7 +403,8 @@ def test_the_defaults_start_every_population_from_the_clone_and_fit_every_announ
             loop.cfg, loop.m = cfg, cfg.population
             assert loop._planned(1, 0) == cfg.population.iterations  # the progress line's "iteration i/N"
             # a budget that leaves the last oracle fewer than min_updates batches announces one iteration less
-            loop.cfg = load([f"task={task}", f"algo={algo}", f"total_frames={cfg.total_frames - per_batch * (cfg.population.max_updates - 1)}"])
+            short = cfg.total_frames - per_batch * (cfg.population.max_updates - 1)
+            loop.cfg = load([f"task={task}", f"algo={algo}", f"total_frames={short}"])
             assert loop._planned(1, 0) == cfg.population.iterations - 1
     # an explicit value wins over algo.start; a bad start is one line
     assert load(["task=1v1", "algo=psro_nash", "algo.start=scratch", "algo.learner_init=bc"]).population.learner_init == "bc"

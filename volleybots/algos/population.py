@@ -156,7 +156,8 @@ class Preset:
             except ConfigError as e:
                 raise ConfigError(f"population.learner_init=bc / population.seed_members=[bc] clone the scripted team: {e}") from None
         if not pop.self_play and not pop.seed_members:
-            raise ConfigError(f"population={self.name} needs a first opponent: population.seed_members=[random] (or scripted, or checkpoint paths)")
+            raise ConfigError(f"population={self.name} needs a first opponent: population.seed_members=[random] "
+                              "(or scripted, or checkpoint paths)")
 
 
 def check_team_learner(learner_cls: type, cfg, task_cls, env_cfg, what: str) -> None:

@@ -148,7 +148,8 @@ def _check_opponent(cfg, task_cls, algo_cls) -> None:
     if not class_attr(task_cls, "competitive"):
         raise ConfigError(f"opponent={cfg.opponent!r} is for matches (1v1, 3v3, 6v6), not task {task_cls.name!r}")
     if cfg.population is not None:
-        raise ConfigError(f"population={cfg.population.name} chooses its own opponents; give it population.seed_members=[...] instead of opponent=")
+        raise ConfigError(f"population={cfg.population.name} chooses its own opponents; give it population.seed_members=[...] "
+                          "instead of opponent=")
     if algo_cls.name not in OPPONENT_LEARNERS:
         raise ConfigError(f"algo {algo_cls.name!r} cannot learn one team against opponent=; allowed: {', '.join(OPPONENT_LEARNERS)}")
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from volleybots.algos.population import CLONE
+from volleybots.algos.population import CLONE, method_name
 from volleybots.errors import ConfigError
 from volleybots.policies.builtin import BUILTIN, PLAYERS
 from volleybots.policies.store import load_learner, parse_spec, policy_checkpoint
@@ -56,7 +56,7 @@ def resolve_target(target: str, overrides=()) -> Target:
         algo, _ = load_learner(ckpt, env, int(state.get("n_agents", env.n_drones)), cfg, "its config")
         return algo.policy(deterministic=cfg.deterministic)
 
-    return Target(f"{cfg.algo.name}@{int(state['frames'])}", cfg, Path(ckpt), make_policy)
+    return Target(f"{method_name(cfg)}@{int(state['frames'])}", cfg, Path(ckpt), make_policy)
 
 
 def check_references(cfg) -> None:

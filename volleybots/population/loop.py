@@ -368,10 +368,11 @@ def resume(run_dir, overrides=(), check=None) -> dict:
             f"member is final; neither total_frames nor population.iterations continues it. Start a new run from its policy: "
             f"volleybots train task={cfg.task.name} population=sp init={run_dir} total_frames=N"
         )
-    if done >= cfg.population.iterations or frames >= cfg.total_frames:
+    iterations = cfg.population.iterations
+    if done >= iterations or frames >= cfg.total_frames:
         raise ConfigError(
             f"run {str(run_dir)!r} has finished ({done} iteration(s), {frames} frames); raise "
-            + " and ".join(x for x, spent in ((f"population.iterations (now {cfg.population.iterations})", done >= cfg.population.iterations),
+            + " and ".join(x for x, spent in ((f"population.iterations (now {iterations})", done >= iterations),
                                               (f"total_frames (now {cfg.total_frames})", frames >= cfg.total_frames)) if spent)
             + " to continue it"
         )
