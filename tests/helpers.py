@@ -82,6 +82,39 @@ TINY_1V1 = [
 ]
 
 
+# a quiet Hover PPO run of a few frames (HOVER_FPB frames a batch): the run-directory and resume tests
+TINY_HOVER = [
+    "env.num_envs=4", "algo.steps_per_batch=8", "algo.minibatches=2", "algo.epochs=1",
+    "algo.hidden=[16]", "task.episode_len=40", "threads=1", "progress=false", "evaluation.episodes=1",
+    "evaluation.record=false", "evaluation.every=0",
+]
+HOVER_FPB = 4 * 8  # env.num_envs x algo.steps_per_batch
+
+
+def tiny_hover_run(path: Path, *extra: str, task: str = "hover") -> Path:
+    """A finished ``TINY_HOVER`` run (of ``task``) trained in this process into ``path``."""
+    from typer.testing import CliRunner
+
+    from volleybots.cli import app
+
+    res = CliRunner().invoke(app, ["train", f"task={task}", *TINY_HOVER, f"hydra.run.dir={path}", *extra])
+    assert res.exit_code == 0, res.output
+    return path
+
+
+def hold_lock(path: Path) -> subprocess.Popen:
+    """Another process that makes ``path`` and holds its run-dir lock for up to a minute (kill it when
+    done): a second writer, as real as it gets, since the lock is the operating system's."""
+    holder = subprocess.Popen(
+        [sys.executable, "-c", (
+            "import time; from volleybots.runs import lock; from pathlib import Path; "
+            f"Path({str(path)!r}).mkdir(parents=True, exist_ok=True); lock({str(path)!r}); print('locked', flush=True); time.sleep(60)")],
+        env=CLI_ENV, stdout=subprocess.PIPE, text=True,
+    )
+    assert holder.stdout.readline().strip() == "locked"
+    return holder
+
+
 # ---- scripted rollouts read by several tests of one module (each module runs on one xdist worker)
 SCRIPTED_STEPS = 170  # every first Set and Spike episode is over by then (a spiked ball lands about 2.8 s in)
 

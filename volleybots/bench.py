@@ -7,7 +7,7 @@ rate (collection + updates, frames/s) of PPO on Solo Bump and MAPPO on 3 vs 3 (`
 on a match also of the competitive seats (``SEATS``: self-play, a PSRO oracle against a mixed
 population, an exploitability best response) with their rate over MAPPO's (``vs_mappo``).
 ``format_table`` renders the rows as Markdown with the torch/MuJoCo speed ratio of each task measured
-in the same run. ``benchmarks/bench.py`` and the ``volleybots bench`` verb are thin front ends to
+in the same run. ``benchmarks/speed/bench.py`` and the ``volleybots bench`` verb are thin front ends to
 these two functions.
 """
 

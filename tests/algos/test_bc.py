@@ -112,6 +112,7 @@ def test_bc_refuses_tasks_without_a_teacher_and_discrete_actions():
         load(["task=hover", "algo=bc", "algo.learner_envs=1.5"])
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_a_resumed_bc_run_repeats_the_uninterrupted_one(tmp_path):
     torch.set_num_threads(1)
     common = ["task=hover", "algo=bc", "env.num_envs=8", "algo.steps_per_batch=16", "algo.expert_frames=256", "algo.batch_size=64",

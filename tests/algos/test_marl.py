@@ -49,6 +49,7 @@ def _train_rows(run):
 
 
 # ------------------------------------------------------------------------------------ runs, resume
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 @pytest.mark.parametrize("name", MARL)
 def test_a_tiny_run_on_bump_and_pass_checkpoints_and_resumes_bit_for_bit(name, tmp_path):
     common = ["task=bump_and_pass", f"algo={name}", *RUN, *tiny(name), f"checkpoint.every={2 * FPB}"]
@@ -276,6 +277,7 @@ def test_qmix_mixer_is_monotonic_in_every_drones_q():
 
 
 # --------------------------------------------------------------------------------- the contract
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 @pytest.mark.parametrize("name", list(ALGOS))
 def test_every_algorithm_trains_every_task_kind_it_claims_and_refuses_the_others(name, tmp_path):
     cls = ALGOS[name]

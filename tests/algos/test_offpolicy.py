@@ -186,6 +186,7 @@ def test_sac_temperature_moves_toward_the_target_entropy():
     assert algo.loss.log_alpha.exp().item() < alpha0 * 0.9
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 @pytest.mark.parametrize("name", OFF_POLICY)
 def test_losses_decrease_on_a_fixed_batch(name):
     """Repeated steps on one batch: the critic fits its (slowly moving) targets and the actor climbs

@@ -128,6 +128,7 @@ def test_ppo_improves_hover(tmp_path):
     assert final > 5 * max(rand, 1.0), (final, rand)
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 @pytest.mark.parametrize("name", ["mappo", "happo"])
 def test_target_kl_stops_an_update_once_the_actor_has_moved(name):
     """``algo.target_kl``: an update ends before the first minibatch (from the second on) on which the

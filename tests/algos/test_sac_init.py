@@ -52,6 +52,7 @@ def _moved(old: dict, module) -> bool:
     return any(not torch.equal(old[k], v) for k, v in module.state_dict().items())
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_the_guide_is_exactly_the_saved_actor_and_drives_the_warm_up(bc_run, tmp_path):
     saved = torch.load(bc_run / "checkpoints" / "final.pt", weights_only=True)["algo"]
     tr = _trainer(tmp_path / "sac", [*SAC, f"init={bc_run}", "algo.guide_noise=0.01"])
@@ -74,6 +75,7 @@ def test_the_guide_is_exactly_the_saved_actor_and_drives_the_warm_up(bc_run, tmp
     assert not {"guide_mse", "actor_frozen"} & set(plain.log_keys())
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_with_a_guide_the_warm_up_lasts_guide_warmup_transitions(bc_run, tmp_path):
     # SAC's own warm-up is 2 x 32 = 64 transitions (one batch); the guide's play lasts 3 batches
     tr = _trainer(tmp_path / "long", [*SAC, f"init={bc_run}", f"algo.guide_warmup={3 * FPB}"])
@@ -153,6 +155,7 @@ def test_a_source_that_does_not_fit_is_refused(bc_run, tmp_path):
     assert not out.exists()
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_resume_keeps_the_guide_and_repeats_the_uninterrupted_run(bc_run, tmp_path):
     common = [
         *SAC,
@@ -180,6 +183,7 @@ def test_resume_keeps_the_guide_and_repeats_the_uninterrupted_run(bc_run, tmp_pa
     assert [r["actor_frozen"] for r in rows] == [1.0, 0.5, 0.0, 0.0]  # 24 frozen steps: 16, then 8 of 16
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_a_guided_sac_run_passes_its_guide_on(bc_run, tmp_path):
     train(load([*SAC, f"init={bc_run}", "algo.actor_freeze_updates=0", f"total_frames={3 * FPB}"]), tmp_path / "first")
     tr = _trainer(tmp_path / "second", [*SAC, f"init={tmp_path / 'first'}"])

@@ -60,6 +60,7 @@ def test_entry_point_version_and_help():
         assert res.exit_code == 0 and "Usage" in res.stdout, verb
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_list_names_every_task_algorithm_backend_and_action_space():
     from volleybots.algos import ALGOS
     from volleybots.physics import ACTION_SPACES, BACKENDS
@@ -78,6 +79,7 @@ def test_list_names_every_task_algorithm_backend_and_action_space():
     assert "1v1" not in tasks["ppo"] and "hover" in tasks["ppo"]
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_train_writes_a_complete_run_directory(run_dir):
     from volleybots.runs import RunDir
 
@@ -110,6 +112,7 @@ def test_train_writes_a_complete_run_directory(run_dir):
     _verify_rrd(run_dir / "curves.rrd", run_dir / "eval_000000001024.rrd", run_dir / "eval_000000002048.rrd")
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_eval_of_a_run_prints_a_table_and_json(run_dir):
     res = runner.invoke(app, ["eval", str(run_dir), "episodes=3", "--json"])
     assert res.exit_code == 0, res.output[-2000:]
@@ -127,6 +130,7 @@ def test_eval_of_a_run_prints_a_table_and_json(run_dir):
     assert "distance (metric)" in res.stdout and "ppo@1024" in res.stdout
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_eval_compare_pairs_the_episodes_and_tells_the_better_player(run_dir):
     # 150-step episodes (of 500): random play has tumbled long before, the scripted player flies on
     args = ["random", "scripted", "task=hover", "task.episode_len=150", "episodes=8", "seed=3", "--json"]
@@ -159,6 +163,7 @@ def test_eval_of_random_play(tmp_path):
     assert out["stats"]["episode_len"]["mean"] < 800  # random flight ends early
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_eval_of_the_scripted_pair_on_a_multi_drone_task():
     # no algo named: the multi-drone task takes the multi-agent default, and a scripted policy needs none
     # a quarter of an episode (200 of 800 steps; each touch costs the pair a lookahead search): the pair
@@ -186,6 +191,7 @@ def test_bench_prints_the_speed_table():
     assert len(rows) == 1 and "| torch |" in rows[0]
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_multirun_sweeps_seeds(tmp_path):
     res = runner.invoke(app, ["train", "-m", "seed=0,1", *[o for o in TINY if not o.startswith("total_frames")], "total_frames=512",
                               "evaluation.episodes=1", "evaluation.record=false", f"hydra.sweep.dir={tmp_path / 'sweep'}"])
@@ -256,6 +262,7 @@ def test_bad_input_exits_2_with_one_line_and_writes_nothing(run_dir, tmp_path):
     assert (snapshot(run_dir), snapshot(tmp_path)) == before
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_bad_input_from_a_real_process_has_no_traceback(tmp_path):
     res = _volleybots("train", "task=hovr", cwd=tmp_path)
     assert res.returncode == 2 and res.stderr.strip().startswith("error: unknown task 'hovr'")

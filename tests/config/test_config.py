@@ -18,6 +18,7 @@ from volleybots.physics import ACTION_SPACES
 from volleybots.tasks import TASKS
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_every_registered_task_has_a_config():
     missing = sorted(set(TASKS) - set(group_options("task")))
     assert not missing, f"tasks without conf/task/<name>.yaml: {missing}"
@@ -129,6 +130,7 @@ def test_misspelt_key_inside_a_yaml_file_is_rejected(tmp_path):
         validate(data)
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_configs_are_found_from_any_working_directory(tmp_path):
     code = "from volleybots.config import load; print(load(['task=solo_bump', 'algo=ppo']).task.hit_reward)"
     out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=120)

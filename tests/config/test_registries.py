@@ -65,6 +65,7 @@ def test_the_top_level_yaml_equals_the_config_dataclass():
         assert sub.__name__  # the nested ones were compared as dicts above
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 @pytest.mark.parametrize("name", sorted(ALGOS))
 def test_every_algorithm_composes_validates_and_builds_on_a_task_it_accepts(name):
     """The registry contract: a class with a name, a config dataclass, action spaces and ``check``; on a
@@ -103,6 +104,7 @@ def _accepts(cls, task: str) -> bool:
     return True
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 @pytest.mark.parametrize("name", sorted(PRESETS))
 def test_every_population_preset_accepts_its_own_default_start_and_refuses_the_others_by_name(name):
     """A preset that is defined by its learners' start (FSP: each continues the newest member) refuses
@@ -130,6 +132,7 @@ def test_the_names_a_spec_may_give_are_the_built_in_players():
     assert BUILTIN_NAMES == tuple(PLAYERS)
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 @pytest.mark.parametrize("name", sorted(PLAYERS))
 def test_every_built_in_player_acts_in_the_space_of_the_tasks_it_fits(name):
     player = PLAYERS[name]
@@ -174,6 +177,7 @@ def test_every_rating_method_orders_a_clear_hierarchy():
     assert bt[0] - bt[2] == pytest.approx(400, abs=120)  # the true gap, within sampling noise of 600 games
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_a_run_dir_evaluates_after_the_files_it_was_trained_against_have_moved(tmp_path):
     """Validating a saved config never opens the files it names: a run trained with
     ``opponent=CHECKPOINT`` still evaluates once that checkpoint has moved away."""

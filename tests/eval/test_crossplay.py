@@ -26,6 +26,7 @@ def _cfg(task="1v1"):
     return load([f"task={task}"])
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_scripted_beats_random_on_both_sides_equally_often():
     a, b = resolve_competitor("scripted"), resolve_competitor("random")
     g = play_games(_cfg(), a, b, 64, seed=0, batch=32)
@@ -74,6 +75,7 @@ def tiny_ckpt(tiny_run):
     )
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_crossplay_cli_writes_results_with_every_file_hash(tiny_ckpt, tmp_path):
     out = tmp_path / "cp"
     ckpt = tiny_ckpt / "checkpoints" / "final.pt"
@@ -106,6 +108,7 @@ def test_crossplay_cli_writes_results_with_every_file_hash(tiny_ckpt, tmp_path):
     assert dec >= 10 and abs(d["win_rate"][0][1] - 0.5) < 0.25  # same policy: even up to noise
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_elo_cli_played_and_from_a_results_file(tmp_path):
     out = tmp_path / "elo"
     res = runner.invoke(
@@ -209,6 +212,7 @@ def _bad_cases(tmp, ckpt):
     ]
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_bad_input_exits_2_with_one_line_and_writes_nothing(tiny_ckpt, tmp_path):
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "keep.txt").write_text("x")
@@ -229,6 +233,7 @@ def test_bad_input_exits_2_with_one_line_and_writes_nothing(tiny_ckpt, tmp_path)
     assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_reuse_copies_the_pairs_an_earlier_crossplay_played_and_the_table_is_the_fresh_one(tmp_path):
     """``reuse=FILE``: the pairs of an earlier results file, recognised by what plays (a relabelled
     checkpoint is the same player), are copied and the table equals a fresh cross-play of everyone; a pair

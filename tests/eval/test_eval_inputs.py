@@ -7,12 +7,10 @@ from __future__ import annotations
 import errno
 import os
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
-from helpers import one_line_exit_2
+from helpers import hold_lock, one_line_exit_2
 from typer.testing import CliRunner
 
 from volleybots.cli import app
@@ -86,18 +84,10 @@ def test_a_full_disk_is_one_line_and_leaves_no_temporary_file(monkeypatch, tmp_p
     assert not [p for p in tmp_path.rglob("*") if p.suffix in (".tmp", ".part")]
 
 
-def _hold_lock(path: Path) -> subprocess.Popen:
-    holder = subprocess.Popen([sys.executable, "-c", (
-        "import time; from volleybots.runs import lock; from pathlib import Path; "
-        f"Path({str(path)!r}).mkdir(parents=True, exist_ok=True); lock({str(path)!r}); print('locked', flush=True); time.sleep(60)")],
-        stdout=subprocess.PIPE, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
-    assert holder.stdout.readline().strip() == "locked"
-    return holder
-
-
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_two_writers_of_one_out_never_overwrite_each_other(no_games, tmp_path, monkeypatch):
     out = tmp_path / "o"
-    holder = _hold_lock(out)
+    holder = hold_lock(out)
     try:
         one_line_exit_2(runner.invoke(app, ["eval", "crossplay", *MATCH, "games=2", "--out", str(out)]), "being written by another")
         one_line_exit_2(runner.invoke(app, ["eval", "elo", *MATCH, "rounds=2", "--out", str(out)]), "being written by another")
@@ -135,6 +125,7 @@ def test_a_match_replay_with_a_label_too_long_for_a_file_name_records(tmp_path, 
     assert len(files) == 1 and files[0].suffix == ".rrd" and files[0].stat().st_size > 0
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_a_run_dir_named_with_comma_and_equals_is_usable(tiny_1v1_run, tmp_path):
     run = Path(shutil.copytree(tiny_1v1_run, tmp_path / "a,b=c", ignore=shutil.ignore_patterns(".lock")))
     # (20-step games: every verb only has to read the run dir and play)

@@ -26,6 +26,7 @@ def _even_pair(outcomes: str) -> CrossPlay:
     return CrossPlay(["a", "b"], wdl, outcomes={"0,1": outcomes})
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_elo_of_played_games_does_not_depend_on_the_order_of_the_side_batches():
     # a side advantage, recorded batch by batch: a wins all 100 games on team 0, then loses all 100
     # on team 1. In play order the last batch decided Elo (a ended about 300 points below b).
@@ -78,6 +79,7 @@ def test_elo_cli_refuses_the_former_bootstrap_option(tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_elo_cli_from_a_file_is_finite_and_the_same_for_a_seed(tmp_path):
     src = _crossplay_file(tmp_path)
     reps = []
@@ -112,6 +114,7 @@ def test_elo_is_reported_with_its_spread_over_seeded_game_orders():
     assert (np.asarray(small["order_high"]) - np.asarray(small["order_low"]) < widths / 3).all()
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_the_nash_weight_comes_with_how_often_each_member_carries_it_on_resampled_payoffs():
     """p0 beats p1 and p2 clearly: it carries the mixture in (nearly) every resample. A tie between p0
     and p1 (a 50/50 record) makes the weight move between them from resample to resample."""
@@ -127,3 +130,28 @@ def test_draw_rates_stand_beside_bradley_terry_on_decisive_games():
     rep = ratings(_table({(0, 1): (10, 80, 10), (0, 2): (50, 0, 50), (1, 2): (0, 100, 0)}, 3), rounds=10, orders=2, resamples=5)
     assert rep["draw_rate"] == pytest.approx([80 / 200, 180 / 200, 100 / 200])
     assert rep["bradley_terry"]["draws"].startswith("left out")
+
+
+def test_a_rating_registered_in_the_registry_appears_in_the_table_the_json_and_the_plot(tmp_path, monkeypatch):
+    """`eval elo` knows no rating method by name: one added to RATINGS is computed, tabled, titled and
+    drawn with no edit to the verb."""
+    from volleybots.ratings.methods import RATINGS, Rating
+
+    drawn = []
+
+    def points(games):  # a toy rating: each competitor's total points, a draw half a win
+        return {"toy_points": (np.asarray(games.wdl, float) @ [1.0, 0.5, 0.0]).sum(1).tolist()}
+
+    toy = Rating(rate=points, columns=("toypts",), cells=lambda report, i: (f"{report['toy_points'][i]:.1f}",),
+                 title=lambda report: "toypts by points", plot=lambda report, ax, x: drawn.append(list(x)))
+    monkeypatch.setitem(RATINGS, "toy", toy)
+    src = _crossplay_file(tmp_path)  # a and b, 20 wins each
+    res = runner.invoke(app, ["eval", "elo", f"from={src}", "rounds=10", "orders=2", "--out", str(tmp_path / "t")], terminal_width=400)
+    assert res.exit_code == 0, res.output
+    assert "toypts" in res.stdout and "toypts by points" in res.stdout and "20.0" in res.stdout
+    assert json.loads((tmp_path / "t" / "ratings.json").read_text())["toy_points"] == [20.0, 20.0]
+    assert drawn == [[0, 1]] and (tmp_path / "t" / "ratings.png").is_file()
+    clash = Rating(rate=lambda games: {"elo": 0}, columns=(), cells=lambda report, i: ())
+    monkeypatch.setitem(RATINGS, "clash", clash)
+    with pytest.raises(ValueError, match="'clash' writes \\['elo'\\]"):
+        ratings(_even_pair("WL"), rounds=2, orders=1, resamples=1)

@@ -7,12 +7,10 @@ from __future__ import annotations
 
 import os
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
-from helpers import one_line_exit_2, snapshot
+from helpers import hold_lock, one_line_exit_2, snapshot
 from typer.testing import CliRunner
 
 from volleybots.cli import app
@@ -70,12 +68,8 @@ def test_a_still_into_an_unwritable_folder_is_refused_before_the_episode(tiny_1v
 
 def test_two_reports_to_one_folder_never_mix(tiny_1v1_run, tmp_path):
     out = tmp_path / "report"
-    holder = subprocess.Popen([sys.executable, "-c", (
-        "import time; from volleybots.runs import lock; from pathlib import Path; "
-        f"Path({str(out)!r}).mkdir(parents=True, exist_ok=True); lock({str(out)!r}); print('locked', flush=True); time.sleep(60)")],
-        stdout=subprocess.PIPE, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    holder = hold_lock(out)
     try:
-        assert holder.stdout.readline().strip() == "locked"
         one_line_exit_2(runner.invoke(app, ["report", str(tiny_1v1_run), "--out", str(out)]), "being written by another report")
     finally:
         holder.kill()

@@ -48,6 +48,7 @@ def run(env, steps, seed=0):
     return torch.stack(out), done
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 @pytest.mark.parametrize("task", ["solo_bump", "3v3"])
 def test_compiled_step_compiles_once_and_matches_eager(task, monkeypatch):
     counter = CountingBackend()
@@ -130,6 +131,7 @@ def test_bench_json_rows():
     assert rows[0]["env_steps_per_s"] > 0 and rows[0]["compile"] is False
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_bench_training_rows():
     """train=True adds the trainer's end-to-end rate (collection + update) of PPO on Solo Bump, labelled
     in the table and left out of the torch/MuJoCo ratios."""

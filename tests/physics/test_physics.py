@@ -297,6 +297,7 @@ def _random_state(g, n, d):
                         throttle=torch.rand(n, d, 4, generator=g), ball_pos=ball, ball_vel=torch.randn(n, 3, generator=g) * 5)
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_skipping_the_contacts_where_no_drone_can_meet_the_ball_changes_no_number(monkeypatch):
     """``may_touch`` lets an eager sub-step skip the contact tests when no drone can meet the ball; the
     same sub-steps with the tests always run give equal states and contact flags, tensor for tensor,

@@ -50,6 +50,7 @@ def test_serve_and_receive_split_the_totals(games):
     assert set(c["faults"]["A"]) | set(c["faults"]["B"]) <= set(Referee.FAULTS)
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_crossplay_carries_content_through_json_table_and_ratings(tmp_path):
     # random players keep it cheap; which numbers they give does not matter here, only that they travel
     comps = [resolve_competitor("random"), resolve_competitor("r1=random"), resolve_competitor("r2=random")]

@@ -4,6 +4,7 @@ assigned to one opponent for its game, chunked so that a chunk's seed alone deci
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 from tensordict import TensorDict
 
@@ -30,6 +31,7 @@ def test_row_chunks_fill_a_batch_a_side_and_keep_the_order():
     assert row_chunks(0, 100) == []
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_a_payoff_row_plays_every_opponent_its_games_and_a_chunk_is_its_own_seed():
     cfg = load(["task=1v1", "task.episode_len=30"])  # short games: the bookkeeping is the point
     a = resolve_competitor("zoo:1v1/bc")

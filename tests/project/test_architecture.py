@@ -186,6 +186,15 @@ def test_every_module_has_a_floor_and_none_is_over_the_line_limit():
         floor(n)  # a module under no known prefix raises
 
 
+def test_the_test_tree_has_a_folder_for_every_package():
+    """The tests mirror the floors: each package of volleybots (``volleybots/<name>/``) has its tests in
+    ``tests/<name>/``, so a floor without tests of its own shows as a missing folder, not as a file lost
+    among another floor's."""
+    tests = PKG.parent / "tests"
+    missing = sorted(d.name for d in PKG.iterdir() if (d / "__init__.py").is_file() and not any((tests / d.name).glob("test_*.py")))
+    assert missing == [], f"no tests/<name>/test_*.py for the packages {missing}"
+
+
 def test_the_game_theory_package_imports_no_torch():
     """Records, payoff tables, meta-solvers and ratings (``volleybots.ratings``) load without torch: a
     notebook over a crossplay.json or payoffs.json needs numpy and scipy only."""
@@ -195,7 +204,7 @@ def test_the_game_theory_package_imports_no_torch():
     code = ("import importlib, pkgutil, sys, volleybots.ratings as r\n"
             "names = [m.name for m in pkgutil.iter_modules(r.__path__)]\n"
             "[importlib.import_module('volleybots.ratings.' + n) for n in names]\n"
-            "assert {'solvers', 'payoffs', 'record', 'elo', 'bradley_terry'} <= set(names), names\n"
+            "assert {'solvers', 'methods', 'payoffs', 'record', 'elo', 'bradley_terry'} <= set(names), names\n"
             "assert 'torch' not in sys.modules, sorted(m for m in sys.modules if m.startswith('torch'))[:5]\n")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=PKG.parent)
     assert res.returncode == 0, res.stderr

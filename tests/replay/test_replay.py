@@ -55,6 +55,7 @@ def test_replay_picks_a_fresh_default_file(tmp_path, monkeypatch):
     assert len(files) == 2  # the second replay did not overwrite the first
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_replay_of_the_scripted_policy_or_a_clear_error(tmp_path):
     out = tmp_path / "scripted.rrd"
     # 100 steps hold the opening bump: the recording's layout is the point, not the player's whole 16 s (18 s to play)

@@ -139,6 +139,7 @@ def touches(env, policies, steps, n):
     return seq
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_hierarchical_team_never_touches_twice_in_a_row_with_one_drone():
     torch.manual_seed(0)
     n = 6
@@ -242,6 +243,7 @@ def one_drone_actions(policy, obs: torch.Tensor) -> torch.Tensor:
     return (out if isinstance(out, torch.Tensor) else out["agents", "action"]).reshape(n, -1)
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_a_trained_drill_drives_its_drone_on_the_drill_observation(tmp_path):
     """A team with a trained Serve: while the back drone serves, its action is the checkpoint policy's
     mean action on the Serve observation built from its match observation by part names (also where

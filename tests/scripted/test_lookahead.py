@@ -1,6 +1,7 @@
 """Lookahead (scripted/lookahead.py): its rollouts are the physics (a set flown on the model leaves
 the racket as the env's does), and it flies the variant its cost ranks best."""
 
+import pytest
 import torch
 
 import volleybots
@@ -110,6 +111,7 @@ def _searched_per_step(every: int, steps: int, seed: int = 0):
     return counts, torch.stack(actions), (env, pol, td)
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_a_kept_choice_searches_every_k_steps_and_starts_as_the_memoryless_player():
     """Lookahead.every: a drone searches once per ``every`` steps of a touch (about ``every`` times
     fewer searches), its first step is the memoryless player's own, and a new episode searches

@@ -1,6 +1,7 @@
 """Scripted match players: registered, they play full games against random teams without the
 violations a sane player never commits, and each side plays from its own mirrored view."""
 
+import pytest
 import torch
 
 import volleybots
@@ -35,6 +36,7 @@ def play(task, scripted_team, steps, n=6, serve=None):
     return env, {k: nxt["stats", k].squeeze(-1)[done] for k in ("winner", "reason", "draw")}, td
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_scripted_1v1_team_never_loses_to_random_on_either_side():
     for team in (0, 1):
         env, st, td = play("1v1", team, 120, serve=1 - team)  # the random side serves: games get decided

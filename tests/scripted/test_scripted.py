@@ -33,6 +33,7 @@ def test_allocation_inverts_the_airframe():
     assert 0 < got[0, 0] < 5.0 and abs(got[0, 1]) < 1e-6 and big.sum() >= 0.9 * 12.0 - 1e-6
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 @pytest.mark.parametrize("space", ["prt", "ctbr"])
 def test_position_controller_reaches_and_holds_a_target(space):
     env = volleybots.make_env("hover", num_envs=4, action_space=space, seed=1)
@@ -50,6 +51,7 @@ def test_position_controller_reaches_and_holds_a_target(space):
     assert env.physics.state.vel.norm(dim=-1).max() < 0.1
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_heading_control_turns_the_drone():
     env = volleybots.make_env("hover", num_envs=2, seed=0)
     td = env.reset()
@@ -154,6 +156,7 @@ def _play(task, space, n, seed):
         return run_episodes(env, make_scripted_policy(env))[env.metric]
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_scripted_solo_bump_keeps_bumping():
     bumps = _play("solo_bump", "prt", 4, 3)
     assert bumps.mean() >= 8, bumps  # about 12 in 16 s when nothing goes wrong

@@ -2,6 +2,7 @@
 
 import functools
 
+import pytest
 import torch
 
 import volleybots
@@ -25,6 +26,7 @@ def episodes(task, steps, n=8):
     return {k: nxt["stats", k].squeeze(-1)[done] for k in env._stats_keys}, td
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_bump_and_pass_pair_opens_with_a_counted_bump_and_stays_airborne():
     st, td = episodes("bump_and_pass", 150)
     hits = td["next", "stats", "hits"].squeeze(-1)
@@ -43,6 +45,7 @@ def test_bump_and_pass_pair_opens_with_a_counted_bump_and_stays_airborne():
     assert (td["next", "agents", "observation"][..., 2] > 1.0).all()  # nobody sinks
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_bump_and_pass_pair_keeps_passing_for_the_whole_episode():
     _, td = episodes("bump_and_pass", 800)
     done = td["next", "done"].squeeze(-1)

@@ -1,6 +1,7 @@
 """The scripted 3 vs 3 team rallies against itself: the serve is passed and attacked at an
 opponent, who receives it (at least 3 touches in a game), from either side's serve."""
 
+import pytest
 import torch
 
 import volleybots
@@ -20,6 +21,7 @@ def first_games(task, serve, n=4, steps=200):
     return nxt["stats", "hits_team0"].squeeze(-1)[envs, first] + nxt["stats", "hits_team1"].squeeze(-1)[envs, first]
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_scripted_3v3_team_rallies_against_itself():
     touches = torch.cat([first_games("3v3", serve) for serve in (0, 1)])
     assert (touches >= 3).float().mean() >= 0.75, touches

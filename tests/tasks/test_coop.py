@@ -208,6 +208,7 @@ def test_defence_respects_speed_and_rotation_limits():
     assert r.planned.item()
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 @pytest.mark.parametrize("name", list(COOP))
 def test_ten_thousand_random_steps_stay_finite(name):
     env = volleybots.make_env(name, num_envs=64, seed=3)

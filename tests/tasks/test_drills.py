@@ -115,6 +115,7 @@ def test_attack_observes_its_side_one_hot():
 FLOORS = {"serve": 0.8, "pass": 0.5, "set": 0.65, "attack": 0.65}
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 @pytest.mark.parametrize("name", list(FLOORS))
 def test_scripted_drill_reaches_its_success_criterion(name):
     env = volleybots.make_env(name, num_envs=32, seed=3)

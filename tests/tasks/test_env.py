@@ -37,6 +37,7 @@ def test_make_env_rejects_bad_names():
         volleybots.make_env("hover", drone="nope")
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_ten_thousand_random_steps_stay_finite():
     env = volleybots.make_env("solo_bump", num_envs=64, seed=3)
     td = env.reset()
@@ -50,6 +51,7 @@ def test_ten_thousand_random_steps_stay_finite():
         assert torch.isfinite(v).all()
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 @pytest.mark.parametrize("task", SINGLE)
 def test_random_rollouts_finite_every_task(task):
     env = volleybots.make_env(task, num_envs=16, action_space="ctbr", seed=1)

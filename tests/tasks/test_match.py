@@ -69,6 +69,7 @@ def test_team_one_starts_as_the_image_of_team_zero():
     assert torch.allclose(obs[:k, 3:7], obs[k:, 3:7], atol=1e-6)
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 @pytest.mark.parametrize("name", list(MATCHES))
 def test_ten_thousand_random_steps_stay_finite_and_stats_add_up(name):
     env = volleybots.make_env(name, num_envs=64, seed=3)

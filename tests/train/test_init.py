@@ -49,6 +49,7 @@ def test_init_loads_exactly_the_saved_actor_and_critic(hover_run, tmp_path):
     assert not torch.equal(fresh.algo.actor.state_dict()["module.0.module.0.0.weight"], saved["actor"]["module.0.module.0.0.weight"])
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_init_of_mappo_from_ppo_and_off_policy_targets(hover_run, tmp_path):
     saved = torch.load(hover_run / "checkpoints" / "final.pt", weights_only=True)["algo"]
     tr = _trainer(tmp_path, ["task=hover", "algo=mappo", *PPO_TINY, f"init={hover_run}"])
@@ -139,6 +140,7 @@ def test_actor_freeze_updates_lets_only_the_critic_learn_first():
     assert algo.state_dict()["updates"] == 2
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_best_pt_holds_the_policy_of_the_best_evaluation(tmp_path):
     """checkpoint.best: best.pt is the state at the evaluation with the best metric (Hover: the lowest
     distance, ties to the earliest), equal to the periodic checkpoint of that moment; resume ignores it."""

@@ -26,6 +26,7 @@ TINY = [
 FPB = 4 * 8  # frames per batch
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 @pytest.mark.parametrize("name", ["dqn", "ddpg", "td3", "sac"])
 def test_a_tiny_run_writes_metrics_and_loadable_checkpoints(name, tmp_path):
     cfg = load([f"algo={name}", *TINY, "total_frames=128"])
@@ -50,6 +51,7 @@ def test_a_tiny_run_writes_metrics_and_loadable_checkpoints(name, tmp_path):
     assert summary["final_eval"]["episodes"] == 2
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_resume_with_the_buffer_repeats_the_uninterrupted_run(tmp_path):
     common = ["algo=td3", *TINY, "algo.checkpoint_buffer=true"]
     # the uninterrupted run checkpoints (and so starts fresh episodes) at 64 and 128 frames, where
@@ -72,6 +74,7 @@ def test_resume_with_the_buffer_repeats_the_uninterrupted_run(tmp_path):
     assert [r["loss_critic"] for r in ra] == [r["loss_critic"] for r in rb]
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_resume_without_the_buffer_warms_up_again_and_goes_on(tmp_path):
     common = ["algo=sac", *TINY]
     train(load([*common, "total_frames=96"]), tmp_path / "run")
@@ -92,6 +95,7 @@ def _invoke(*args):
     return CliRunner().invoke(app, list(args))
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_cli_trains_evaluates_and_replays_sac_and_picks_discrete_for_dqn(tmp_path, monkeypatch):
     # the verbs run in this process (each child process costs a fresh import of torch); tests/cli/test_cli.py runs the
     # command line as a real process

@@ -6,6 +6,8 @@ from __future__ import annotations
 import io
 import re
 
+import pytest
+
 from volleybots.config import load
 from volleybots.population.run import start
 from volleybots.runs import read_metrics
@@ -44,6 +46,7 @@ def test_eta_follows_the_time_limit_when_it_comes_first():
     assert p.eta(1000, 15.0) <= 45.0
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_a_time_limited_run_prints_lines_and_stops_before_a_batch_would_overshoot(tmp_path, capsys):
     limit = 4.0
     cfg = load([*TINY, "algo=mappo", "opponent=random", "total_frames=100000000", f"time_limit={limit}", "progress=true"])
@@ -57,6 +60,7 @@ def test_a_time_limited_run_prints_lines_and_stops_before_a_batch_would_overshoo
     assert rows[-1]["wall_time"] + dts[-1] + 0.5 > limit  # and it did not stop far too early
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 def test_a_population_run_reports_progress_final_eval_curves_and_its_wall_time_split(tmp_path, capsys):
     cfg = load([*TINY, "algo=psro_uniform", "algo.start=scratch",
                 "algo.iterations=1", "algo.min_updates=2", "algo.max_updates=2", "algo.payoff_games=2",

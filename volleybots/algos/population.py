@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from volleybots.algos.base import class_attr
 from volleybots.algos.happo import HAPPO
@@ -30,6 +30,12 @@ STARTS = ("clone", "scratch")
 # the learners an oracle may train (algo=): those that learn one team of a match with a critic
 # over their own team; HAPPO and MAT only where the team has several drones (3v3, 6v6)
 LEARNERS = {cls.name: cls for cls in (MAPPO, HAPPO, MAT)}
+# population.members: the policy space of a population. flat: every member one network over the whole team
+# (the paper's table 3); hierarchical (3v3): drills under a learned high level, each oracle training a
+# high level over the run's drills (the HCSP route, volleybots/population/hierarchical.py); auto:
+# hierarchical on 3v3, flat elsewhere (what the headline's targets were met with: docs/competitive.md)
+MEMBERS = ("auto", "flat", "hierarchical")
+HIERARCHICAL_TASKS = ("3v3",)
 POOLS = ("serial", "ray")  # where payoff games are played: here, or as tasks of a Ray pool (volleybots.play.pool)
 
 
@@ -59,6 +65,16 @@ class LoopConfig:
     opponent_deterministic: bool = False
     eval_opponent: str = "random"
     payoff_pool: str = "serial"
+    members: str = "auto"
+    drills: str = "zoo:3v3/hcsp_return"  # a hierarchical population's drills: a zoo team, a team file, or hierarchical
+    high_level_games: int = ranged(2048, ge=1)  # games each hierarchical oracle trains its high level on
+    high_level_batch: int = ranged(256, ge=1)  # games (worlds) per high-level update
+    high_level_lr: float = ranged(1e-3, gt=0, le=1)  # Adam's learning rate of a high level
+    # fixed opponents every oracle also trains against (a league's anchors), beside the meta-strategy;
+    # never members, so never in the mixture; fixed_share: their share of the oracle's games
+    fixed_opponents: list[str] = field(default_factory=list)
+    fixed_share: float = ranged(0.0, ge=0, le=1)
+    oracle_fall_fault: bool = True  # hierarchical oracles train with task.fall_fault on (payoffs and evaluations: the task's rule)
 
 
 @dataclass
@@ -108,11 +124,24 @@ class Preset:
             raise ConfigError(f"population={self.name} cannot train algo={name} as its learner; allowed: {', '.join(LEARNERS)}")
         return LEARNERS[name]
 
-    def resolve(self, cfg, has_init: bool = False) -> None:
-        """Fill ``learner_init`` and ``seed_members`` the ``population`` node ``cfg`` leaves unset (None) from its ``start``,
-        so that a saved config holds what the run did and reloads the same whatever the defaults become.
-        ``has_init``: the run names ``init=``, which is then every learner's start (``scratch``: no clone;
-        the loop hands each learner ``init=`` with the fine-tuning recipe) where the start would clone."""
+    def resolve(self, cfg, has_init: bool = False, task: str | None = None) -> None:
+        """Fill ``learner_init`` and ``seed_members`` the ``population`` node ``cfg`` leaves unset (None) from its
+        ``start``, and ``members=auto`` from the ``task``, so that a saved config holds what the run did and
+        reloads the same whatever the defaults become. ``has_init``: the run names ``init=``, which is then
+        every learner's start (``scratch``: no clone; the loop hands each learner ``init=`` with the
+        fine-tuning recipe) where the start would clone. A hierarchical population starts from its drills'
+        team (``population.drills``, with its high level if it has one) and each oracle from the newest high level."""
+        if cfg.members not in MEMBERS:
+            raise ConfigError(f"unknown population.members {cfg.members!r}; allowed: {', '.join(MEMBERS)}")
+        if cfg.members == "auto":
+            # self-play has one learner on both teams: a flat policy
+            cfg.members = "hierarchical" if task in HIERARCHICAL_TASKS and not cfg.self_play else "flat"
+        if cfg.members == "hierarchical":
+            if cfg.learner_init is None:
+                cfg.learner_init = "last" if cfg.start == "clone" else "scratch"
+            if cfg.seed_members is None:
+                cfg.seed_members = [cfg.drills] if cfg.start == "clone" else ["random"]
+            return
         if cfg.start not in STARTS:
             raise ConfigError(f"unknown population.start {cfg.start!r}; allowed: {', '.join(STARTS)}")
         init, members = dict((s, (i, m)) for s, i, m in self.starts)[cfg.start]
@@ -131,6 +160,11 @@ class Preset:
 
             matches = [n for n, t in TASKS.items() if class_attr(t, "competitive")]
             raise ConfigError(f"population={self.name} trains for matches, not task {task_cls.name!r}; allowed tasks: {', '.join(matches)}")
+        if pop.fixed_share > 0 and not pop.fixed_opponents:
+            raise ConfigError(f"population.fixed_share={pop.fixed_share} needs population.fixed_opponents (e.g. [scripted, hierarchical])")
+        if pop.members == "hierarchical":
+            self.check_hierarchical(pop, task_cls)
+            return
         learner_cls = self.learner_of(algo)
         if pop.learner_init == CLONE and learner_cls is not MAPPO:
             raise ConfigError(f"algo={algo.name} cannot start from the clone (population.learner_init=bc: its networks are "
@@ -158,6 +192,27 @@ class Preset:
         if not pop.self_play and not pop.seed_members:
             raise ConfigError(f"population={self.name} needs a first opponent: population.seed_members=[random] "
                               "(or scripted, or checkpoint paths)")
+
+
+    def check_hierarchical(self, pop, task_cls) -> None:
+        """A hierarchical population's own values (the ``population`` node ``pop``; its learner is the high
+        level's PPO, not ``algo=``)."""
+        if task_cls.name not in HIERARCHICAL_TASKS:
+            raise ConfigError(f"population.members=hierarchical plays task {', '.join(HIERARCHICAL_TASKS)}, not {task_cls.name!r}; "
+                              "give population.members=flat")
+        if pop.self_play:
+            raise ConfigError(f"population={self.name} has no hierarchical members (one learner plays both teams); use population=fsp, "
+                              "psro_uniform or psro_nash with population.members=hierarchical, or population.members=flat")
+        for value, allowed, key in ((pop.solver, SOLVERS, "population.solver"),
+                                    (pop.learner_init, ("scratch", "last"), "population.learner_init"),
+                                    (pop.payoff_pool, POOLS, "population.payoff_pool")):
+            if value not in allowed:
+                raise ConfigError(f"unknown {key} {value!r} for population.members=hierarchical; allowed: {', '.join(allowed)}")
+        if self.learner_inits and pop.learner_init not in self.learner_inits:
+            raise ConfigError(f"population={self.name} {self.otherwise.format(init=pop.learner_init)}")
+        if not pop.seed_members:
+            raise ConfigError(f"population={self.name} needs a first opponent: population.seed_members=[{pop.drills}] "
+                              "(or scripted, hierarchical)")
 
 
 def check_team_learner(learner_cls: type, cfg, task_cls, env_cfg, what: str) -> None:

@@ -72,7 +72,7 @@ def _fits(algo: str, task: str) -> bool:
         env = EnvConfig(action_space=cls.action_spaces[0])
         if preset is not None:  # a population preset fills its start's learner_init / seed_members first, as validate does
             pop = OmegaConf.structured(preset.config_cls)
-            preset.resolve(pop)
+            preset.resolve(pop, task=task)
             preset.check(pop, cfg, TASKS[task], env)
         else:
             cls.check(cfg, TASKS[task], env)

@@ -63,10 +63,7 @@ class CrossPlay:
 
     def average_win_rate(self) -> np.ndarray:
         """[n]: each competitor's mean win rate against the others (pairs without a decisive game left out)."""
-        wr = self.win_rate().copy()
-        np.fill_diagonal(wr, np.nan)
-        with np.errstate(invalid="ignore"):
-            return np.array([np.nanmean(r) if np.isfinite(r).any() else np.nan for r in wr])
+        return record.average_win_rate(self.wdl)
 
     def payoffs(self) -> np.ndarray:
         """[n, n] the zero-sum payoff (wins - losses) / games of the row (docs/competitive.md); the

@@ -1,19 +1,14 @@
-"""Ratings of a cross-play result: the paper's Elo, Bradley-Terry with profile-likelihood intervals, and the
-Nash mixture of the meta-game with each competitor's exploitability within the population
-(docs/evaluation.md). The arithmetic lives in ``volleybots.ratings`` and
-``volleybots.ratings.solvers``; this module applies it to a ``CrossPlay`` and draws the plot.
+"""Ratings of a cross-play (docs/evaluation.md): every method registered in
+``volleybots.ratings.methods.RATINGS`` (the paper's Elo, Bradley-Terry with profile-likelihood
+intervals, the average win rate, the Nash mixture of the meta-game with each competitor's
+exploitability within the population) applied to a ``CrossPlay``, tabled and plotted. The arithmetic
+and each method's columns live in ``volleybots.ratings``; this module knows no method by name: it loops
+over the registry, and adds the cross-play's own settings and what the games held.
 
 Elo's games: when the cross-play played at least ``rounds`` games per pair, round r is every pair's
-r-th game after a seeded shuffle of that pair's games (and the pairs of a round come in a seeded
-random order); otherwise (or with ``sample=True``) each round's results are drawn from the pairs'
-win/draw/loss frequencies, as the paper sampled them.
-
-Why the shuffle: a cross-play plays each pair in batches, half its games with one competitor on team
-0 and then half on team 1, and records them in that order. Sequential Elo weighs the latest games
-most (with K = 168 a rating forgets within a few dozen games), so in play order the last side's batch
-would decide the rating, and a side advantage would pass for a difference in strength. The games of
-a pair are put in a canonical order and then permuted by the seeded generator, so the games used
-depend on the pair's results and the seed only, never on the order in which they were played.
+r-th game after a seeded shuffle of that pair's games (``volleybots.ratings.elo.elo_games`` says why);
+otherwise (or with ``sample=True``) each round's results are drawn from the pairs' win/draw/loss
+frequencies, as the paper sampled them.
 """
 
 from __future__ import annotations
@@ -24,145 +19,71 @@ import numpy as np
 
 from volleybots.errors import ConfigError, Range
 from volleybots.eval.content import by_competitor
-from volleybots.eval.crossplay import CrossPlay, _nan_to_none
+from volleybots.eval.crossplay import CrossPlay
 from volleybots.eval.plain import clean, plain
 from volleybots.files import write_atomic, write_json
 from volleybots.overrides import split_arg
-from volleybots.ratings import ELO_K, ELO_START, bradley_terry_intervals, elo_history, record, round_robin, sample_round_robin
-from volleybots.ratings.elo import elo_orders
-from volleybots.ratings.solvers import exploitability, member_exploitability, nash
+from volleybots.ratings import ELO_K
+from volleybots.ratings.methods import ORDERS, RATINGS, RESAMPLES, ROUNDS, Games, rate
 
-ORDERS = 100  # seeded game orders over which Elo's spread is reported
-RESAMPLES = 200  # resampled payoff tables over which the Nash weights' sensitivity is reported
-CARRIES = 0.01  # a member "carries weight" in a mixture where its weight is at least this
-
-SCORE = dict(zip(record.OUTCOMES, record.SCORES))  # a game's score by its letter
 K_RANGE = Range(low=0.0, low_open=True)  # Elo's K: a finite step > 0 (nan or inf would make every rating nan)
+CONTENT_COLUMNS = ("touches/game (opp.)", "rally steps", "serving W/D/L", "receiving W/D/L")  # what the games held, after the ratings
 
 
-def elo_games(result: CrossPlay, rounds: int, rng: np.random.Generator, sample: bool = False) -> tuple[np.ndarray, str]:
-    """The round-robin games [rounds x pairs, 3] for Elo and how they were obtained ("played" or "sampled")."""
-    played = min((len(s) for s in result.outcomes.values()), default=0)
-    if not sample and played >= rounds and len(result.outcomes) == result.n * (result.n - 1) // 2:
-        # sorted first, so that the shuffled games depend on the results and the seed, not the play order
-        shuffled = {key: rng.permutation(sorted(seq)) for key, seq in sorted(result.outcomes.items())}
-        return round_robin(result.n, rounds, lambda a, b, r: SCORE[shuffled[f"{a},{b}"][r]], rng), "played"
-    return sample_round_robin(result.wdl, rounds, rng), "sampled"
-
-
-def nash_sensitivity(wdl, resamples: int = RESAMPLES, seed: int = 0) -> dict:
-    """How much the Nash mixture rests on the payoff table's noise: each pair's W/D/L redrawn
-    (multinomial at its observed frequencies and game count) ``resamples`` times, the mixture solved
-    again, and for each competitor how often it carries weight (>= ``CARRIES``) and its mean weight."""
-    wdl = np.asarray(wdl, float)
-    n = wdl.shape[0]
-    rng = np.random.default_rng([seed, 7])
-    carries, weights = np.zeros(n), np.zeros(n)
-    for _ in range(resamples):
-        redrawn = np.zeros_like(wdl)
-        for a in range(n):
-            for b in range(a + 1, n):
-                games = int(wdl[a, b].sum())
-                if games:
-                    redrawn[a, b] = rng.multinomial(games, wdl[a, b] / games)
-                    redrawn[b, a] = redrawn[a, b][::-1]
-        mix = nash(record.payoff(redrawn))
-        carries += mix >= CARRIES
-        weights += mix
-    return {"resamples": resamples, "carries_weight": (carries / resamples).tolist(), "mean_weight": (weights / resamples).tolist(),
-            "threshold": CARRIES}
-
-
-def draw_rates(wdl) -> list:
-    """Each competitor's share of drawn games over all its games (None: it played none)."""
-    wdl = np.asarray(wdl, float)
-    games, draws = wdl.sum((1, 2)), wdl[..., 1].sum(1)
-    return [None if g == 0 else float(d / g) for d, g in zip(draws, games)]
-
-
-def ratings(result: CrossPlay, rounds: int = 2000, k: float = ELO_K, seed: int = 0, sample: bool = False, orders: int = ORDERS,
+def ratings(result: CrossPlay, rounds: int = ROUNDS, k: float = ELO_K, seed: int = 0, sample: bool = False, orders: int = ORDERS,
             resamples: int = RESAMPLES) -> dict:
-    """Ratings of a cross-play: Elo, Bradley-Terry, the Nash mixture and the exploitabilities.
+    """Ratings of a cross-play by every method of ``RATINGS``.
 
     Args:
         result: the cross-play whose counts (and, unless ``sample``, game-by-game outcomes) are rated.
         rounds: Elo rounds, every pair meeting once a round.
         k: Elo's update step.
-        seed: seeds the round order and the sampled results.
+        seed: seeds the round order, the sampled results and the resampled tables.
         sample: draw Elo's games from each pair's frequencies (as the paper did) instead of replaying
             the games that were played.
         orders: further seeded game orders whose final Elo ratings give the spread (mean, 95 %).
         resamples: payoff tables redrawn to show how often each competitor carries Nash weight.
 
     Returns:
-        A JSON-ready dict: ``labels``, ``elo`` (final ratings and the trajectory), ``bradley_terry``
-        (ratings with 95 % profile-likelihood intervals), ``average_win_rate``, ``payoffs``, ``nash`` (the mixture),
-        ``nash_exploitability``, ``exploitability_in_population`` and the cross-play's settings.
+        A JSON-ready dict: ``labels``, each method's keys (``elo``, ``bradley_terry`` and ``draw_rate``,
+        ``average_win_rate``, ``payoffs``, ``nash``, ``nash_sensitivity``, ``nash_exploitability``,
+        ``exploitability_in_population`` for the built-in ones), the cross-play's settings and what the
+        games held.
     """
-    rng = np.random.default_rng(seed)
-    games, how = elo_games(result, rounds, rng, sample)
-    pairs = result.n * (result.n - 1) // 2
-    history = elo_history(games, result.n, k)
-    points = _trajectory_rounds(rounds)
-    bt, lo, hi = bradley_terry_intervals(result.wdl)  # decisive games only: draws are reported beside
-    pay = result.payoffs()
-    mix = nash(pay)
-    spread = elo_orders(result.wdl, rounds, orders, seed, k, outcomes=None if sample else result.outcomes)
+    games = Games(result.labels, result.wdl, result.outcomes, seed,
+                  {"rounds": rounds, "k": k, "sample": sample, "orders": orders, "resamples": resamples})
     return {
         "labels": result.labels,
-        "elo": {"k": k, "start": ELO_START, "rounds": rounds, "games": how, "seed": seed, "ratings": history[-1].tolist(),
-                "trajectory_rounds": [r + 1 for r in points], "trajectory": history[[(r + 1) * pairs for r in points]].tolist(),
-                # the same Elo over `orders` other seeded orders: what the order alone moves it by
-                "orders": orders, "order_mean": spread.mean(0).tolist(), "order_low": np.percentile(spread, 2.5, 0).tolist(),
-                "order_high": np.percentile(spread, 97.5, 0).tolist()},
-        "bradley_terry": {"ratings": bt.tolist(), "low": lo.tolist(), "high": hi.tolist(),
-                           "interval": "95 % Firth-penalised profile likelihood", "draws": "left out (decisive games only)"},
-        "draw_rate": draw_rates(result.wdl),
-        "average_win_rate": _nan_to_none(result.average_win_rate()),
-        "payoffs": pay.tolist(),
-        "nash": mix.tolist(),
-        "nash_sensitivity": nash_sensitivity(result.wdl, resamples, seed),
-        # percentage points of score, 100 x (score - 0.5), score = (wins + draws / 2) / games
-        "nash_exploitability": 50.0 * exploitability(pay, mix),
-        "exploitability_in_population": (50.0 * member_exploitability(pay)).tolist(),
+        **rate(games),
         "crossplay": {k: result.meta.get(k) for k in ("task", "action_space", "games_per_pair", "seed", "scenario", "competitors")},
         # what the games held: per competitor over all its pairs, and per pair from the first one's side
         "content": {"competitors": by_competitor(result.labels, result.content), "pairs": result.content},
     }
 
 
-def _trajectory_rounds(rounds: int, points: int = 200) -> list[int]:
-    return sorted({int(r) for r in np.linspace(0, rounds - 1, min(points, rounds))})
-
-
 def plot(report: dict, path: Path) -> None:
-    """Two panels: Elo over the rounds, and the final Elo beside Bradley-Terry with its interval."""
+    """A panel for each method that has one (Elo's trajectory), then one panel of every method's
+    ratings on the Elo scale side by side (Elo's final and its spread over orders, Bradley-Terry with
+    its interval)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    labels = [clean(lab) for lab in report["labels"]]  # a label from a results file may hold control characters
-    e, bt = report["elo"], report["bradley_terry"]
-    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4))
-    traj = np.asarray(e["trajectory"])
-    for i, lab in enumerate(labels):
-        left.plot(e["trajectory_rounds"], traj[:, i], label=lab)
-    left.set_xlabel("round (every pair meets once)")
-    left.set_ylabel("Elo")
-    left.set_title(f"Elo, K={e['k']:g}, {e['rounds']} rounds of {e['games']} games, seed {e['seed']}", fontsize=9)
-    left.legend(fontsize=8)
-    x = np.arange(len(labels))
-    r, lo, hi = (np.asarray(bt[k]) for k in ("ratings", "low", "high"))
-    right.errorbar(x + 0.1, r, yerr=[r - lo, hi - r], fmt="o", capsize=4, label="Bradley-Terry (95 % profile likelihood)")
-    right.plot(x - 0.1, e["ratings"], "s", label="Elo (final)")
-    if e.get("orders"):  # the order's own spread of Elo: what a reader must not read as a difference in strength
-        m, lo_, hi_ = (np.asarray(e[k]) for k in ("order_mean", "order_low", "order_high"))
-        right.errorbar(x - 0.2, m, yerr=[m - lo_, hi_ - m], fmt="s", mfc="none", capsize=3, label=f"Elo over {e['orders']} orders (95 %)")
-    right.set_xticks(x, labels, rotation=30, ha="right")
+    report = {**report, "labels": [clean(lab) for lab in report["labels"]]}  # a label from a results file may hold control characters
+    panels = [m.panel for m in RATINGS.values() if m.panel is not None]
+    fig, axes = plt.subplots(1, len(panels) + 1, figsize=(5.5 * (len(panels) + 1), 4), squeeze=False)
+    for draw, ax in zip(panels, axes[0], strict=False):
+        draw(report, ax)
+    shared = axes[0][-1]
+    x = np.arange(len(report["labels"]))
+    for method in RATINGS.values():
+        if method.plot is not None:
+            method.plot(report, shared, x)
+    shared.set_xticks(x, report["labels"], rotation=30, ha="right")
     cp = report["crossplay"]
-    right.set_title(f"{cp['task']}: {cp['games_per_pair']} games per pair, cross-play seed {cp['seed']}", fontsize=9)
-    right.legend(fontsize=8)
+    shared.set_title(f"{cp['task']}: {cp['games_per_pair']} games per pair, cross-play seed {cp['seed']}", fontsize=9)
+    shared.legend(fontsize=8)
     fig.tight_layout()
     try:
         write_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=120), "the ratings plot")
@@ -171,39 +92,21 @@ def plot(report: dict, path: Path) -> None:
 
 
 def format_table(report: dict):
+    """The table of ``eval elo``: a row per competitor, each method's columns in ``RATINGS`` order, then
+    what its games held; the title joins each method's part."""
     from rich.table import Table
 
-    e, bt = report["elo"], report["bradley_terry"]
-    orders = e.get("orders")
-    table = Table(
-        title=plain(f"ratings on {report['crossplay']['task']}: Elo K={e['k']:g} over {e['rounds']} rounds ({e['games']} games)"
-        + (f", with its mean [95 %] over {orders} game orders" if orders else "")
-        + "; BT on decisive games with 95 % profile-likelihood intervals; Nash weight (share of resampled tables where it carries weight)")
-    )
-    cols = ("competitor", "Elo", "Elo over orders", "Bradley-Terry [95 %]", "draws", "avg win rate", "Nash weight",
-            "exploitability in population (pp)", "touches/game (opp.)", "rally steps", "serving W/D/L", "receiving W/D/L")
-    for col in cols:
+    parts = [title for title in (m.title(report) for m in RATINGS.values()) if title]
+    table = Table(title=plain(f"ratings on {report['crossplay']['task']}: " + "; ".join(parts)))
+    for col in ("competitor", *(c for m in RATINGS.values() for c in m.columns), *CONTENT_COLUMNS):
         table.add_column(col, justify="left" if col == "competitor" else "right")
     content = report.get("content", {}).get("competitors") or [None] * len(report["labels"])
-    sens = report.get("nash_sensitivity")
-    draws = report.get("draw_rate") or [None] * len(report["labels"])
     for i, lab in enumerate(report["labels"]):
-        avg = report["average_win_rate"][i]
         c = content[i]
-        played = ("-",) * 4 if c is None else (
+        played = ("-",) * len(CONTENT_COLUMNS) if c is None else (
             f"{c['touches']:.2f} ({c['opponent_touches']:.2f})", f"{c['rally_steps']:.0f}",
             "/".join(map(str, c["serve_wdl"])), "/".join(map(str, c["receive_wdl"])))
-        table.add_row(
-            plain(lab),
-            f"{e['ratings'][i]:.0f}",
-            f"{e['order_mean'][i]:.0f} [{e['order_low'][i]:.0f}, {e['order_high'][i]:.0f}]" if orders else "-",
-            f"{bt['ratings'][i]:.0f} [{bt['low'][i]:.0f}, {bt['high'][i]:.0f}]",
-            "-" if draws[i] is None else f"{draws[i]:.2f}",
-            "n/a" if avg is None else f"{avg:.3f}",
-            f"{report['nash'][i]:.3f}" + (f" ({sens['carries_weight'][i]:.2f})" if sens else ""),
-            f"{report['exploitability_in_population'][i]:.1f}",
-            *played,
-        )
+        table.add_row(plain(lab), *(cell for m in RATINGS.values() for cell in m.cells(report, i)), *played)
     return table
 
 
@@ -238,7 +141,7 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
         )
     options = {**{k: v for k, v in OPTIONS.items() if k != "games"}, **ELO_OPTIONS}
     specs, opts, _ = split_args(args, options)
-    rounds = opts.get("rounds", 2000)
+    rounds = opts.get("rounds", ROUNDS)
     if rounds < 1:
         raise ConfigError(f"rounds={rounds} must be >= 1")
     k = opts.get("k", ELO_K)

@@ -15,7 +15,7 @@ which logs ``rollout/ep_rew_mean``: wrap it as ``VecMonitor(VolleySB3VecEnv(...)
 
 PPO. ``ppo_kwargs(num_envs)`` gives SB3's ``PPO`` keywords that suit many worlds (each rollout in 4
 minibatches, Adam's foreach update): with SB3's small default minibatches the gradient updates cost
-more than collecting (docs/integrations.md has the figures of ``benchmarks/sb3_vecenv.py``).
+more than collecting (docs/integrations.md has the figures of ``benchmarks/speed/sb3_vecenv.py``).
 
 Seeds. The worlds share one generator, so ``seed(s)`` (what ``PPO(seed=s)`` calls) seeds all of them
 with ``s`` at the next ``reset()``, as ``VolleyVectorEnv.reset(seed=s)`` does.
@@ -38,7 +38,7 @@ from volleybots.integrations.spaces import STATS_KEY, check_seed
 
 def ppo_kwargs(num_envs: int, n_steps: int = 128, minibatches: int = 4) -> dict[str, Any]:
     """Keywords for SB3's ``PPO`` on ``num_envs`` batched worlds (docs/integrations.md, measured with
-    ``benchmarks/sb3_vecenv.py``): ``n_steps`` per world, each rollout of ``num_envs * n_steps`` split
+    ``benchmarks/speed/sb3_vecenv.py``): ``n_steps`` per world, each rollout of ``num_envs * n_steps`` split
     into ``minibatches`` minibatches (SB3's default 64-sample minibatches, or 256, make the gradient
     updates cost more than collecting), Adam with its foreach update and SB3's own ``eps`` (SB3 drops
     that default when ``optimizer_kwargs`` is given). SB3's other defaults stand (10 epochs, ...)."""

@@ -167,7 +167,7 @@ def checkpoint_member(path, label: str | None = None) -> Member:
     if "builtin" in state:
         if state["builtin"] not in PLAYERS:
             raise ConfigError(f"{str(path)!r} names an unknown built-in player {state['builtin']!r}; allowed: {', '.join(BUILTIN)}")
-        m = builtin_member(state["builtin"], state.get("drills"))
+        m = builtin_member(state["builtin"], member_files(path, state.get("drills")))
         m.label = label or m.label
         return m
     cfg = saved_config(state, f"checkpoint {str(path)!r}")
@@ -180,6 +180,24 @@ def checkpoint_member(path, label: str | None = None) -> Member:
     source = {"kind": "checkpoint", "path": str(path), "sha256": sha256(path), "frames": int(state["frames"]), "algo": method}
     label = label or f"{method}@{int(state['frames'])}"
     return Member(label, make, source, cfg.task.name, cfg.env.action_space, int(state["obs_dim"]))
+
+
+def member_files(path: Path, drills) -> dict | None:
+    """A hierarchical member's files (drill -> checkpoint, ``high_level``) with the paths a population
+    run writes relative to the member's own folder made whole; a file it names that is not there is one
+    ``ConfigError`` line (a member is played whole or not at all)."""
+    if drills is None:
+        return None
+    if not isinstance(drills, dict) or not all(isinstance(k, str) and isinstance(v, str) and v for k, v in drills.items()):
+        raise ConfigError(f"{str(path)!r}: its 'drills' are not a mapping of drill names to files")
+    out = {}
+    for name, target in drills.items():
+        full = Path(target) if Path(target).is_absolute() else path.parent / target
+        if not full.exists():
+            raise ConfigError(f"{str(path)!r} names its {name} file {str(full)!r}, which does not exist: the member cannot play "
+                              "without every file it names")
+        out[name] = str(full)
+    return out
 
 
 def read_meta(run_path: Path) -> list[list[float]]:

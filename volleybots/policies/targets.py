@@ -15,7 +15,7 @@ from volleybots.algos.population import CLONE, method_name
 from volleybots.errors import ConfigError
 from volleybots.policies.builtin import BUILTIN, PLAYERS
 from volleybots.policies.store import load_learner, parse_spec, policy_checkpoint
-from volleybots.runs import read_checkpoint, refuse_interpolation
+from volleybots.runs import RunDir, is_population_run, read_checkpoint, refuse_interpolation
 
 # keys of a checkpoint's config that evaluation may change; the rest fix what the policy was trained on.
 # The episode limit and Solo Bump's start curriculum are in no observation, so a run trained on short
@@ -34,7 +34,7 @@ class Target:
 
 def resolve_target(target: str, overrides=()) -> Target:
     """Turn an eval/replay target and its overrides into a config and a policy factory."""
-    from volleybots.config import apply_overrides, load
+    from volleybots.config import load
 
     s = parse_spec(target, what="target")
     if s.label:
@@ -44,10 +44,16 @@ def resolve_target(target: str, overrides=()) -> Target:
         return Target(s.target, cfg, None, PLAYERS[s.target].both)
     if s.kind == "drills":
         raise ConfigError(f"target {target!r} is a hierarchical team file: it plays a match (eval crossplay, replay A B)")
+    if s.kind == "run" and is_population_run(s.path):
+        return population_target(s.path, overrides)
     ckpt = policy_checkpoint(target, "target")
     state = read_checkpoint(ckpt)
     if "algo" not in state:
+        if state.get("builtin") == "hierarchical":  # a hierarchical population member: the team on both sides
+            return both_sides(str(ckpt), RunDir(Path(ckpt).parent.parent).load_config(), overrides, f"member {str(ckpt)!r}")
         raise ConfigError(f"{str(ckpt)!r} is a built-in player ({state.get('builtin')}): evaluate it by name")
+    from volleybots.config import apply_overrides
+
     refuse_interpolation(state.get("config") or {}, f"checkpoint {str(ckpt)!r}")
     cfg = apply_overrides(state["config"], overrides, EVAL_KEYS, f"checkpoint {str(ckpt)!r}")
 
@@ -57,6 +63,33 @@ def resolve_target(target: str, overrides=()) -> Target:
         return algo.policy(deterministic=cfg.deterministic)
 
     return Target(f"{method_name(cfg)}@{int(state['frames'])}", cfg, Path(ckpt), make_policy)
+
+
+def population_target(path: Path, overrides=()) -> Target:
+    """A population run as a target: its final meta-strategy on both teams (a member drawn per team and
+    episode), as ``eval crossplay RUN`` plays it; a member file (``RUN/population/member_<k>.pt``) names one."""
+    return both_sides(str(path), RunDir(path).load_config(), overrides, f"run {str(path)!r}")
+
+
+def both_sides(spec: str, saved, overrides, what: str) -> Target:
+    """The competitor ``spec`` playing both teams of the match config ``saved`` (with eval ``overrides``)."""
+    import torch
+
+    from volleybots.config import apply_overrides, to_dict
+    from volleybots.policies.competitors import resolve_competitor
+    from volleybots.tasks.multi import TeamPolicies
+
+    comp = resolve_competitor(spec)
+    data = saved if isinstance(saved, dict) else to_dict(saved)
+    cfg = apply_overrides(data, overrides, EVAL_KEYS, what)
+    parts = [f"{m.label} {w:.2f}" for m, w in zip(comp.members, comp.mixture) if w > 0]
+    label = comp.label if len(comp.members) == 1 else f"{comp.label} (mixture: {', '.join(parts)})"
+
+    def make_policy(env):
+        gen = torch.Generator().manual_seed(int(cfg.seed))
+        return TeamPolicies(env, tuple(comp.team_policy(env, bool(cfg.deterministic), gen) for _ in range(2)))
+
+    return Target(label, cfg, None, make_policy)
 
 
 def check_references(cfg) -> None:

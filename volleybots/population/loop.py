@@ -43,6 +43,7 @@ from volleybots.policies import BUILTIN, Competitor, checkpoint_member, member_p
 from volleybots.population.clone import CLONE, clone_member, make_clone, needs_clone
 from volleybots.population.convergence import Convergence
 from volleybots.population.final import evaluate_mixture, log_final_eval
+from volleybots.population.hierarchical import fixed_mixture, seed_member, train_member
 from volleybots.population.oracle import Oracle
 from volleybots.ratings.payoffs import PayoffTable, payoff_reserve, plot
 from volleybots.ratings.solvers import SOLVERS
@@ -71,6 +72,7 @@ class PopulationLoop:
         self.payoffs_path = self.dir / "payoffs.json"
         self.wandb = None
         self.dropped: dict | None = None  # the oracle the budget cut before min_updates, if one was
+        self.hierarchical = self.m.get("members", "flat") == "hierarchical"  # saved configs before population.members: flat
 
     # ---------------------------------------------------------------------------- disk state
     def metas(self) -> list[dict]:
@@ -116,7 +118,8 @@ class PopulationLoop:
             k = len(seeds) + i - 1
             # the new member's payoff games must end by the time limit too, so its oracle stops that much earlier
             out_of_time = self.cfg.time_limit and wall() + self._reserve(k) >= self.cfg.time_limit
-            if i > self.m.iterations or frames >= self.cfg.total_frames or out_of_time or self._planned(i, frames) < i:
+            spent = frames >= self.cfg.total_frames and not self.hierarchical  # a hierarchical run's budget is its games
+            if i > self.m.iterations or spent or out_of_time or self._planned(i, frames) < i:
                 break
             if not member_path(self.run.path, k).is_file():
                 with self._timed("oracle_training"):
@@ -150,7 +153,9 @@ class PopulationLoop:
                 clone_member(self.clone, path)
                 continue
             src = single_policy(spec, "population.seed_members entry").members[0].source
-            if src["kind"] in BUILTIN:  # a record naming it (a hierarchical team also its drills' checkpoints)
+            if src["kind"] == "hierarchical" and self.hierarchical:  # its files copied: the run dir holds its members
+                self._save_member(k, seed_member(self.run.path, spec, k))
+            elif src["kind"] in BUILTIN:  # a record naming it (a hierarchical team also its drills' checkpoints)
                 record = {"format": CKPT_FORMAT, "builtin": src["kind"], "label": src["kind"], "frames": 0}
                 if src.get("drills"):
                     record["drills"] = dict(src["drills"])
@@ -216,7 +221,7 @@ class PopulationLoop:
         iteration ``i`` about to start with ``frames`` spent: every oracle may take ``max_updates``
         batches, and one that the frames left cannot give ``min_updates`` is not started (the
         criterion could not judge it, so it would not join). Self-play: its one iteration."""
-        if self.m.self_play:
+        if self.m.self_play or self.hierarchical:
             return self.m.iterations
         per_batch = self.cfg.env.num_envs * self.cfg.algo.steps_per_batch
         full, rest = divmod(max(self.cfg.total_frames - frames, 0), self.m.max_updates * per_batch)
@@ -229,13 +234,20 @@ class PopulationLoop:
     def _oracle(self, i: int, k: int, frames: int, updates: int, wall: float) -> float:
         """Train iteration ``i``'s learner (resuming its checkpoint if one exists) as member ``k``, early
         enough for its payoff games to end by the time limit; returns its periodic evaluations' seconds."""
-        cfg, m = self._iteration_cfg(i, frames, self._reserve(k)), self.m
+        m = self.m
+        opponent = None if m.self_play else fixed_mixture(self._population(self.metas()[-1]["mixture"]), m.fixed_opponents, m.fixed_share)
+        if self.hierarchical:  # the oracle trains a high level over the run's drills (population/hierarchical.py)
+            left = self.cfg.time_limit - self._reserve(k) - wall if self.cfg.time_limit else float("inf")
+            seed = self.cfg.seed + i * ITERATION_SEED
+            self._save_member(k, train_member(self.cfg, self.run.path, self.run.metrics_path, i, k, opponent, frames, left, seed))
+            return 0.0
+        cfg = self._iteration_cfg(i, frames, self._reserve(k))
         yardstick = resolve_competitor(m.eval_opponent)
         if m.self_play:
             seat = SelfPlay(yardstick)
             stop = None
         else:
-            seat = Versus(self._population(self.metas()[-1]["mixture"]), m.opponent_deterministic, cfg.seed, yardstick)
+            seat = Versus(opponent, m.opponent_deterministic, cfg.seed, yardstick)
             stop = Convergence(m.min_updates, m.max_updates, m.win_window, m.win_mean, m.win_std)
         extra = lambda: {"population": {"iteration": i, "oracle": stop.state_dict() if stop else None}}  # noqa: E731
         ckpt = self._checkpoint_of(i)

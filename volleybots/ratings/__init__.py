@@ -12,6 +12,8 @@ Small pure functions over numpy arrays, usable without the CLI or the env:
   with penalised profile-likelihood intervals, honest on unbeaten records (``bradley_terry``);
 * ``payoffs.PayoffTable``: a population's W/D/L counts per ordered pair and its zero-sum payoff matrix;
 * ``solvers.SOLVERS``: the meta-solvers (uniform, Nash by linear programming, last) over such a matrix.
+* ``methods.RATINGS``: the rating methods of ``eval elo`` (Elo, Bradley-Terry, average win rate, Nash),
+  each with its table columns and what it draws.
 
 Game results come in one layout everywhere (``record``): a count array whose last axis is the wins,
 draws and losses, ``wdl`` [n, n, 3] for the row competitor against the column one (so

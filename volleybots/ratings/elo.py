@@ -13,7 +13,7 @@ from typing import Callable, Iterable
 
 import numpy as np
 
-from volleybots.ratings.record import SCORES
+from volleybots.ratings.record import OUTCOMES, SCORES
 
 ELO_START = 1000.0
 ELO_K = 168.0  # the paper's K for its 4 policies; a parameter everywhere
@@ -120,6 +120,31 @@ def sample_round_robin(wdl, rounds: int, rng: np.random.Generator) -> np.ndarray
         return scores[rng.choice(3, p=p)]
 
     return round_robin(n, rounds, play, rng)
+
+
+def elo_games(wdl, outcomes, rounds: int, rng: np.random.Generator, sample: bool = False) -> tuple[np.ndarray, str]:
+    """The round-robin games [rounds x pairs, 3] for Elo and how they were obtained ("played" or "sampled").
+
+    When every pair played at least ``rounds`` games (``outcomes``: "a,b" -> a string of W/D/L letters
+    from a's side) and ``sample`` is off, round r is every pair's r-th game after a seeded shuffle of
+    that pair's games; otherwise each round's results are drawn from the pairs' W/D/L frequencies, as
+    the paper sampled them.
+
+    Why the shuffle: a cross-play plays each pair in batches, half its games with one competitor on team
+    0 and then half on team 1, and records them in that order. Sequential Elo weighs the latest games
+    most (with K = 168 a rating forgets within a few dozen games), so in play order the last side's batch
+    would decide the rating, and a side advantage would pass for a difference in strength. The games of
+    a pair are put in a canonical order (sorted) and then permuted by the seeded generator, so the games
+    used depend on the pair's results and the seed only, never on the order in which they were played.
+    """
+    n = np.asarray(wdl).shape[0]
+    outcomes = outcomes or {}
+    played = min((len(s) for s in outcomes.values()), default=0)
+    if not sample and played >= rounds and len(outcomes) == n * (n - 1) // 2:
+        score = dict(zip(OUTCOMES, SCORES, strict=True))
+        shuffled = {key: rng.permutation(sorted(seq)) for key, seq in sorted(outcomes.items())}
+        return round_robin(n, rounds, lambda a, b, r: score[shuffled[f"{a},{b}"][r]], rng), "played"
+    return sample_round_robin(wdl, rounds, rng), "sampled"
 
 
 def elo_orders(wdl, rounds: int, orders: int, seed: int, k: float = ELO_K, start: float = ELO_START, outcomes=None) -> np.ndarray:

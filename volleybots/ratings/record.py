@@ -49,6 +49,22 @@ def win_rate_interval(wdl, confidence: float = 0.95):
     return wilson_interval(wdl[..., 0], decisive(wdl), confidence)
 
 
+def average_win_rate(wdl) -> np.ndarray:
+    """[n]: each competitor's mean win rate against the others of a table [n, n, 3] (pairs without a
+    decisive game left out; nan where it has none)."""
+    wr = win_rate(wdl).astype(float)
+    np.fill_diagonal(wr, np.nan)
+    with np.errstate(invalid="ignore"):
+        return np.array([np.nanmean(r) if np.isfinite(r).any() else np.nan for r in wr])
+
+
+def draw_rate(wdl) -> list:
+    """Each competitor's share of drawn games over all its games in a table [n, n, 3] (None: it played none)."""
+    wdl = np.asarray(wdl, float)
+    played, draws = wdl.sum((1, 2)), wdl[..., 1].sum(1)
+    return [None if g == 0 else float(d / g) for d, g in zip(draws, played, strict=True)]
+
+
 def points(wdl) -> np.ndarray:
     """Games' scores summed: wins + draws / 2."""
     return np.asarray(wdl, float) @ np.array(SCORES)

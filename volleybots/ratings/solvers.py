@@ -29,6 +29,9 @@ from typing import Callable
 import numpy as np
 import scipy  # scipy.optimize loads on first use (volleybots.ratings.bradley_terry says why)
 
+from volleybots.ratings import record
+
+CARRIES = 0.01  # a member "carries weight" in a mixture where its weight is at least this
 ALPHARANK_ALPHA = 10.0  # selection intensity: large alpha ranks by who beats whom, not by how much
 ALPHARANK_POP = 50  # the population size m of alpha-rank's Moran process
 NASH_TOL = 1e-10  # a mixture guaranteeing the game value up to this counts as maximin (LP round-off)
@@ -164,6 +167,29 @@ SOLVERS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
 }
 
 
+def nash_sensitivity(wdl, resamples: int, seed: int = 0) -> dict:
+    """How much the Nash mixture rests on the payoff table's noise: each pair's W/D/L of ``wdl`` [n, n, 3]
+    redrawn (multinomial at its observed frequencies and game count) ``resamples`` times, the mixture
+    solved again, and for each competitor how often it carries weight (>= ``CARRIES``) and its mean weight."""
+    wdl = np.asarray(wdl, float)
+    n = wdl.shape[0]
+    rng = np.random.default_rng([seed, 7])
+    carries, weights = np.zeros(n), np.zeros(n)
+    for _ in range(resamples):
+        redrawn = np.zeros_like(wdl)
+        for a in range(n):
+            for b in range(a + 1, n):
+                games = int(wdl[a, b].sum())
+                if games:
+                    redrawn[a, b] = rng.multinomial(games, wdl[a, b] / games)
+                    redrawn[b, a] = redrawn[a, b][::-1]
+        mix = nash(record.payoff(redrawn))
+        carries += mix >= CARRIES
+        weights += mix
+    return {"resamples": resamples, "carries_weight": (carries / resamples).tolist(), "mean_weight": (weights / resamples).tolist(),
+            "threshold": CARRIES}
+
+
 def exploitability(payoffs, mixture) -> float:
     """What the best pure member gains against ``mixture`` over the mixture itself:
     max_i (A sigma)_i - sigma^T A sigma (0 for a Nash mixture of a symmetric zero-sum game)."""
@@ -185,4 +211,5 @@ def member_exploitability(payoffs) -> np.ndarray:
     return a.max(0) - np.diag(a)
 
 
-__all__ = ["SOLVERS", "alpharank", "exploitability", "last", "max_entropy", "member_exploitability", "nash", "nash_with_value", "uniform"]
+__all__ = ["SOLVERS", "alpharank", "exploitability", "last", "max_entropy", "member_exploitability", "nash", "nash_sensitivity",
+           "nash_with_value", "uniform"]

@@ -95,7 +95,8 @@ class Outcome:
 
 
 class Referee:
-    FAULTS = ("cross", "net_drone", "wrong_turn", "body_hit", "too_soon", "ball_out", "ball_net", "landed")
+    # "fell": a drone below the crash height, a fault only where the match says so (task.fall_fault)
+    FAULTS = ("cross", "net_drone", "wrong_turn", "body_hit", "too_soon", "ball_out", "ball_net", "landed", "fell")
 
     def __init__(self, cfg: RefereeConfig, num_envs: int, team: list[int] | torch.Tensor, device="cpu"):
         self.cfg = cfg

@@ -64,13 +64,19 @@ class _Match(MultiDroneTask):
     extra_stats = ("loss", "draw", "winner", "reason", "hits_team0", "hits_team1", "serve_team")
     default_hit_reward: float = 10.0  # the paper's success_hit per legal touch (1 vs 1: 5)
 
-    def __init__(self, *args, serve: int | None = None, hit_reward: float | None = None, **kw):
-        """``hit_reward``: the shaping reward of a legal touch (None: the paper's, ``default_hit_reward``).
+    def __init__(self, *args, serve: int | None = None, hit_reward: float | None = None, fall_fault: bool = False, **kw):
+        """``fall_fault``: a drone falling below the crash height is a fault of its team (the volleyball
+        rule), where the paper's rule (the default) ends the match with no winner, so that a team about to
+        lose a rally could save it by flying into the floor.
+        ``hit_reward``: the shaping reward of a legal touch (None: the paper's, ``default_hit_reward``).
         A win is worth 100, so at the paper's 5 a 1 vs 1 self-play learner is paid for a serve that ends
         the point, not for keeping a rally going (docs/results/table3-1v1.md); a larger value pays returns."""
         if serve not in (None, 0, 1):
             raise ValueError(f"serve must be None (random), 0 or 1; got {serve!r}")
         self.fixed_serve = serve
+        if not isinstance(fall_fault, bool):
+            raise ValueError(f"fall_fault must be true or false; got {fall_fault!r}")
+        self.fall_fault = fall_fault
         self.hit_reward = self.default_hit_reward if hit_reward is None else float(hit_reward)
         super().__init__(*args, **kw)
         n, a = self.num_envs, self.n_drones
@@ -144,9 +150,13 @@ class _Match(MultiDroneTask):
         fault = fault | (one_hot(self.serve_team, 2).bool() & unclaimed.unsqueeze(1))
         ball_fault = torch.where(ev.ball_out, Referee.FAULTS.index("ball_out"), Referee.FAULTS.index("ball_net"))
         reason = torch.where(unclaimed, ball_fault, reason)
+        crash = ev.drone_low
+        if self.fall_fault:  # a fall is its team's fault; both teams falling (or faulting) in one step is a draw
+            fell = torch.stack([crash[:, self.team_ids == t].any(1) for t in (0, 1)], 1)
+            reason = torch.where(fell.any(1) & ~fault.any(1), Referee.FAULTS.index("fell"), reason)
+            fault = fault | fell
         ended = fault.any(1)
         draw_fault = fault.all(1)
-        crash = ev.drone_low
         collide = self.teammates_too_close()
         stop = crash.any(1) | collide.any(1)
         decided = ended & ~draw_fault

@@ -118,18 +118,23 @@ def update(net: HighLevelNet, opt, chooser: LearnedChooser, results: torch.Tenso
             **{f"choices_{k}": int(len(v[0])) for k, v in by_kind.items()}}
 
 
-def train_high_level(match_cfg, drills: dict | None, opponent: str, cfg: HighLevelConfig, log=None) -> tuple[HighLevelNet, list[dict]]:
-    """A high level trained against ``opponent`` (a competitor spec) over the ``drills`` (drill ->
-    checkpoint; the others scripted) on the 3 vs 3 match config ``match_cfg``; the per-batch history
-    (results, choices, the share of each option) goes to ``log`` as it is made."""
+def train_high_level(match_cfg, drills: dict | None, opponent, cfg: HighLevelConfig, log=None,
+                      start: HighLevelNet | None = None) -> tuple[HighLevelNet, list[dict]]:
+    """A high level trained against ``opponent`` (a competitor spec, or a ``Competitor``: a population's
+    mixture draws one member per world and game) over the ``drills`` (drill -> checkpoint; the others
+    scripted) on the 3 vs 3 match config ``match_cfg``, from ``start``'s weights if given (else near
+    uniform); the per-batch history (results, choices, the share of each option) goes to ``log`` as it
+    is made."""
     cfg.check()
     if match_cfg.task.name != "3v3":
         raise ConfigError(f"a high level plays task 3v3, not {match_cfg.task.name!r}")
     torch.manual_seed(cfg.seed)
     gen = torch.Generator().manual_seed(cfg.seed)
-    net = HighLevelNet(cfg.hidden)
+    net = HighLevelNet(start.hidden if start is not None else cfg.hidden)
+    if start is not None:
+        net.load_state_dict(start.state_dict())
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
-    comp = resolve_competitor(opponent)
+    comp = resolve_competitor(opponent) if isinstance(opponent, str) else opponent
     envs, teams, opps = [], [], []
     chooser = LearnedChooser(net, greedy=False, generator=gen, record=True, receive_coming=cfg.receive_coming,
                              receive_attack=cfg.receive_attack)
@@ -143,7 +148,7 @@ def train_high_level(match_cfg, drills: dict | None, opponent: str, cfg: HighLev
     while played < cfg.games:
         side = (played // cfg.batch) % 2
         results, stats = play_batch(envs[side], teams[side], opps[side], chooser, side)
-        row = {"games": played + cfg.batch, "side": side, "won": int((results > 0).sum()), "drawn": int((results == 0).sum()),
+        row = {"games": played + cfg.batch, "side": side, "frames": int(stats["episode_len"].sum()), "won": int((results > 0).sum()), "drawn": int((results == 0).sum()),
                "lost": int((results < 0).sum()), "touches": float(stats[f"hits_team{side}"].mean()),
                "wall_s": round(time.monotonic() - start, 1), **update(net, opt, chooser, results, cfg)}
         for kind, n in CHOICES.items():

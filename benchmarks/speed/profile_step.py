@@ -1,6 +1,6 @@
 """Where the time of one compiled env step goes (docs/performance.md "Profile").
 
-    python benchmarks/profile_step.py --task 3v3 --num-envs 4096
+    python benchmarks/speed/profile_step.py --task 3v3 --num-envs 4096
 
 Times, in CPU ms per call of this process (one torch thread; robust to a shared machine, unlike wall
 time), the compiled pieces of a step at the same shapes: the physics alone (one control step, the

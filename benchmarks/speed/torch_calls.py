@@ -1,7 +1,7 @@
 """What a small eager batch costs: torch calls per physics sub-step, env step and scripted step.
 
-    python benchmarks/torch_calls.py                 # 32 envs, the default tasks
-    python benchmarks/torch_calls.py --num-envs 8 --scripted bump_and_pass,set_and_spike_easy
+    python benchmarks/speed/torch_calls.py                 # 32 envs, the default tasks
+    python benchmarks/speed/torch_calls.py --num-envs 8 --scripted bump_and_pass,set_and_spike_easy
 
 At the tests' and the lookahead's batch sizes an eager step is bound by the number of torch calls,
 not by the arithmetic, so the counts here (from ``torch.profiler``: every aten call, nested ones

@@ -32,6 +32,7 @@ def test_the_zoo_ships_entries_with_cards():
         assert e.card["frames_with_start"] == e.card["frames"] + start.card["frames"], name
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 @pytest.mark.parametrize("name", ZOO)
 def test_every_zoo_entry_loads_weights_only_fits_its_task_and_beats_random(name):
     from volleybots.eval.crossplay import crossplay, match_config, resolve_all

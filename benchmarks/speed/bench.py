@@ -1,8 +1,8 @@
 """Env throughput benchmark: env-steps/s with random actions per task, backend, env count and device.
 
-    python benchmarks/bench.py                                   # solo_bump, torch + mujoco, 1/256/4096 envs
-    python benchmarks/bench.py --tasks solo_bump,3v3 --num-envs 4096 --compile --json out.json
-    python benchmarks/bench.py --tasks solo_bump,3v3 --num-envs 4096 --both --train   # + PPO / MAPPO frames/s
+    python benchmarks/speed/bench.py                                   # solo_bump, torch + mujoco, 1/256/4096 envs
+    python benchmarks/speed/bench.py --tasks solo_bump,3v3 --num-envs 4096 --compile --json out.json
+    python benchmarks/speed/bench.py --tasks solo_bump,3v3 --num-envs 4096 --both --train   # + PPO / MAPPO frames/s
 
 Prints a Markdown table (docs/performance.md holds the measured one); ``--json`` also writes the rows.
 """

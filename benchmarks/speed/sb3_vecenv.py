@@ -16,8 +16,8 @@ Three rates on one task and world count, each the median of ``--repeats``:
 Each rate is given per second of wall time and per second of the process's CPU time (one torch
 thread): on a shared machine the second is the steadier, the three are measured in turn each repeat.
 
-    OMP_NUM_THREADS=1 python benchmarks/sb3_vecenv.py                     # solo_bump, 64 worlds
-    OMP_NUM_THREADS=1 python benchmarks/sb3_vecenv.py --num-envs 256 --dummy 8 --json out.json
+    OMP_NUM_THREADS=1 python benchmarks/speed/sb3_vecenv.py                     # solo_bump, 64 worlds
+    OMP_NUM_THREADS=1 python benchmarks/speed/sb3_vecenv.py --num-envs 256 --dummy 8 --json out.json
 
 Needs ``pip install 'volleybots[sb3]'``. Quote the machine load (``uptime``) beside the figures.
 """

@@ -2,7 +2,7 @@
 member files, every row timed as the population loop plays it now (``volleybots.play.pool.payoff_row``),
 then the last row again pair by pair (``play_games``), as the loop played it before.
 
-    python benchmarks/payoff_rows.py RUN [--games 100] [--out payoff_rows.json]
+    python benchmarks/speed/payoff_rows.py RUN [--games 100] [--out payoff_rows.json]
 
 Prints and writes each row's seconds with the load average at its start. One torch thread.
 """
@@ -16,7 +16,7 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 

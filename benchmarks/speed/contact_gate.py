@@ -1,8 +1,8 @@
 """What skipping the contact tests saves: eager env steps with ``physics.torch_backend.may_touch`` as it is
 and with it answering "yes" every time (every sub-step runs the contact tests, as before the gate).
 
-    python benchmarks/contact_gate.py                      # 32 envs, random actions, five tasks
-    python benchmarks/contact_gate.py --num-envs 256 --tasks hover,1v1
+    python benchmarks/speed/contact_gate.py                      # 32 envs, random actions, five tasks
+    python benchmarks/speed/contact_gate.py --num-envs 256 --tasks hover,1v1
 
 Both ways give the same numbers (tests/physics/test_physics.py); only the time differs. The two ways take
 turns within one process, so the machine's load falls on both alike; each figure is the mean of the

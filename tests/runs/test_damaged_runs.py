@@ -59,6 +59,7 @@ POP_DAMAGE = {
 }
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 @pytest.mark.parametrize("case", list(RUN_DAMAGE))
 def test_a_damaged_run_is_refused_by_every_verb(case, tiny_1v1_run, copy_run, tmp_path):
     run = copy_run(tiny_1v1_run)
@@ -71,6 +72,7 @@ def test_a_damaged_run_is_refused_by_every_verb(case, tiny_1v1_run, copy_run, tm
     assert not out.exists() and not list(run.glob("replay_*"))
 
 
+@pytest.mark.slow  # not slow by nature, but measured too long for the quick tier
 @pytest.mark.parametrize("case", list(POP_DAMAGE))
 def test_a_damaged_population_is_refused_and_its_resume_writes_nothing(case, tiny_population, copy_run, tmp_path):
     run = copy_run(tiny_population)

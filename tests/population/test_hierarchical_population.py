@@ -1,0 +1,119 @@
+"""Hierarchical members of a population (population.members=hierarchical): drills under a learned high level,
+each oracle a high level trained against the meta-solver's mixture; kill and resume; every verb plays it."""
+
+import json
+
+import pytest
+import torch
+
+from helpers import one_line_exit_2, run_cli
+from volleybots.config import ConfigError, load
+from volleybots.policies import resolve_competitor
+from volleybots.population import hierarchical
+from volleybots.population.run import resume, start
+
+TINY = [
+    "task=3v3", "algo.high_level_games=32", "algo.high_level_batch=16", "algo.payoff_games=4", "evaluation.episodes=2",
+    "evaluation.record=false", "progress=false", "threads=1",
+]
+
+
+def tiny(*more, algo="psro_nash"):
+    return load([*TINY, f"algo={algo}", *more])
+
+
+def _members(run):
+    return json.loads((run / "population" / "payoffs.json").read_text())["members"]
+
+
+def test_members_auto_is_hierarchical_on_3v3_only_and_refused_where_it_cannot_play():
+    cfg = load(["task=3v3", "algo=psro_nash"])
+    pop = cfg.population
+    assert pop.members == "hierarchical" and pop.seed_members == ["zoo:3v3/hcsp_return"] and pop.learner_init == "last"
+    assert load(["task=1v1", "algo=psro_nash"]).population.members == "flat"
+    assert load(["task=3v3", "algo=sp"]).population.members == "flat"  # one learner on both teams is a flat policy
+    assert load(["task=3v3", "algo=psro_nash", "algo.members=flat"]).population.learner_init == "bc"  # the paper's table 3, one key away
+    with pytest.raises(ConfigError, match="population.members=hierarchical plays task 3v3, not '1v1'"):
+        load(["task=1v1", "algo=psro_nash", "algo.members=hierarchical"])
+    with pytest.raises(ConfigError, match="unknown population.members 'tree'; allowed: auto, flat, hierarchical"):
+        load(["task=3v3", "algo=psro_nash", "algo.members=tree"])
+    with pytest.raises(ConfigError, match="population.fixed_share=0.5 needs population.fixed_opponents"):
+        load(["task=3v3", "algo=psro_nash", "algo.fixed_share=0.5"])
+
+
+def test_the_oracle_trains_against_the_meta_solvers_mixture_and_the_fixed_opponents_beside_it(tmp_path, monkeypatch):
+    seen = []
+    real = hierarchical.train_high_level
+
+    def spy(match, drills, opponent, hc, log=None, start=None):
+        seen.append(([m.label for m in opponent.members], [float(w) for w in opponent.mixture], bool(match.task.fall_fault),
+                     start is not None))
+        return real(match, drills, opponent, hc, log, start=start)
+
+    monkeypatch.setattr(hierarchical, "train_high_level", spy)
+    cfg = tiny("algo.iterations=2", "algo.seed_members=[zoo:3v3/hcsp_return,hierarchical]", "algo.fixed_opponents=[random]",
+               "algo.fixed_share=0.25")
+    start(cfg, tmp_path / "run")
+    metas = [json.loads(line) for line in (tmp_path / "run" / "population" / "meta.jsonl").read_text().splitlines()]
+    for (labels, weights, fall, warm), meta in zip(seen, metas):
+        # the population's members with positive weight, scaled by 1 - fixed_share, then the fixed one
+        kept = [w for w in meta["mixture"] if w > 0]
+        assert labels[-1] == "random" and len(labels) == len(kept) + 1
+        assert weights[:-1] == pytest.approx([0.75 * w / sum(kept) for w in kept]) and weights[-1] == pytest.approx(0.25)
+        assert fall and warm  # trained under the volleyball rule, from the newest high level (learner_init=last)
+    assert len(seen) == 2 and _members(tmp_path / "run") == ["zoo:3v3/hcsp_return", "hierarchical", "br1", "br2"]
+
+
+def test_a_tiny_hierarchical_population_saves_resumes_bit_for_bit_and_plays_in_every_verb(tmp_path):
+    whole = start(tiny("algo.iterations=2"), tmp_path / "whole")
+    assert whole["population"]["members"] == ["zoo:3v3/hcsp_return", "br1", "br2"]
+    start(tiny("algo.iterations=1"), tmp_path / "cut")  # a run stopped after its first oracle ...
+    resume(tmp_path / "cut", ["algo.iterations=2"])  # ... and given its second
+    pop_w, pop_c = tmp_path / "whole" / "population", tmp_path / "cut" / "population"
+    for k in range(3):  # every member and high level the same, weight for weight
+        a, b = (torch.load(p / f"member_{k:03d}.pt", weights_only=True) for p in (pop_w, pop_c))
+        assert a == b and a["builtin"] == "hierarchical" and not any(v.startswith("/") for v in a["drills"].values())
+        ha, hb = (torch.load(p / f"high_level_{k:03d}.pt", weights_only=True)["state_dict"] for p in (pop_w, pop_c))
+        assert ha.keys() == hb.keys() and all(torch.equal(ha[n], hb[n]) for n in ha)
+    mix = [json.loads(line)["mixture"] for line in (pop_c / "meta.jsonl").read_text().splitlines()][-1]
+    assert mix == whole["population"]["mixture"]
+    # the seed member's high level is the zoo team's own, copied into the run
+    zoo_high = resolve_competitor("zoo:3v3/hcsp_return").members[0].source["drills"]["high_level"]
+    assert (pop_w / "high_level_000.pt").read_bytes() == open(zoo_high, "rb").read()
+    # the run is one competitor (its mixture) in cross-play, and eval RUN plays the same mixture and says so
+    res = run_cli("eval", "crossplay", f"run={tmp_path / 'whole'}", "random", "task=3v3", "games=2", "seed=4",
+                  "--out", tmp_path / "cp")
+    assert res.returncode == 0, res.stderr
+    res = run_cli("eval", tmp_path / "whole", "episodes=2", "--json")
+    assert res.returncode == 0, res.stderr
+    assert "mixture" in json.loads(res.stdout)["target"]
+
+
+def test_a_member_whose_drill_is_missing_is_one_line(tmp_path):
+    from typer.testing import CliRunner
+
+    from volleybots.cli import app
+
+    start(tiny("algo.iterations=1"), tmp_path / "run")
+    attack = next((tmp_path / "run" / "population" / "drills").glob("attack-*.pt"))
+    attack.unlink()
+    res = CliRunner().invoke(app, ["eval", "crossplay", str(tmp_path / "run"), "random", "task=3v3", "games=2",
+                                   "--out", str(tmp_path / "cp")])
+    one_line_exit_2(res, "attack", "does not exist")
+    assert not (tmp_path / "cp").exists()
+
+
+def test_a_fall_is_its_teams_fault_under_the_volleyball_rule_and_a_draw_under_the_papers():
+    from volleybots.config import load as load_cfg
+    from volleybots.play.games import play_games
+
+    outcomes = {}
+    for rule in (False, True):
+        cfg = load_cfg(["task=3v3", f"task.fall_fault={str(rule).lower()}"])
+        g = play_games(cfg, resolve_competitor("scripted"), resolve_competitor("random"), 8, seed=3)
+        c = g.content()
+        outcomes[rule] = (g.total.tolist(), c["faults"]["B"].get("fell", 0))
+    (w0, d0, l0), fell0 = outcomes[False]
+    (w1, d1, l1), fell1 = outcomes[True]
+    assert fell0 == 0 and d0 > 0  # the paper's rule: random's falls end its games drawn
+    assert fell1 >= d0 and d1 < d0 and w1 == w0 + (d0 - d1)  # the same games: each fall now loses random the rally
