@@ -31,7 +31,8 @@ def test_a_saved_population_config_of_before_algo_learner_loads_as_mappo(path):
     assert learner_class(cfg.algo) is MAPPO
     # the values saved are the values loaded (the loop's now under population): nothing the run did is
     # re-read from today's defaults
-    assert {**OmegaConf.to_container(cfg.algo), **OmegaConf.to_container(cfg.population)} == data["algo"]
+    loaded = {**OmegaConf.to_container(cfg.algo), **OmegaConf.to_container(cfg.population)}
+    assert {k: loaded[k] for k in data["algo"]} == data["algo"] and cfg.population.members == "flat"  # flat: before members
 
 
 def test_one_question_tells_populations_from_learners():
@@ -58,7 +59,7 @@ def test_the_learner_and_loop_keys_are_separate_dataclasses():
 @pytest.mark.parametrize("overrides, match", [
     (["task=1v1", "algo.learner=happo"], "cannot learn a team of 1 drone"),
     (["task=3v3", "algo.learner=qmix"], "cannot train algo=qmix as its learner; allowed: mappo, happo, mat"),
-    (["task=3v3", "algo.learner=mat", "algo.start=clone"], "cannot start from the clone"),
+    (["task=3v3", "algo.learner=mat", "algo.start=clone", "algo.members=flat"], "cannot start from the clone"),
 ])
 def test_a_learner_that_cannot_play_one_team_is_one_line(overrides, match):
     with pytest.raises(ConfigError, match=match):

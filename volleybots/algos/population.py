@@ -265,7 +265,9 @@ def upgrade_saved(data: dict) -> dict:
     loop = {f.name for f in dataclasses.fields(PRESETS[algo["name"]].loop)}
     learner = {k: v for k, v in algo.items() if k not in loop and k != "learner"}
     learner["name"] = algo.get("learner") or "mappo"
-    return {**data, "population": {k: v for k, v in algo.items() if k in loop}, "algo": learner}
+    # saved before population.members existed: its members were flat (members=auto would make a 3v3 one hierarchical)
+    pop = {"members": "flat", **{k: v for k, v in algo.items() if k in loop}}
+    return {**data, "population": pop, "algo": learner}
 
 
 # self-play has no frozen members: its one learner starts from the clone or from scratch
