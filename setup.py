@@ -6,6 +6,7 @@ from setuptools import find_packages, setup
 setup(
     packages=find_packages(include=["volleybots", "volleybots.*"]) + ["volleybots.conf"],
     package_dir={"volleybots.conf": "conf"},
-    # the zoo's weights-only checkpoints, a mixture's member files (<task>/<method>/*.pt) and their cards ship inside the package
-    package_data={"volleybots.conf": ["**/*.yaml"], "volleybots.zoo": ["*/*.pt", "*/*/*.pt", "*/*.yaml"]},
+    # the zoo's weights-only checkpoints, a mixture's member files (<task>/<method>/*.pt, a hierarchical member's drills in
+    # <task>/<method>/drills/) and their cards ship inside the package
+    package_data={"volleybots.conf": ["**/*.yaml"], "volleybots.zoo": ["*/*.pt", "*/*/*.pt", "*/*/*/*.pt", "*/*.yaml"]},
 )

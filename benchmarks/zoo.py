@@ -75,6 +75,18 @@ def single_entry(ckpt: Path, task_dir: Path, method: str) -> dict:
             "config": to_dict(cfg)}
 
 
+def ship_team_member(path: Path, state: dict, out: Path, label: str) -> None:
+    """A hierarchical population member (``volleybots.population.hierarchical``): its record as it is and
+    the files it names (drills, high level; paths relative to the member's folder) copied beside it."""
+    for rel in state["drills"].values():
+        if Path(rel).is_absolute():
+            raise SystemExit(f"{path} names {rel}, a file of this machine, which the zoo cannot ship")
+        dst = out.parent / rel
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        dst.write_bytes((path.parent / rel).read_bytes())
+    save({**state, "label": label}, out)
+
+
 def mixture_entry(run: RunDir, pop, task_dir: Path, method: str) -> dict:
     """Write ``<method>/<label>.pt`` for every member of nonzero weight in the final meta-strategy
     ``pop`` and return the card's run fields, with ``members`` (all of them) and ``mixture`` (those shipped)."""
@@ -88,7 +100,10 @@ def mixture_entry(run: RunDir, pop, task_dir: Path, method: str) -> dict:
             file = f"{method}/{label if plain else f'member_{k:03d}'}.pt"
             # the population's label, which the card lists: a seed member copied from a checkpoint
             # (seed_members=[zoo:1v1/bc]) carries none of its own
-            save({**slim_checkpoint(path), "label": label}, task_dir / file)
+            if state.get("builtin") == "hierarchical" and state.get("drills"):
+                ship_team_member(path, state, task_dir / file, label)
+            else:
+                save({**slim_checkpoint(path), "label": label}, task_dir / file)
             mixture.append({"file": file, "weight": float(weight)})
     cfg = run.load_config()
     last = pop.metas[-1]
@@ -100,7 +115,7 @@ def entry(run: RunDir, task_dir: Path, method: str) -> dict:
     """Write the entry's files and return the card's run fields: a population whose final meta-strategy
     plays more than one member is a mixture; any other run ships its one policy."""
     what = f"run {str(run.path)!r}"
-    for old in [task_dir / f"{method}.pt", *(task_dir / method).glob("*.pt")]:  # a rerun replaces the entry whole, of either kind
+    for old in [task_dir / f"{method}.pt", *(task_dir / method).glob("**/*.pt")]:  # a rerun replaces the entry whole, of either kind
         old.unlink(missing_ok=True)
     if not is_population_run(run.path):
         return single_entry(run_policy_checkpoint(run.path, what), task_dir, method)

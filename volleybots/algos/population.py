@@ -22,11 +22,18 @@ from volleybots.errors import ConfigError, ranged
 from volleybots.ratings.solvers import SOLVERS  # a leaf module (numpy and scipy only)
 
 CLONE = "bc"  # the run's behaviour clone of the scripted team: a learner_init and a seed_members name
-INITS = ("scratch", "last", CLONE)
+ZOO = "zoo"  # learners fine-tuned from the task's zoo start (ZOO_STARTS), the first member that policy
+INITS = ("scratch", "last", CLONE, ZOO)
 # population.start: what a population starts from where population.learner_init / seed_members are left unset.
 # "clone" is the default because learners from scratch do not hit the ball within a default budget:
 # a bare `train task=3v3 algo=psro_nash` from scratch ended with the Nash mixture on `random` alone
-STARTS = ("clone", "scratch")
+# "zoo" starts from the package's best learned policy of the task (ZOO_STARTS), with the scripted player
+# as a fixed opponent beside the mixture (population.fixed_opponents): a 1v1 population from the clone stayed
+# below scripted (0.39 against it), from dag_rally it keeps the returns the receive work taught;
+# "auto": zoo where the task has a zoo start (not for sp), clone elsewhere
+STARTS = ("auto", "clone", "scratch", ZOO)
+ZOO_STARTS = {"1v1": "zoo:1v1/dag_rally"}
+ZOO_FIXED = (["scripted"], 0.5)  # the zoo start's fixed opponents and their share, where the config leaves them unset
 # the learners an oracle may train (algo=): those that learn one team of a match with a critic
 # over their own team; HAPPO and MAT only where the team has several drones (3v3, 6v6)
 LEARNERS = {cls.name: cls for cls in (MAPPO, HAPPO, MAT)}
@@ -46,7 +53,7 @@ class LoopConfig:
 
     name: str = "psro_nash"
     solver: str = "nash"
-    start: str = "clone"
+    start: str = "auto"
     # None: from population.start (Preset.starts); saved configs hold the resolved value
     learner_init: str | None = None
     bc_frames: int = ranged(200_000, ge=1)
@@ -72,8 +79,9 @@ class LoopConfig:
     high_level_lr: float = ranged(1e-3, gt=0, le=1)  # Adam's learning rate of a high level
     # fixed opponents every oracle also trains against (a league's anchors), beside the meta-strategy;
     # never members, so never in the mixture; fixed_share: their share of the oracle's games
-    fixed_opponents: list[str] = field(default_factory=list)
-    fixed_share: float = ranged(0.0, ge=0, le=1)
+    # (None: from population.start; saved configs hold the resolved values)
+    fixed_opponents: list[str] | None = None
+    fixed_share: float | None = ranged(None, ge=0, le=1)
     oracle_fall_fault: bool = True  # hierarchical oracles train with task.fall_fault on (payoffs and evaluations: the task's rule)
 
 
@@ -136,15 +144,28 @@ class Preset:
         if cfg.members == "auto":
             # self-play has one learner on both teams: a flat policy
             cfg.members = "hierarchical" if task in HIERARCHICAL_TASKS and not cfg.self_play else "flat"
+        if cfg.start not in STARTS:
+            raise ConfigError(f"unknown population.start {cfg.start!r}; allowed: {', '.join(STARTS)}")
+        if cfg.start == "auto":
+            # self-play keeps the clone (table 3's sp); a hierarchical population starts from its drills' team
+            cfg.start = ZOO if task in ZOO_STARTS and cfg.members != "hierarchical" and not cfg.self_play else "clone"
+        fixed = (list(ZOO_FIXED[0]), ZOO_FIXED[1]) if cfg.start == ZOO else ([], 0.0)
+        cfg.fixed_opponents = list(fixed[0]) if cfg.fixed_opponents is None else cfg.fixed_opponents
+        cfg.fixed_share = (fixed[1] if cfg.fixed_opponents else 0.0) if cfg.fixed_share is None else cfg.fixed_share
         if cfg.members == "hierarchical":
             if cfg.learner_init is None:
                 cfg.learner_init = "last" if cfg.start == "clone" else "scratch"
             if cfg.seed_members is None:
                 cfg.seed_members = [cfg.drills] if cfg.start == "clone" else ["random"]
             return
-        if cfg.start not in STARTS:
-            raise ConfigError(f"unknown population.start {cfg.start!r}; allowed: {', '.join(STARTS)}")
-        init, members = dict((s, (i, m)) for s, i, m in self.starts)[cfg.start]
+        if cfg.start == ZOO:
+            if task not in ZOO_STARTS:
+                raise ConfigError(f"population.start=zoo: task {task!r} has no zoo start; tasks with one: {', '.join(ZOO_STARTS)}")
+            # FSP continues from the newest member: its first learner from the zoo start itself
+            init = self.learner_inits[0] if self.learner_inits else ZOO
+            members = (ZOO_STARTS[task],) if not cfg.self_play else ()
+        else:
+            init, members = dict((s, (i, m)) for s, i, m in self.starts)[cfg.start]
         if cfg.learner_init is None:
             # init= and the clone both say where learners start (refused together): the command line's wins
             cfg.learner_init = "scratch" if has_init and init == CLONE else init
@@ -160,7 +181,7 @@ class Preset:
 
             matches = [n for n, t in TASKS.items() if class_attr(t, "competitive")]
             raise ConfigError(f"population={self.name} trains for matches, not task {task_cls.name!r}; allowed tasks: {', '.join(matches)}")
-        if pop.fixed_share > 0 and not pop.fixed_opponents:
+        if pop.fixed_share and not pop.fixed_opponents:
             raise ConfigError(f"population.fixed_share={pop.fixed_share} needs population.fixed_opponents (e.g. [scripted, hierarchical])")
         if pop.members == "hierarchical":
             self.check_hierarchical(pop, task_cls)

@@ -33,6 +33,7 @@ import numpy as np
 import torch
 
 from volleybots.algos import population_of
+from volleybots.algos.population import ZOO, ZOO_STARTS
 from volleybots.config import to_dict, validate
 from volleybots.config.spelling import respell
 from volleybots.errors import ConfigError
@@ -40,6 +41,7 @@ from volleybots.files import sha256, write_atomic
 from volleybots.play.pool import payoff_row
 from volleybots.play.seats import SelfPlay, Versus
 from volleybots.policies import BUILTIN, Competitor, checkpoint_member, member_path, population_members, resolve_competitor, single_policy
+from volleybots.policies.store import policy_checkpoint
 from volleybots.population.clone import CLONE, clone_member, make_clone, needs_clone
 from volleybots.population.convergence import Convergence
 from volleybots.population.final import evaluate_mixture, log_final_eval
@@ -55,6 +57,8 @@ from volleybots.train.progress import hms
 from volleybots.train.wandb import WandbLogger
 from volleybots.version import __version__
 
+# the learner keys that shape its networks: a learner fine-tuned from the zoo start takes that policy's
+NETWORK_KEYS = ("hidden", "activation", "obs_norm", "value_norm", "centralised_critic", "init_log_std")
 ITERATION_SEED = 1_000  # iteration i runs with seed + i * ITERATION_SEED
 GAMES_SEED = 500_000  # payoff games of member k against j use seed + GAMES_SEED + 1000 k + j
 SPLIT = ("clone", "oracle_training", "payoff_games", "evaluations")  # the parts of a run's wall time it reports
@@ -209,6 +213,10 @@ class PopulationLoop:
             data["time_limit"] = self.cfg.time_limit - reserve
         if self.m.learner_init == CLONE:
             data["init"] = str(self.clone)
+        elif self.m.learner_init == ZOO:  # every learner fine-tuned from the task's zoo start, in its networks' shape
+            data["init"] = ZOO_STARTS[self.cfg.task.name]
+            saved = read_checkpoint(policy_checkpoint(data["init"], "population.start=zoo")).get("config", {}).get("algo", {})
+            data["algo"].update({k: saved[k] for k in NETWORK_KEYS if k in saved})
         elif data.get("init") is None:  # a learner from scratch has no policy to warm up for or hold to
             data["algo"].update(actor_freeze_updates=0, anchor_coeff=0.0)
         if not self.m.self_play:

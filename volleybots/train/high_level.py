@@ -148,7 +148,8 @@ def train_high_level(match_cfg, drills: dict | None, opponent, cfg: HighLevelCon
     while played < cfg.games:
         side = (played // cfg.batch) % 2
         results, stats = play_batch(envs[side], teams[side], opps[side], chooser, side)
-        row = {"games": played + cfg.batch, "side": side, "frames": int(stats["episode_len"].sum()), "won": int((results > 0).sum()), "drawn": int((results == 0).sum()),
+        row = {"games": played + cfg.batch, "side": side, "frames": int(stats["episode_len"].sum()), "won": int((results > 0).sum()),
+               "drawn": int((results == 0).sum()),
                "lost": int((results < 0).sum()), "touches": float(stats[f"hits_team{side}"].mean()),
                "wall_s": round(time.monotonic() - start, 1), **update(net, opt, chooser, results, cfg)}
         for kind, n in CHOICES.items():
