@@ -18,7 +18,7 @@ TINY_3V3 = [
     "task=3v3", "env.num_envs=8", "algo.steps_per_batch=16", "algo.minibatches=2", "algo.epochs=1", "algo.hidden=[16,16]",
     "algo.min_updates=1", "algo.max_updates=2", "algo.payoff_games=2", "algo.iterations=1", "evaluation.episodes=1",
     "evaluation.every=0", "evaluation.record=false", "checkpoint.every=0", "progress=false", "threads=1", "total_frames=100000",
-    "algo.start=scratch",
+    "algo.start=scratch", "algo.members=flat",  # a flat learner (members=auto is hierarchical on 3v3)
 ]
 
 

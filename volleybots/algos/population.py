@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from volleybots.algos.base import class_attr
 from volleybots.algos.happo import HAPPO
