@@ -32,8 +32,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from volleybots.algos import population_of
-from volleybots.algos.population import ZOO, ZOO_STARTS
+from volleybots.algos.population import ZOO, ZOO_STARTS, population_of
 from volleybots.config import to_dict, validate
 from volleybots.config.spelling import respell
 from volleybots.errors import ConfigError
