@@ -16,9 +16,9 @@ from volleybots.config import ConfigError, compose, load, validate
 from volleybots.config.spelling import respell
 
 runner = CliRunner()
-SPELLINGS = {  # the same run, as typed before population= and as typed now
-    "before": ["task=3v3", "algo=psro_nash", "algo.learner={learner}", "algo.start=scratch"],
-    "now": ["task=3v3", "population=psro_nash", "algo={learner}", "population.start=scratch"],
+SPELLINGS = {  # the same run, as typed before population= and as typed now (flat members: a learner's own networks)
+    "before": ["task=3v3", "algo=psro_nash", "algo.learner={learner}", "algo.start=scratch", "algo.members=flat"],
+    "now": ["task=3v3", "population=psro_nash", "algo={learner}", "population.start=scratch", "population.members=flat"],
 }
 
 
@@ -91,7 +91,7 @@ def test_a_sweep_over_a_learners_own_key_composes_every_job(monkeypatch, tmp_pat
     monkeypatch.setattr(run, "start", fake_start)
     monkeypatch.setattr("volleybots.cli.train._sweep_report", lambda sweep_dir: None)
     res = runner.invoke(app, ["train", "-m", "task=3v3", "algo=psro_nash", "algo.learner=mat", "algo.embed_dim=64", "algo.start=scratch",
-                              "seed=0,1", f"hydra.sweep.dir={tmp_path / 'sweep'}"])
+                              "algo.members=flat", "seed=0,1", f"hydra.sweep.dir={tmp_path / 'sweep'}"])
     assert res.exit_code == 0, res.output
     assert sorted(c.seed for c in seen) == [0, 1]
     for c in seen:
