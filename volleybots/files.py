@@ -18,12 +18,21 @@ import json
 import math
 import os
 import stat
+import unicodedata
 from pathlib import Path
 from typing import Callable, Union
 
 from volleybots.errors import ConfigError
 
 Data = Union[str, bytes, Callable]  # text, bytes, or a function writing to a binary file object
+
+
+def printable(s) -> str:
+    """``s`` as a string with every control and format character written out as its escape: a label
+    from a received file or a name on a command line can then never retitle, recolour or rewrite the
+    terminal it is shown on (``\\x1b]0;...`` is shown, not obeyed)."""
+    s = str(s)
+    return "".join(c.encode("unicode_escape").decode() if unicodedata.category(c)[0] == "C" else c for c in s)
 
 
 def _write(f, data: Data) -> None:
@@ -34,14 +43,40 @@ def _write(f, data: Data) -> None:
         f.write(data.encode() if isinstance(data, str) else data)
 
 
+class _Watched:
+    """A binary file that keeps the ``OSError`` its last failed write raised, for writers that turn it
+    into another error of their own (``torch.save``)."""
+
+    def __init__(self, f):
+        self.f, self.error = f, None
+
+    def write(self, b):
+        try:
+            return self.f.write(b)
+        except OSError as e:
+            self.error = e
+            raise
+
+    def __getattr__(self, name):
+        return getattr(self.f, name)
+
+
 def write_atomic(path, data: Data, what: str = "") -> Path:
     """Write ``data`` to ``path`` atomically; an OS error (ENOSPC, EACCES, ...) is one line, and no
     temporary file is left behind."""
     path = Path(path)
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
     try:
-        with open(tmp, "wb") as f:
-            _write(f, data)
+        with open(tmp, "wb") as raw:
+            f = _Watched(raw)
+            try:
+                _write(f, data)
+            except RuntimeError:
+                # torch.save turns a short write (a full disk, a file size limit) into its own RuntimeError
+                # ("unexpected pos ..."); the OSError under it is the user's to fix, and said as such
+                if f.error is None:
+                    raise
+                raise f.error from None
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
@@ -119,6 +154,23 @@ def read_text(path, what: str, limit: int = MAX_READ_BYTES) -> str:
         raise ConfigError(f"{str(path)!r} is damaged or not a {what} (not text: binary bytes)") from None
 
 
+def read_yaml_text(path, what: str) -> str:
+    """The text of the YAML file ``path`` (``read_text``), refused if it holds an alias: the byte bound
+    does not bound what a loader builds from ``*aliases`` (a few hundred bytes of nested ones expand
+    to billions of nodes), and no file of this project's needs one."""
+    import yaml
+
+    text = read_text(path, what)
+    try:
+        for event in yaml.parse(text, Loader=yaml.SafeLoader):  # events only: nothing is expanded
+            if isinstance(event, yaml.AliasEvent):
+                raise ConfigError(f"{what} {str(path)!r} holds a YAML alias (*{event.anchor}); a received YAML file is read "
+                                  "without aliases: write each value out")
+    except yaml.YAMLError:
+        pass  # malformed: the caller's loader names what is wrong
+    return text
+
+
 def read_json(path, what: str):
     """The JSON value in ``path``; a missing, unreadable, unbounded or malformed file is one line naming it."""
     p = Path(path)
@@ -172,6 +224,13 @@ class Fields:
         if isinstance(v, bool) and bool not in kinds or not isinstance(v, kinds):
             self.fail(f"{key!r} is {type(v).__name__}, not {' or '.join(k.__name__ for k in kinds)}")
         return v
+
+    def count(self, key: str, optional: bool = False):
+        """One non-negative integer count (a whole float is one: JSON may write 5.0); None where absent and ``optional``."""
+        if key not in self.data and optional:
+            return None
+        self._counts(self.need(key, (int, float)), (), key)
+        return int(self.data[key])
 
     def counts(self, key: str, shape: tuple) -> list:
         """A nested list of non-negative integers of exactly ``shape`` (no ragged rows)."""

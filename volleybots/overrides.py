@@ -34,4 +34,10 @@ def override_value(overrides, key: str, default=None):
     return default
 
 
-__all__ = ["HYDRA_PREFIXES", "names_key", "override_key", "override_value", "split_arg"]
+def hydra_quote(value: str) -> str:
+    """``value`` as one quoted string of Hydra's grammar: a path may hold ',', '=', spaces or letters
+    that Hydra would read as a list, a second key or a syntax error."""
+    return "'" + str(value).replace("\\", "\\\\").replace("'", "\\'") + "'"
+
+
+__all__ = ["HYDRA_PREFIXES", "hydra_quote", "names_key", "override_key", "override_value", "split_arg"]

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from volleybots.errors import ConfigError
+from volleybots.errors import ConfigError, Range
 from volleybots.files import write_atomic, write_json
 from volleybots.runs import InUseError, check_writable, lock, make_dir, unlock
 from volleybots.runs.found import STALE_AFTER_S, Run, find_runs  # noqa: F401 (also importable from here)
@@ -165,6 +165,8 @@ def curve_band(runs: list[Run]) -> dict:
 # ---------------------------------------------------------------------------------------- the report
 def build_report(paths, stale_after: float = STALE_AFTER_S, now: float | None = None) -> dict:
     """The report of the runs under ``paths``: per-group statistics and curves, and every run's state."""
+    if stale_after not in Range(low=0):  # a NaN age compares false with everything: no run would ever be failed
+        raise ConfigError(f"stale_after (--stale-after) is {stale_after!r}; it must be a finite number of seconds >= 0")
     runs = find_runs(paths, stale_after, now)
     cells = group_runs(runs)
     rows = []

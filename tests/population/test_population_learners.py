@@ -29,10 +29,11 @@ def test_a_saved_population_config_of_before_algo_learner_loads_as_mappo(path):
     cfg = validate(data)
     assert is_population(cfg) and cfg.algo.name == "mappo" and cfg.population.name == data["algo"]["name"]
     assert learner_class(cfg.algo) is MAPPO
-    # the values saved are the values loaded (the loop's now under population): nothing the run did is
-    # re-read from today's defaults
+    # the values saved are the values loaded (the loop's now under population): nothing the run did is re-read
+    # from today's defaults, and the keys added since read as what the run did then (flat members, no fixed opponents)
     loaded = {**OmegaConf.to_container(cfg.algo), **OmegaConf.to_container(cfg.population)}
-    assert {k: loaded[k] for k in data["algo"]} == data["algo"] and cfg.population.members == "flat"  # flat: before members
+    assert {k: loaded[k] for k in data["algo"]} == data["algo"]
+    assert (loaded["members"], loaded["fixed_opponents"], loaded["fixed_share"]) == ("flat", [], 0.0)
 
 
 def test_one_question_tells_populations_from_learners():
@@ -60,6 +61,7 @@ def test_the_learner_and_loop_keys_are_separate_dataclasses():
     (["task=1v1", "algo.learner=happo"], "cannot learn a team of 1 drone"),
     (["task=3v3", "algo.learner=qmix"], "cannot train algo=qmix as its learner; allowed: mappo, happo, mat"),
     (["task=3v3", "algo.learner=mat", "algo.start=clone", "algo.members=flat"], "cannot start from the clone"),
+    (["task=3v3", "algo.learner=mat", "algo.members=hierarchical"], "algo=mat trains flat members; .* give population.members=flat"),
 ])
 def test_a_learner_that_cannot_play_one_team_is_one_line(overrides, match):
     with pytest.raises(ConfigError, match=match):

@@ -132,18 +132,21 @@ class Preset:
             raise ConfigError(f"population={self.name} cannot train algo={name} as its learner; allowed: {', '.join(LEARNERS)}")
         return LEARNERS[name]
 
-    def resolve(self, cfg, has_init: bool = False, task: str | None = None) -> None:
+    def resolve(self, cfg, has_init: bool = False, task: str | None = None, learner: str | None = None) -> None:
         """Fill ``learner_init`` and ``seed_members`` the ``population`` node ``cfg`` leaves unset (None) from its
         ``start``, and ``members=auto`` from the ``task``, so that a saved config holds what the run did and
         reloads the same whatever the defaults become. ``has_init``: the run names ``init=``, which is then
         every learner's start (``scratch``: no clone; the loop hands each learner ``init=`` with the
         fine-tuning recipe) where the start would clone. A hierarchical population starts from its drills'
-        team (``population.drills``, with its high level if it has one) and each oracle from the newest high level."""
+        team (``population.drills``, with its high level if it has one) and each oracle from the newest high level.
+        ``learner``: the run's ``algo=`` (None: the preset's own)."""
         if cfg.members not in MEMBERS:
             raise ConfigError(f"unknown population.members {cfg.members!r}; allowed: {', '.join(MEMBERS)}")
         if cfg.members == "auto":
-            # self-play has one learner on both teams: a flat policy
-            cfg.members = "hierarchical" if task in HIERARCHICAL_TASKS and not cfg.self_play else "flat"
+            # self-play has one learner on both teams: a flat policy; so are another learner than the preset's
+            # (algo=mat) and the from-scratch recipe (start=scratch), as they were before hierarchical members
+            flat = cfg.self_play or (learner or self.learner) != self.learner or cfg.start == "scratch"
+            cfg.members = "hierarchical" if task in HIERARCHICAL_TASKS and not flat else "flat"
         if cfg.start not in STARTS:
             raise ConfigError(f"unknown population.start {cfg.start!r}; allowed: {', '.join(STARTS)}")
         if cfg.start == "auto":
@@ -184,7 +187,7 @@ class Preset:
         if pop.fixed_share and not pop.fixed_opponents:
             raise ConfigError(f"population.fixed_share={pop.fixed_share} needs population.fixed_opponents (e.g. [scripted, hierarchical])")
         if pop.members == "hierarchical":
-            self.check_hierarchical(pop, task_cls)
+            self.check_hierarchical(pop, algo.name, task_cls)
             return
         learner_cls = self.learner_of(algo)
         if pop.learner_init == CLONE and learner_cls is not MAPPO:
@@ -215,12 +218,15 @@ class Preset:
                               "(or scripted, or checkpoint paths)")
 
 
-    def check_hierarchical(self, pop, task_cls) -> None:
+    def check_hierarchical(self, pop, learner: str, task_cls) -> None:
         """A hierarchical population's own values (the ``population`` node ``pop``; its learner is the high
-        level's PPO, not ``algo=``)."""
+        level's PPO, not ``algo=``, which must be the preset's own ``learner``)."""
         if task_cls.name not in HIERARCHICAL_TASKS:
             raise ConfigError(f"population.members=hierarchical plays task {', '.join(HIERARCHICAL_TASKS)}, not {task_cls.name!r}; "
                               "give population.members=flat")
+        if learner != self.learner:
+            raise ConfigError(f"algo={learner} trains flat members; a hierarchical member's oracle trains its high level "
+                              "(population.high_level_*): give population.members=flat with it")
         if pop.self_play:
             raise ConfigError(f"population={self.name} has no hierarchical members (one learner plays both teams); use population=fsp, "
                               "psro_uniform or psro_nash with population.members=hierarchical, or population.members=flat")
@@ -246,6 +252,11 @@ def check_team_learner(learner_cls: type, cfg, task_cls, env_cfg, what: str) -> 
         raise ConfigError(f"{what} cannot learn a team of {size} drone(s) (task {task_cls.name!r}); allowed learners: {', '.join(able)}")
     team = type(f"{task_cls.name}_team", (), {"name": f"{task_cls.name} (one team)", "n_drones": size, "competitive": False})
     learner_cls.check(cfg, team, env_cfg)
+
+
+# what a population config saved before population.members existed did: flat members from start=clone
+# with no fixed opponents; a saved config reads as the run it was, whatever the defaults became since
+LEGACY_KEYS = {"members": "flat", "start": "clone", "fixed_opponents": [], "fixed_share": 0.0}
 
 
 def is_population(x) -> bool:
@@ -286,8 +297,9 @@ def upgrade_saved(data: dict) -> dict:
     loop = {f.name for f in dataclasses.fields(PRESETS[algo["name"]].loop)}
     learner = {k: v for k, v in algo.items() if k not in loop and k != "learner"}
     learner["name"] = algo.get("learner") or "mappo"
-    # saved before population.members existed: its members were flat (members=auto would make a 3v3 one hierarchical)
-    pop = {"members": "flat", **{k: v for k, v in algo.items() if k in loop}}
+    pop = {k: v for k, v in algo.items() if k in loop}
+    if "members" not in pop:  # saved before population.members: the keys added since read as that version ran them
+        pop = {**LEGACY_KEYS, **pop}
     return {**data, "population": pop, "algo": learner}
 
 

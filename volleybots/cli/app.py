@@ -21,6 +21,7 @@ except ImportError:
     from click import exceptions as click_errors
 
 from volleybots.errors import ConfigError
+from volleybots.files import printable
 from volleybots.version import __version__
 
 
@@ -37,7 +38,7 @@ class _Verbs(TyperGroup):
             if type(e).__name__ == "NoArgsIsHelpError":  # bare `volleybots`: the help, as Click does
                 typer.echo(e.format_message())
             else:
-                typer.echo(f"error: {_usage_message(self, e)}", err=True)
+                say(f"error: {_usage_message(self, e)}", err=True)
             sys.exit(2 if isinstance(e, click_errors.UsageError) else e.exit_code)
         except typer.Abort:
             if not standalone_mode:
@@ -72,8 +73,15 @@ _PASS_THROUGH = {"allow_extra_args": True, "ignore_unknown_options": True}
 DISK_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EFBIG)
 
 
+def say(text: str, err: bool = False) -> None:
+    """Print ``text`` (on stderr with ``err``), each line with its control characters written out: what
+    the verbs print holds names from command lines and received files, and an escape sequence in one
+    would retitle or rewrite the user's terminal (click strips colour codes only, and only off a terminal)."""
+    typer.echo("\n".join(printable(line) for line in str(text).split("\n")), err=err)
+
+
 def _fail(msg: str) -> None:
-    typer.echo(f"error: {msg}", err=True)
+    say(f"error: {msg}", err=True)
     raise typer.Exit(2)
 
 

@@ -9,7 +9,7 @@ from typing import List, Optional
 import typer
 from typer.core import TyperGroup
 
-from volleybots.cli.app import _PASS_THROUGH, _refuse_flags, _user_errors, app, console
+from volleybots.cli.app import _PASS_THROUGH, _refuse_flags, _user_errors, app, console, say
 
 
 class _EvalGroup(TyperGroup):
@@ -94,7 +94,7 @@ def _show(data: dict, table, as_json: bool, files: list[Path]) -> None:
         typer.echo(json.dumps(data, indent=1))
         return
     console().print(table)
-    typer.echo(f"wrote {' and '.join(map(str, files))}")
+    say(f"wrote {' and '.join(map(str, files))}")
 
 
 @eval_app.command("crossplay", context_settings=_PASS_THROUGH)
@@ -145,14 +145,14 @@ def exploitability_cmd(
     args = list(args or [])
     if as_json:
         args.append("progress=false")
-    report, path = run_exploitability(args, out, progress=lambda line: typer.echo(line, err=True))
+    report, path = run_exploitability(args, out, progress=lambda line: say(line, err=True))
     if as_json:
         typer.echo(json.dumps(report, indent=1, default=float))
         return
-    typer.echo(format_line(report))
+    say(format_line(report))
     runs = [t["run"] for p in (report.get("parts") or {"": report}).values() for t in (p.get("trained") or {}).values()]
     also = f" and the trained responses' runs {', '.join(runs)}" if runs else ""
-    typer.echo(f"wrote {path / RESULTS}{also}")
+    say(f"wrote {path / RESULTS}{also}")
 
 
 @eval_app.command("elo", context_settings=_PASS_THROUGH)
@@ -192,6 +192,6 @@ def replay(
     from volleybots.replay import has_display
 
     _refuse_flags(args, "--out FILE.rrd, --still FILE.png, --no-viewer, --help")
-    typer.echo(replay_verb(list(args), out, not no_viewer and has_display(), still))
+    say(replay_verb(list(args), out, not no_viewer and has_display(), still))
 
 

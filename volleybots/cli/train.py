@@ -8,9 +8,9 @@ from typing import List, Optional
 
 import typer
 
-from volleybots.cli.app import _PASS_THROUGH, _refuse_flags, _user_errors, app
+from volleybots.cli.app import _PASS_THROUGH, _refuse_flags, _user_errors, app, say
 from volleybots.errors import ConfigError
-from volleybots.overrides import names_key, override_key, override_value, split_arg
+from volleybots.overrides import hydra_quote, names_key, override_key, override_value, split_arg
 
 
 def _jobs(overrides: list[str], multirun: bool) -> list[list[str]]:
@@ -44,7 +44,7 @@ def _quote_hint(overrides: list[str]) -> str:
             continue
         pathlike = "/" in value or override_key(o).endswith(("dir", "resume", "init", "opponent"))
         if pathlike and not value.startswith(("'", '"')) and (not value.isascii() or any(c in value for c in ",= ()[]{}")):
-            return f" (if {key} is one value, quote it for Hydra: \"{key}={_hydra_quote(value)}\")"
+            return f" (if {key} is one value, quote it for Hydra: \"{key}={hydra_quote(value)}\")"
     return ""
 
 
@@ -75,10 +75,6 @@ def _claim_dir(job: list[str], overrides: list[str], multirun: bool) -> str:
     return str(claim_run_dir(path, unique=not explicit, sweep=multirun))
 
 
-def _hydra_quote(value: str) -> str:
-    return "'" + value.replace("\\", "\\\\").replace("'", "\\'") + "'"
-
-
 def _run_hydra(overrides: list[str], multirun: bool, extra: list[str]) -> None:
     import hydra
 
@@ -96,7 +92,7 @@ def _run_hydra(overrides: list[str], multirun: bool, extra: list[str]) -> None:
             summary = train_run(validate(cfg), HydraConfig.get().runtime.output_dir)
         except ConfigError as e:
             # SystemExit passes through Hydra's error report (which would exit 1 with a banner)
-            typer.echo(f"error: {e}", err=True)
+            say(f"error: {e}", err=True)
             sys.exit(2)
         _echo_summary(summary, HydraConfig.get().runtime.output_dir)
 
@@ -120,24 +116,24 @@ def _echo_summary(summary: dict, run_dir) -> None:
     if "population" in summary:
         pop = summary["population"]
         mix = ", ".join(f"{m} {w:.2f}" for m, w in zip(pop["members"], pop["mixture"]))
-        typer.echo(
+        say(
             f"run {run_dir}: {summary['frames']} frames in {summary['wall_time_s']:.0f} s ({summary['frames_per_s']:,.0f} frames/s); "
             f"{summary['iterations']} iteration(s), population {len(pop['members'])}, meta-strategy ({pop['solver']}): {mix}"
         )
         ev, split = summary.get("final_eval"), summary.get("wall_time_split")
         if ev:
-            typer.echo(f"  final mixture against {ev['opponent']}: W/D/L {'/'.join(map(str, ev['wdl']))} over {ev['episodes']} games")
+            say(f"  final mixture against {ev['opponent']}: W/D/L {'/'.join(map(str, ev['wdl']))} over {ev['episodes']} games")
         if split:
-            typer.echo("  wall time: " + ", ".join(f"{k.replace('_', ' ')} {v:.0f} s" for k, v in split.items()))
+            say("  wall time: " + ", ".join(f"{k.replace('_', ' ')} {v:.0f} s" for k, v in split.items()))
         oracles = [o for o in summary.get("oracles", []) if o and o.get("converged") is not None]
         if oracles:
-            typer.echo("oracles: " + "; ".join(_oracle_text(i, o) for i, o in enumerate(oracles, 1)))
+            say("oracles: " + "; ".join(_oracle_text(i, o) for i, o in enumerate(oracles, 1)))
         if d := summary.get("dropped_oracle"):
-            typer.echo(f"oracle {d['iteration']} dropped: the budget ended it after {d['updates']} update(s) ({d['frames']} frames), "
-                       f"before population.min_updates; resume with more total_frames or time_limit to train it")
+            say(f"oracle {d['iteration']} dropped: the budget ended it after {d['updates']} update(s) ({d['frames']} frames), "
+                f"before population.min_updates; resume with more total_frames or time_limit to train it")
         return
     ev = summary["final_eval"]["stats"][summary["metric"]]
-    typer.echo(
+    say(
         f"run {run_dir}: {summary['frames']} frames in {summary['wall_time_s']:.0f} s "
         f"({summary['frames_per_s']:,.0f} frames/s); eval {summary['metric']} {ev['mean']:.4g} +- {ev['std']:.3g}"
     )
@@ -202,7 +198,7 @@ def train(
     run_dir = _claim_dir(_jobs(overrides, multirun)[0], overrides, multirun)
     try:
         pinned = [o for o in overrides if override_key(o) != key]
-        _run_hydra([*pinned, f"{key}={_hydra_quote(run_dir)}"], multirun, [])
+        _run_hydra([*pinned, f"{key}={hydra_quote(run_dir)}"], multirun, [])
     finally:
         unlock(run_dir)
     _sweep_report(run_dir)
@@ -219,12 +215,12 @@ def _sweep_report(sweep_dir) -> None:
     if (sweep / "report.md").exists():  # never overwritten: a second sweep into the same folder keeps the first report
         return
     files = write_report(build_report([sweep]), sweep)
-    typer.echo(f"sweep report: {files[0]}")
+    say(f"sweep report: {files[0]}")
 
 
 def _echo_notes(notes: list[str]) -> None:
     for note in notes:
-        typer.echo(f"note: {note}", err=True)
+        say(f"note: {note}", err=True)
 
 
 def _single_run(overrides: list[str], notes: list[str]) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from volleybots.config.schema import check_env_args, to_dict
+from volleybots.errors import ConfigError
 
 
 def build_env(
@@ -35,11 +36,27 @@ def build_env(
         raise ValueError(f"unknown action_space {action_space!r}; allowed: {list(ACTION_SPACES)}")
     if physics not in BACKENDS:
         raise ValueError(f"unknown physics {physics!r}; allowed: {list(BACKENDS)}")
+    _check_switches(TASKS[task], task_overrides)
     # TorchRL's EnvBase metaclass consumes a ``compile`` keyword itself (compiling the whole step,
     # generically): route ours to the env's own static-shape step and reset instead.
     if "compile" in task_overrides:
         task_overrides["compile_physics"] = task_overrides.pop("compile")
     return TASKS[task](num_envs=num_envs, action_space=action_space, physics=physics, device=device, seed=seed, **task_overrides)
+
+
+def _check_switches(task_cls, overrides: dict) -> None:
+    """Refuse a non-bool for a keyword whose default is a bool in the task's constructors (``opening``,
+    ``compile``): the task would read ``bool("no")``, which is True."""
+    import inspect
+
+    for klass in task_cls.__mro__:
+        init = klass.__dict__.get("__init__")
+        if init is None:
+            continue
+        for p in inspect.signature(init).parameters.values():
+            v = overrides.get(p.name)
+            if isinstance(p.default, bool) and p.name in overrides and not isinstance(v, bool):
+                raise ConfigError(f"bad value for {p.name!r}: {v!r} (must be True or False)")
 
 
 def task_kwargs(cfg) -> dict:

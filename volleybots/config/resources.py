@@ -43,25 +43,38 @@ def check_memory(cfg, worlds: int | None = None) -> None:
 GAME_BYTES = 16  # a lower bound of what one played game keeps: its outcome in the list, the string and the JSON
 
 
-def check_play(cfg, games: int, pairs: int, batch: int) -> None:
+def check_play(cfg, games: int, pairs: int, batch: int, key: str = "games") -> None:
     """Refuse ``games`` per pair for ``pairs`` pairs in batches of ``batch`` worlds that cannot fit in
     memory, before any game is played: each side's env holds a batch, and every game's outcome is kept
-    (for Elo's rounds and the results file)."""
+    (for Elo's rounds and the results file). ``key`` is the option that gave ``games``."""
     probe = make_env(cfg, num_envs=1, seed=0)
     step = _step_bytes(probe)
     worlds = 2 * min(batch, games)
     check_fits([
         (worlds * step, f"batch={batch} ({step} bytes per world, one env of a batch per side)", "batch", cfg.env.device),
-        (games * pairs * GAME_BYTES, f"games={games} x {pairs} pair(s) ({GAME_BYTES} bytes per game kept)", "games", "cpu"),
+        (games * pairs * GAME_BYTES, f"{key}={games} x {pairs} pair(s) ({GAME_BYTES} bytes per game kept)", key, "cpu"),
     ])
 
 
-def check_rounds(rounds: int, n: int) -> None:
-    """Refuse Elo over ``rounds`` round robins of ``n`` competitors whose games and rating history
-    (float64, one row per game) cannot fit in memory."""
+# Elo steps through its games one at a time in Python (each step updates every order at once): a bound
+# on the games keeps a run to about a minute, and one on the updates keeps the orders' arrays and time sane
+ELO_MAX_GAMES = 10**7
+ELO_MAX_UPDATES = 10**9
+
+
+def check_rounds(rounds: int, n: int, orders: int = 1) -> None:
+    """Refuse Elo over ``rounds`` round robins of ``n`` competitors (and ``orders`` further orders of
+    them) that is more work than ``ELO_MAX_GAMES`` / ``ELO_MAX_UPDATES``, or whose games, rating
+    history (float64, one row per game) and orders' schedules cannot fit in memory."""
     pairs = n * (n - 1) // 2
-    per = 8 * (n + 3)
-    check_fits([(rounds * pairs * per, f"rounds={rounds} x {pairs} pair(s) ({per} bytes per game)", "rounds", "cpu")])
+    games = rounds * pairs
+    if games > ELO_MAX_GAMES:
+        raise ConfigError(f"rounds={rounds} x {pairs} pair(s) is {games:,} Elo games; the bound is {ELO_MAX_GAMES:,}: lower rounds")
+    if games * orders > ELO_MAX_UPDATES:
+        raise ConfigError(f"rounds={rounds} x {pairs} pair(s) x orders={orders} is {games * orders:,} Elo updates; the bound is "
+                          f"{ELO_MAX_UPDATES:,}: lower orders or rounds")
+    per = 8 * (n + 3) + 24 * orders  # each order's schedule: the two players and the score of every game
+    check_fits([(games * per, f"rounds={rounds} x {pairs} pair(s) x orders={orders} ({per} bytes per game)", "rounds or orders", "cpu")])
 
 
 def check_fits(needs) -> None:
@@ -118,12 +131,12 @@ class BenchOptions:
     num_envs: Optional[list[int]] = ranged(None, ge=1)
     devices: Optional[list[str]] = None
     compile: Any = None  # a bool, or a list of bools to measure both ways
-    repeats: int = ranged(3, ge=1)
-    steps: Optional[int] = ranged(None, ge=1)
+    repeats: int = ranged(3, ge=1, le=20)
+    steps: Optional[int] = ranged(None, ge=1, le=100_000)  # batched steps per repeat: 200 times the most default_steps gives
     action_space: str = "prt"
     threads: Optional[int] = ranged(None, ge=0, le=MAX_THREADS)
     train: bool = False  # also measure PPO (solo_bump) / MAPPO (3v3) training frames/s
-    train_batches: int = ranged(3, ge=1)  # timed training batches per training row
+    train_batches: int = ranged(3, ge=1, le=1000)  # timed training batches per training row
     train_overrides: Optional[list[str]] = None  # config overrides of the training rows (algo.steps_per_batch=8: quick rows)
 
 

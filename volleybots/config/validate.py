@@ -44,7 +44,7 @@ def validate(cfg) -> DictConfig:
         raise ConfigError(f"unknown algo {algo['name']!r}; allowed: {', '.join(ALGOS)}")
     task_cls_schema = task_schema(task["name"])
     typed_task = _typed(task_cls_schema, task, "task.")
-    preset, typed_pop = _population(data.get("population"), data.get("init") is not None, task["name"])
+    preset, typed_pop = _population(data.get("population"), data.get("init") is not None, task["name"], algo["name"])
     algo_cls = preset.learner_of(algo) if preset is not None else ALGOS[algo["name"]]  # a population's learner is one of LEARNERS
     typed_algo = _typed(algo_cls.config_cls, algo, "algo.")
     rest = _typed(Config, {k: v for k, v in data.items() if k not in ("task", "algo", "population")}, "")
@@ -87,10 +87,10 @@ def validate(cfg) -> DictConfig:
 
 
 
-def _population(pop, has_init: bool, task: str):
+def _population(pop, has_init: bool, task: str, learner: str):
     """The preset and the typed ``population`` node of a config (``(None, None)`` for a run of one learner),
     with what ``population.start`` and ``members=auto`` leave to the preset filled in (``has_init``: the run
-    names ``init=``; ``task``: the run's task)."""
+    names ``init=``; ``task``, ``learner``: the run's task and ``algo=``)."""
     from volleybots.algos import PRESETS
 
     if pop is None:
@@ -100,7 +100,7 @@ def _population(pop, has_init: bool, task: str):
         raise ConfigError(f"unknown population {name!r}; allowed: {', '.join(PRESETS)}")
     preset = PRESETS[pop["name"]]
     typed = _typed(preset.config_cls, pop, "population.")
-    preset.resolve(typed, has_init=has_init, task=task)
+    preset.resolve(typed, has_init=has_init, task=task, learner=learner)
     return preset, typed
 
 

@@ -102,6 +102,7 @@ class CrossPlay:
         n = len(labels)
         if n < 2 or not all(isinstance(x, str) for x in labels):
             f.fail("'labels' must name at least two competitors")
+        check_labels(labels, f"'labels' of {str(path)!r}")
         wdl = np.asarray(f.counts("wdl", (n, n, 3)), dtype=float)
         outcomes = f.need("outcomes", dict)
         for key, seq in outcomes.items():
@@ -155,12 +156,24 @@ def versions() -> dict:
 OPTIONS = {"games": int, "seed": int, "batch": int, "scenario": str, "deterministic": bool, "reuse": str, "pool": str}
 
 
+MAX_LABEL = 1000  # characters: past any file or run name (a long one still replays), short enough to draw at once
+
+
+def check_labels(labels, where: str) -> None:
+    """Refuse a label longer than ``MAX_LABEL``: every table and plot draws it (a 100,000-character one
+    took minutes to draw), and no file or run name is that long."""
+    long = next((lab for lab in labels if len(lab) > MAX_LABEL), None)
+    if long is not None:
+        raise ConfigError(f"{where}: {long[:40]!r}... is {len(long):,} characters long; a label has at most {MAX_LABEL}")
+
+
 def resolve_all(specs) -> list:
     """Competitors from their specs (``volleybots.policies.resolve_competitor``); labels must differ."""
     from volleybots.policies import resolve_competitor
 
     comps = [resolve_competitor(s) for s in specs]
     labels = [c.label for c in comps]
+    check_labels(labels, "a competitor's label")
     dup = sorted({lab for lab in labels if labels.count(lab) > 1})
     if dup:
         raise ConfigError(f"two competitors are labelled {dup[0]!r}; label them apart: name=PATH")
@@ -172,6 +185,10 @@ def match_config(competitors, overrides=()):
     trained competitors unless ``task=`` / ``env.action_space=`` say (then they must fit), and the
     overrides; each competitor builds its team policy once here, so a bad one fails before any game."""
     keys = {split_arg(o)[0] for o in overrides}
+    if "task.serve" in keys:  # each game's serve is the scenario's: a task.serve would be overwritten, yet recorded
+        given = next(o for o in overrides if split_arg(o)[0] == "task.serve")
+        raise ConfigError(f"{given} is not a match setting: who serves is scenario=any|serve|receive (any: a random side "
+                          "each game; serve: the first competitor serves; receive: the other one does)")
     trained = [m for c in competitors for m in c.members if m.task is not None]
     extra = []
     if "task" not in keys:

@@ -7,13 +7,7 @@ characters (an escape sequence is shown as ``\\x1b]...``, so it cannot retitle o
 
 from __future__ import annotations
 
-import unicodedata
-
-
-def clean(s) -> str:
-    """``s`` as a string with every control and format character written out as its escape."""
-    s = str(s)
-    return "".join(c.encode("unicode_escape").decode() if unicodedata.category(c)[0] == "C" else c for c in s)
+from volleybots.files import printable as clean  # the one rule, shared with the CLI's every line
 
 
 def plain(s):

@@ -157,14 +157,19 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
             raise ConfigError(f"{'= and '.join(playing)}= play games, but from={source!r} rates a cross-play already played; "
                               "leave them out, or name competitors instead of from= to play")
         result = CrossPlay.load(source)
+        unplayed = [(a, b) for a in range(result.n) for b in range(a + 1, result.n) if result.wdl[a, b].sum() == 0]
+        if unplayed:  # sampled Elo draws each pair's games from its results: a pair without any has none to draw
+            a, b = unplayed[0]
+            raise ConfigError(f"from={str(source)!r}: {result.labels[a]!r} and {result.labels[b]!r} played no game, so "
+                              f"Elo has no results of theirs to sample ({len(unplayed)} such pair(s)); play them first (eval crossplay)")
         if specs:
             _check_same_competitors(result, resolve_all(specs), source)
-        check_rounds(rounds, result.n)
+        check_rounds(rounds, result.n, orders)
         task, sample = result.meta.get("task", "task"), True
     else:
         if rounds % 2:
             raise ConfigError(f"rounds={rounds} must be even: the games of every pair are played half on each side")
-        check_rounds(rounds, max(2, len(specs)))  # before the competitors load: rounds are the games per pair
+        check_rounds(rounds, max(2, len(specs)), orders)  # before the competitors load: rounds are the games per pair
         play = [a for a in args if split_arg(a)[0] not in ELO_OPTIONS] + [f"games={rounds}"]
         comps, specs, play_opts, cfg = setup(play, OPTIONS)
         task, sample = cfg.task.name, opts.get("sample", False)

@@ -103,10 +103,15 @@ class VolleyParallelEnv(ParallelEnv):
             raise RuntimeError("this VolleyParallelEnv is closed: make a new one")
 
     def observation_space(self, agent: str):
-        return self.observation_spaces[agent]
+        return self.observation_spaces[self._agent(agent)]
 
     def action_space(self, agent: str):
-        return self.action_spaces[agent]
+        return self.action_spaces[self._agent(agent)]
+
+    def _agent(self, agent: str) -> str:
+        if agent not in self.possible_agents:  # a bare KeyError would not say which names there are
+            raise ValueError(f"unknown agent {agent!r}; agents: {', '.join(self.possible_agents)}")
+        return agent
 
     def _obs(self, td) -> dict[str, np.ndarray]:
         obs = self._observe(td.get(OBS)[0])
@@ -133,7 +138,7 @@ class VolleyParallelEnv(ParallelEnv):
         if set(actions) != set(self.agents):
             missing, unknown = sorted(set(self.agents) - set(actions)), sorted(set(actions) - set(self.agents))
             raise ValueError(f"actions must name every agent once: missing {missing}, unknown {unknown}; agents: {self.agents}")
-        stacked = np.stack([self._actions.array(actions[a], self._shape) for a in self.possible_agents])
+        stacked = np.stack([self._actions.array(actions[a], self._shape, a) for a in self.possible_agents])
         self._td.set(ACTION, self._actions.tensor(stacked))
         nxt = self.env.step(self._td).get(NEXT)
         self._td = nxt

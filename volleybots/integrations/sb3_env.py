@@ -42,6 +42,9 @@ def ppo_kwargs(num_envs: int, n_steps: int = 128, minibatches: int = 4) -> dict[
     into ``minibatches`` minibatches (SB3's default 64-sample minibatches, or 256, make the gradient
     updates cost more than collecting), Adam with its foreach update and SB3's own ``eps`` (SB3 drops
     that default when ``optimizer_kwargs`` is given). SB3's other defaults stand (10 epochs, ...)."""
+    for key, n in (("num_envs", num_envs), ("n_steps", n_steps), ("minibatches", minibatches)):
+        if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 1:  # SB3 takes 0 and -5 as given
+            raise ValueError(f"{key} must be an integer >= 1, got {n!r}")
     rollout = num_envs * n_steps
     if minibatches < 1 or rollout % minibatches:
         raise ValueError(f"minibatches must divide the rollout of {num_envs} x {n_steps} = {rollout} samples, got {minibatches!r}")

@@ -147,18 +147,23 @@ class Actions:
         """The shape an API's action has: ``batch`` followed by one agent's (``(4,)`` or ``()``)."""
         return (*batch, *self.one)
 
-    def array(self, action, shape: tuple[int, ...]) -> np.ndarray:
+    def array(self, action, shape: tuple[int, ...], agent: str | None = None) -> np.ndarray:
         """``action`` (numpy, a number or a sequence) checked: exactly ``shape`` (``(4,)`` for one
         continuous agent, ``()`` for one discrete one, ``(N, 4)`` or ``(N,)`` for a batch), real numbers
-        for a ``Box``, integers for a ``Discrete``. A ``ValueError`` names the bad shape or type and what
-        is allowed; nothing is reshaped, rounded or cast silently."""
-        arr = np.asarray(action.detach().cpu() if isinstance(action, torch.Tensor) else action)
+        for a ``Box``, integers for a ``Discrete``. A ``ValueError`` names the bad shape or type, what
+        is allowed and the ``agent`` it is of; nothing is reshaped, rounded or cast silently."""
+        who = f"{self.name}" + (f", agent {agent!r}" if agent is not None else "")
         kind = "integers (a Discrete action)" if self.discrete else "real numbers (a Box action)"
+        try:
+            arr = np.asarray(action.detach().cpu() if isinstance(action, torch.Tensor) else action)
+        except (ValueError, TypeError):  # numpy's own words for a ragged list name neither the agent nor the shape
+            raise ValueError(f"{who}: got a ragged action (rows of different lengths); expected shape {tuple(shape)} "
+                             f"of {kind}") from None
         if arr.shape != tuple(shape):
-            raise ValueError(f"{self.name}: got an action of shape {arr.shape}; expected shape {tuple(shape)} of {kind}")
+            raise ValueError(f"{who}: got an action of shape {arr.shape}; expected shape {tuple(shape)} of {kind}")
         if arr.dtype.kind not in ("iu" if self.discrete else "iuf"):
             shown = np.array2string(arr.ravel()[:6], separator=", ") + (" ..." if arr.size > 6 else "")
-            raise ValueError(f"{self.name}: got an action of dtype {arr.dtype} ({shown}); expected {kind}")
+            raise ValueError(f"{who}: got an action of dtype {arr.dtype} ({shown}); expected {kind}")
         return arr
 
     def tensor(self, arr: np.ndarray) -> torch.Tensor:

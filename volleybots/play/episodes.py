@@ -6,12 +6,14 @@ Every floor above stands on these: ``train`` collects batches, ``eval`` and ``re
 
 from __future__ import annotations
 
+import inspect
 import math
 
 import torch
 from torchrl.envs.utils import step_mdp
 
-from volleybots.keys import DONE, NEXT, STATS, stat
+from volleybots.errors import ConfigError
+from volleybots.keys import DONE, NEXT, OBS, STATS, stat
 
 
 def stat_keys(env) -> list[str]:
@@ -29,7 +31,7 @@ def run_episodes(env, policy, on_step=None) -> dict[str, torch.Tensor]:
     td = env.reset()
     # a task may end episodes by itself, but never later than its time limit
     for _ in range(env.episode_len + 1):
-        td = policy(td)
+        td = act(policy, td)
         td = env.step(td)
         nxt = td[NEXT]
         if on_step is not None:
@@ -42,6 +44,47 @@ def run_episodes(env, policy, on_step=None) -> dict[str, torch.Tensor]:
             break
         td = env.maybe_reset(step_mdp(td, keep_other=True, exclude_action=True))
     return out
+
+
+def act(policy, td):
+    """``policy(td)``; an error inside it that non-finite numbers explain (a NaN observation, weights
+    that training took to NaN) is one ``ConfigError`` line naming them, not tensordict's "Failed while
+    executing module '0'" under a traceback. Any other error is left as it is."""
+    try:
+        return policy(td)
+    except Exception as e:  # noqa: BLE001 - only named here when the numbers explain it; re-raised otherwise
+        cause = _nonfinite(policy, td)
+        if cause is None:
+            raise
+        raise ConfigError(f"the policy failed while acting ({type(e).__name__}: {' '.join(str(e).split())[:120]}) "
+                          f"because {cause}") from None
+
+
+def _nonfinite(policy, td) -> str | None:
+    """What is not finite where a policy acts: its observation, or one of its weights; None if nothing."""
+    obs = td.get(OBS, None)
+    if obs is not None and obs.is_floating_point() and not bool(torch.isfinite(obs).all()):
+        return "its observation holds NaN or infinity (the env's state left the finite numbers)"
+    for name, w in _weights(policy):
+        if w.is_floating_point() and not bool(torch.isfinite(w).all()):
+            return (f"its weight {name} holds NaN or infinity (the training diverged: lower algo.lr or algo.max_grad_norm, "
+                    "or start from another seed)")
+    return None
+
+
+def _weights(policy, depth: int = 0):
+    """The named parameters of ``policy``: a module's own, or those of the policies it holds (a
+    match's ``TeamPolicies``, a seat's wrapper)."""
+    if isinstance(policy, torch.nn.Module):
+        yield from policy.named_parameters()
+        return
+    if depth > 3:
+        return
+    for attr in ("policies", "policy", "learner"):
+        sub = getattr(policy, attr, None)
+        for p in sub if isinstance(sub, (list, tuple)) else [sub]:
+            if p is not None and not inspect.ismethod(p):
+                yield from _weights(p, depth + 1)
 
 
 def summarize(results: dict[str, torch.Tensor], metric: str) -> dict:
@@ -57,7 +100,7 @@ def collect(env, policy, td, steps: int):
     """``steps`` steps of every env; returns the [num_envs, steps] batch and the next input."""
     out = []
     for _ in range(steps):
-        td = policy(td)
+        td = act(policy, td)
         step, td = env.step_and_maybe_reset(td)
         out.append(step)
     return torch.stack(out, dim=1), td
@@ -84,4 +127,4 @@ def finished_stats(batch, team: int | None = None) -> dict[str, float]:
     return out
 
 
-__all__ = ["collect", "finished_stats", "run_episodes", "stat_keys", "summarize"]
+__all__ = ["act", "collect", "finished_stats", "run_episodes", "stat_keys", "summarize"]

@@ -38,6 +38,8 @@ def check_ray_address(key: str) -> None:
     """Refuse a ``RAY_ADDRESS`` (``host:port`` or ``ray://host:port``) at which nothing answers within
     ``RAY_CONNECT_S``: ``ray.init`` would wait on it for minutes, silent. ``auto`` and unset are Ray's."""
     addr = os.environ.get("RAY_ADDRESS", "").strip()
+    if addr == "auto":  # Ray's own lookup of a running cluster: with none, ray.init raises ConnectionError later
+        addr = _running_cluster(key)
     if addr in ("", "auto", "local"):
         return
     host, _, port = addr.removeprefix("ray://").rpartition(":")
@@ -48,6 +50,20 @@ def check_ray_address(key: str) -> None:
     except OSError as e:
         raise ConfigError(f"RAY_ADDRESS={addr!r}: no Ray cluster answers there within {RAY_CONNECT_S:g} s ({e.strerror or e}); "
                           f"start one with `ray start --head`, unset RAY_ADDRESS for a local one, or use {key}=serial") from None
+
+
+def _running_cluster(key: str) -> str:
+    """The address of the cluster ``RAY_ADDRESS=auto`` finds (``ray start --head`` leaves it on this
+    machine); ``auto`` where this Ray cannot say (a private function of Ray's, so it may change)."""
+    try:
+        from ray._private.services import canonicalize_bootstrap_address
+    except ImportError:
+        return "auto"
+    try:
+        return canonicalize_bootstrap_address("auto") or "auto"
+    except ConnectionError:
+        raise ConfigError(f"RAY_ADDRESS=auto but no Ray cluster runs on this machine; start one with `ray start --head`, "
+                          f"unset RAY_ADDRESS for a local one, or use {key}=serial") from None
 
 
 def payoff_row(cfg, a, opponents: list, games: int, seed: int, pool: str = "serial", batch: int = DEFAULT_BATCH) -> list:

@@ -16,7 +16,7 @@ import torch
 from tensordict import TensorDictBase
 
 from volleybots.errors import ConfigError
-from volleybots.files import read_text
+from volleybots.files import read_yaml_text
 from volleybots.keys import ACTION, AGENTS
 from volleybots.runs import read_checkpoint
 
@@ -133,7 +133,7 @@ def read_drills_file(path: Path) -> dict:
 
     from omegaconf import OmegaConf
 
-    text = read_text(path, "hierarchical team file")  # bounded: a huge file or a device is one line
+    text = read_yaml_text(path, "hierarchical team file")  # bounded: a huge file or a device is one line
     try:
         data = OmegaConf.to_container(OmegaConf.load(io.StringIO(text)), resolve=False)
     except Exception as e:  # noqa: BLE001 - YAML and OmegaConf errors alike: the file is damaged

@@ -126,16 +126,25 @@ def read_high_level(path) -> tuple[HighLevelNet, dict]:
         net.load_state_dict(state["state_dict"])
     except (RuntimeError, KeyError, TypeError) as e:
         raise ConfigError(f"{str(path)!r}: its weights do not fit a high level ({' '.join(str(e).split())[:160]})") from None
+    bad = next((k for k, v in net.state_dict().items() if not bool(torch.isfinite(v).all())), None)
+    if bad is not None:  # a NaN logit draws nothing sensible, and the team would play on without a word
+        raise ConfigError(f"{str(path)!r}: its weights hold a NaN or an infinity ({bad}); restore the file or train it again")
     net.eval()
     info = state.get("info")
-    return net, info if isinstance(info, dict) else {}
+    info = info if isinstance(info, dict) else {}
+    for key in EVENT_SETTINGS:
+        if not isinstance(info.get(key, False), bool):  # bool("false") is True: a text would turn the setting on
+            raise ConfigError(f"{str(path)!r}: its info {key!r} is {info[key]!r}, not true or false")
+    return net, info
+
+
+EVENT_SETTINGS = ("receive_coming", "receive_attack")  # the chooser's switches a file carries in its info
 
 
 def chooser_from_file(path, generator: torch.Generator | None = None) -> LearnedChooser:
     """A sampling ``LearnedChooser`` of the high level at ``path``, with the event setting it was trained with."""
     net, info = read_high_level(path)
-    return LearnedChooser(net, generator=generator, receive_coming=bool(info.get("receive_coming", False)),
-                          receive_attack=bool(info.get("receive_attack", False)))
+    return LearnedChooser(net, generator=generator, **{k: info.get(k, False) for k in EVENT_SETTINGS})
 
 
 __all__ = ["FORMAT", "HighLevelNet", "LearnedChooser", "chooser_from_file", "load_high_level", "read_high_level", "save_high_level"]

@@ -124,6 +124,11 @@ def split_mixture(spec: str) -> tuple[str, list[tuple[str, float]]] | None:
     if any(not p.strip() for p in parts):
         raise ConfigError(f"mixture {spec!r} has an empty part; write A+B (uniform) or A*3+B (weighted)")
     weights = [1.0 if w is None else w for w in weights]  # relative: a part without a weight weighs 1
+    top = max(weights)
+    weights = [w / top for w in weights]  # scaled to at most 1 first: the sum of two weights of 1e308 is inf
+    if 0.0 in weights:
+        small = parts[weights.index(0.0)]
+        raise ConfigError(f"mixture {spec!r}: the weight of {small!r} is too small beside the largest to be drawn in any game")
     return label or target, [(p, w / sum(weights)) for p, w in zip(parts, weights)]
 
 

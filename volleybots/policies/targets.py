@@ -14,7 +14,7 @@ from typing import Callable
 from volleybots.algos.population import CLONE, method_name
 from volleybots.errors import ConfigError
 from volleybots.policies.builtin import BUILTIN, PLAYERS
-from volleybots.policies.store import load_learner, parse_spec, policy_checkpoint
+from volleybots.policies.store import load_learner, parse_single, policy_checkpoint
 from volleybots.runs import RunDir, is_population_run, read_checkpoint, refuse_interpolation
 
 # keys of a checkpoint's config that evaluation may change; the rest fix what the policy was trained on.
@@ -36,7 +36,7 @@ def resolve_target(target: str, overrides=()) -> Target:
     """Turn an eval/replay target and its overrides into a config and a policy factory."""
     from volleybots.config import load
 
-    s = parse_spec(target, what="target")
+    s = parse_single(target, "target")  # a mixture is refused as one, not as a file that does not exist
     if s.label:
         raise ConfigError(f"target {target!r}: a label (NAME=) is for competitors of a match; name the run or checkpoint alone")
     if s.kind == "builtin":

@@ -24,7 +24,7 @@ from pathlib import Path
 import yaml
 
 from volleybots.errors import ConfigError
-from volleybots.files import Fields, read_json, read_jsonl, read_text, sha256
+from volleybots.files import Fields, read_json, read_jsonl, read_yaml_text, sha256
 from volleybots.runs.locks import note
 from volleybots.runs.rundir import POPULATION_DIR, RunDir, read_checkpoint
 
@@ -49,7 +49,7 @@ def is_population_run(run_path) -> bool:
     if (path / POPULATION_DIR).is_dir():
         return True
     try:
-        cfg = yaml.safe_load(read_text(path / "config.yaml", "the run's config")) or {}
+        cfg = yaml.safe_load(read_yaml_text(path / "config.yaml", "the run's config")) or {}
         algo = cfg.get("algo") or {}
     except (ConfigError, yaml.YAMLError, AttributeError):
         return False

@@ -2,9 +2,10 @@
 ``running`` (no summary.json, written to lately), ``failed`` (stopped without a summary, an unreadable
 or damaged file: config.yaml, summary.json, metrics.csv) or ``not aggregated`` (a population run).
 
-Every file is read through ``volleybots.files.read_text`` (bounded, regular files only), so a run
-dir received from elsewhere, with a config.yaml that is a folder or a link to ``/dev/zero``, is
-listed as failed, saying why, never read whole or mistaken for a running job.
+Every file is read through ``volleybots.files.read_text`` (bounded, regular files only; YAML through
+``read_yaml_text``, which refuses aliases), so a run dir received from elsewhere, with a config.yaml
+that is a folder, a link to ``/dev/zero`` or an alias bomb, is listed as failed, saying why, never
+read whole or mistaken for a running job.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import numpy as np
 import yaml
 
 from volleybots.errors import ConfigError
-from volleybots.files import read_json, read_text
+from volleybots.files import Fields, read_json, read_yaml_text
 from volleybots.runs.metrics import read_metrics
 from volleybots.runs.rundir import RunDir, config_problem
 
@@ -76,7 +77,7 @@ def _run_dirs(root: Path):
 
 def _is_run_config(path: Path) -> bool:
     try:
-        cfg = yaml.safe_load(read_text(path, "config.yaml"))
+        cfg = yaml.safe_load(read_yaml_text(path, "config.yaml"))
     except (ConfigError, yaml.YAMLError):
         return path.exists()  # an unreadable config.yaml (binary, a folder, a device) is a broken run, reported as failed
     return isinstance(cfg, dict) and {"task", "algo", "seed"} <= set(cfg)
@@ -89,7 +90,7 @@ def _read_run(d: Path, stale_after: float, now: float) -> Run:
         return _unfinished(Run(d, "running"), d, stale_after, now,
                            f"no config.yaml: the job stopped before training began (overrides: {overrides})")
     try:
-        config = yaml.safe_load(read_text(run.config_path, "config.yaml"))
+        config = yaml.safe_load(read_yaml_text(run.config_path, "config.yaml"))
     except ConfigError as e:
         return Run(d, "failed", f"config.yaml unreadable ({' '.join(str(e).split())[:160]})")
     except yaml.YAMLError as e:
@@ -108,6 +109,7 @@ def _read_run(d: Path, stale_after: float, now: float) -> Run:
             return Run(d, "not aggregated", "a population run: no final evaluation to average (its payoffs: population/payoffs.json)",
                        config, summary)
         value = float(summary["final_eval"]["stats"][summary["metric"]]["mean"])
+        Fields(summary, "summary.json").count("frames", optional=True)  # compared with total_frames below
     except (ValueError, KeyError, TypeError, AttributeError) as e:  # a ConfigError is a ValueError
         return Run(d, "failed", f"summary.json unreadable ({type(e).__name__}: {' '.join(str(e).split())[:160]})", config)
     if not config.get("time_limit") and summary.get("frames", 0) < config.get("total_frames", 0):
@@ -146,7 +148,7 @@ def _frames_reached(run: RunDir) -> int:
 
 def _hydra_overrides(d: Path) -> str:
     try:
-        return " ".join(map(str, yaml.safe_load(read_text(d / ".hydra" / "overrides.yaml", "overrides.yaml")) or [])) or "none"
+        return " ".join(map(str, yaml.safe_load(read_yaml_text(d / ".hydra" / "overrides.yaml", "overrides.yaml")) or [])) or "none"
     except (ConfigError, yaml.YAMLError, TypeError):
         return "unknown"
 

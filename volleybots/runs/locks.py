@@ -106,6 +106,16 @@ def _holds_results(path: Path) -> bool:
     return path.exists() and (not path.is_dir() or any(p.name != LOCK_NAME for p in path.iterdir()))
 
 
+def _resume_hint(folder: Path) -> str:
+    """Advice for a folder that an earlier command left with a run that stopped before its end (a
+    killed exploitability leaves ``<out>/br`` so): the run can be finished rather than started again."""
+    stopped = sorted(d for d in folder.iterdir() if d.is_dir() and (d / "config.yaml").is_file() and not (d / "summary.json").exists())
+    if not stopped:
+        return ""
+    return (f" (it holds {len(stopped)} run(s) that stopped before their end, such as {str(stopped[0])!r}: "
+            f"`volleybots train resume={stopped[0]}` finishes one; choose another folder to start again)")
+
+
 @contextlib.contextmanager
 def output_dir(out, default, what: str = "--out"):
     """Claim a verb's output folder, hold its lock while the verb writes, and yield it.
@@ -120,7 +130,8 @@ def output_dir(out, default, what: str = "--out"):
         cand = base if n == 1 else base.with_name(f"{base.name}_{n}")
         if _holds_results(cand):
             if explicit:
-                raise ConfigError(f"{what} {str(cand)!r} exists and is not an empty folder; results are never overwritten")
+                raise ConfigError(f"{what} {str(cand)!r} exists and is not an empty folder; results are never overwritten"
+                                  + _resume_hint(cand))
             continue
         created = not cand.exists()
         make_dir(cand, what)

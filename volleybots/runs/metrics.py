@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import csv
+import io
 import math
 from pathlib import Path
 
 from volleybots.errors import ConfigError
+from volleybots.files import read_text
 
 
 class MetricsLog:
@@ -49,12 +51,12 @@ def read_metrics(path) -> list[dict[str, float | str]]:
     """The rows of metrics.csv, numbers as floats; a file that is not such a table (binary, damaged,
     no ``frames`` column) is one ``ConfigError`` line naming it."""
     out = []
+    # bounded like every file read (a received 3 GB metrics.csv is refused at once, not parsed for minutes)
+    text = read_text(path, "metrics.csv")
     try:
-        with Path(path).open(newline="") as f:
-            reader = csv.DictReader(f)
-            for r in reader:
-                out.append({k: (float(v) if _is_number(v) else v) for k, v in r.items()})
-    except (OSError, UnicodeDecodeError, csv.Error) as e:
+        for r in csv.DictReader(io.StringIO(text, newline="")):
+            out.append({k: (float(v) if _is_number(v) else v) for k, v in r.items()})
+    except csv.Error as e:
         raise ConfigError(f"{path} is damaged ({type(e).__name__}: {' '.join(str(e).split())[:120]})") from None
     if out and "frames" not in out[0]:
         raise ConfigError(f"{path} is damaged (no 'frames' column in the header)")

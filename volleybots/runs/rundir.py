@@ -15,7 +15,7 @@ from omegaconf import OmegaConf
 
 from volleybots.config import to_dict, validate
 from volleybots.errors import ConfigError
-from volleybots.files import read_text, write_atomic, write_json
+from volleybots.files import Fields, read_yaml_text, write_atomic, write_json
 from volleybots.runs.locks import InUseError, lock, make_dir, note, unlock
 from volleybots.runs.metrics import _is_number
 
@@ -142,7 +142,7 @@ class RunDir:
         """The run's validated config; a damaged or hand-broken config.yaml is one line naming it."""
         if not self.is_run():
             raise ConfigError(f"{self.path} is not a run directory (no config.yaml)")
-        text = read_text(self.config_path, "the run's config")  # bounded: a folder or /dev/zero is one line
+        text = read_yaml_text(self.config_path, "the run's config")  # bounded: a folder or /dev/zero is one line
         try:
             # not resolved: a run dir may come from someone else, and ``${oc.env:VAR}`` would fill in
             # this machine's environment (then written in clear into the resumed run's files)
@@ -266,7 +266,13 @@ def read_checkpoint(path, device="cpu") -> dict:
                           f"{' '.join(str(e).split())[:120]})") from None
     if not isinstance(state, dict) or state.get("format") != CKPT_FORMAT:
         raise ConfigError(f"{str(path)!r} is not a volleybots checkpoint (format {CKPT_FORMAT} expected)")
+    fields = Fields(state, f"checkpoint {str(path)!r}")
+    for key in COUNTS:  # read as int() by every verb: a tampered NaN or text would be a traceback there
+        fields.count(key, optional=True)
     return state
+
+
+COUNTS = ("frames", "iteration", "obs_dim", "n_agents")  # a checkpoint's counters
 
 
 def _to_device(state, device):
