@@ -151,7 +151,9 @@ class Preset:
             raise ConfigError(f"unknown population.start {cfg.start!r}; allowed: {', '.join(STARTS)}")
         if cfg.start == "auto":
             # self-play keeps the clone (table 3's sp); a hierarchical population starts from its drills' team
-            cfg.start = ZOO if task in ZOO_STARTS and cfg.members != "hierarchical" and not cfg.self_play else "clone"
+            # and init= names every learner's start itself (as it did beside start=clone)
+            zoo = task in ZOO_STARTS and cfg.members != "hierarchical" and not cfg.self_play and not has_init
+            cfg.start = ZOO if zoo else "clone"
         fixed = (list(ZOO_FIXED[0]), ZOO_FIXED[1]) if cfg.start == ZOO else ([], 0.0)
         cfg.fixed_opponents = list(fixed[0]) if cfg.fixed_opponents is None else cfg.fixed_opponents
         cfg.fixed_share = (fixed[1] if cfg.fixed_opponents else 0.0) if cfg.fixed_share is None else cfg.fixed_share
