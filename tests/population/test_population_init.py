@@ -18,7 +18,8 @@ def test_init_is_every_learners_start_where_the_start_would_clone(algo, want):
     cfg = load([*RECEIVER, f"algo={algo}"])
     assert cfg.population.learner_init == want
     preflight(cfg)  # the checkpoint fits the learner's networks; no conflict
-    assert load(["task=1v1", f"algo={algo}"]).population.learner_init == ("last" if algo == "fsp" else "bc")  # without init=: the start's
+    # without init=: the start's (1v1: the zoo start, zoo:1v1/dag_rally; sp keeps the clone)
+    assert load(["task=1v1", f"algo={algo}"]).population.learner_init == {"fsp": "last", "sp": "bc"}.get(algo, "zoo")
     if algo != "sp":
         loop = PopulationLoop.__new__(PopulationLoop)
         loop.cfg, loop.m, loop.clone = cfg, cfg.population, None
