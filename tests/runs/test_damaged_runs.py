@@ -96,9 +96,10 @@ def test_a_population_killed_between_member_and_meta_plays_its_last_complete_ite
     assert comp.members[0].source == {"kind": "random"}
     err = capsys.readouterr().err
     assert "stopped during iteration 1" in err and "playing iteration 0" in err and "member_001.pt" in err
-    # as one policy it has no trained member in a complete iteration: refused, not the unfinished learner
-    with pytest.raises(ConfigError, match="without a trained member"):
-        resolve_target(str(run))
+    # as a target (eval RUN, replay RUN) it plays what cross-play plays: the last complete iteration's
+    # mixture (random alone here), never the unfinished learner
+    t = resolve_target(str(run))
+    assert t.label == run.name and t.checkpoint is None and t.cfg.task.name == "1v1"
     pop = read_population(run, "run", quiet=True)
     assert pop.iteration == 0 and [p.name for p in pop.pending] == ["member_001.pt"]
 
