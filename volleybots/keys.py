@@ -25,6 +25,7 @@ lays one drone's entries out at the root of its own tensordict.
 from __future__ import annotations
 
 AGENTS = "agents"
+TEAM_NAMES = ("blue", "red")  # team 0 (+x) and team 1 (-x): the agents' names of a match (blue_0, red_0, ...) and its colours
 NEXT = "next"
 STATS = "stats"
 DONE = "done"

@@ -10,6 +10,7 @@ import typer
 from typer.core import TyperGroup
 
 from volleybots.cli.app import _PASS_THROUGH, _refuse_flags, _user_errors, app, console, say
+from volleybots.config.compose import check_group_args
 
 
 class _EvalGroup(TyperGroup):
@@ -43,6 +44,7 @@ def eval_cmd(
     as_json: bool = typer.Option(False, "--json", help="Print the result as JSON instead of a table."),
 ) -> None:
     """Play N episodes (episodes=100) and report the task metric's mean / std and every per-term return."""
+    check_group_args(overrides or [])  # a mistyped task= before the policies (and torch) load
     from volleybots.eval import evaluate, format_table
 
     _refuse_flags([target, *(overrides or [])], "--json, --help")
@@ -65,6 +67,7 @@ def compare_cmd(
 ) -> None:
     """Play every target on the same episodes and compare each with the first, episode by episode:
     mean improvement with its 95 % interval, W/T/L, Wilcoxon test."""
+    check_group_args(args or [])  # a mistyped task= before the policies (and torch) load
     from volleybots.eval.compare import compare, format_table
 
     args = list(args or [])
@@ -112,6 +115,7 @@ def crossplay_cmd(
     ),
 ) -> None:
     """Every pair plays N games, each side half of them: W/D/L, win rates with Wilson intervals, average win rate, heatmap."""
+    check_group_args(args or [])  # a mistyped task= before the policies (and torch) load
     from rich.console import Group
 
     from volleybots.eval.content import format_content
@@ -140,6 +144,7 @@ def exploitability_cmd(
 ) -> None:
     """A lower bound on TARGET's exploitability: the best of responses trained on several seeds, fixed
     responses, the target's members and the target itself, chosen on games apart from those that give the figure."""
+    check_group_args(args or [])  # a mistyped task= before the policies (and torch) load
     from volleybots.eval.exploitability import RESULTS, format_line, run_exploitability
 
     args = list(args or [])
@@ -165,6 +170,7 @@ def elo_cmd(
     out: Optional[Path] = typer.Option(None, "--out", help="Folder for ratings.json, ratings.png (and the games played); new or empty."),
 ) -> None:
     """Elo over rounds in which every pair meets once (the paper's), Bradley-Terry with profile-likelihood intervals, the Nash mixture."""
+    check_group_args(args or [])  # a mistyped task= before the policies (and torch) load
     from volleybots.eval.ranking import format_table, run_elo
 
     report, path = run_elo(list(args or []), out, progress=_pair_progress)  # on stderr, --json or not
@@ -188,6 +194,7 @@ def replay(
 ) -> None:
     """Record one episode to a rerun file: court, net, drones, ball trail, hits / violations, rewards; for two
     competitors, one match with each team's colour, the touches and the fault that ended the rally."""
+    check_group_args(args or [])  # a mistyped task= before the policies (and torch) load
     from volleybots.eval.replays import replay_verb
     from volleybots.replay import has_display
 

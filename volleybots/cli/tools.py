@@ -13,47 +13,65 @@ from volleybots.errors import ConfigError
 
 
 @app.command("list")
-def list_cmd() -> None:
-    """List tasks, algorithms, physics backends and action spaces, one line each."""
+def list_cmd(
+    as_json: bool = typer.Option(False, "--json", help="Print the lists as one JSON object (tasks, algorithms, populations, backends, "
+                                 "action spaces, players, zoo) instead of lines."),
+) -> None:
+    """List tasks, algorithms, population methods, physics backends, action spaces, built-in players and the zoo, one line each."""
+    data = _catalogue()
+    if as_json:
+        typer.echo(json.dumps(data, indent=1))
+        return
+    typer.echo("tasks (task=NAME):")
+    for t in data["tasks"]:
+        n = t["drones"]
+        cfg = "" if t["config_file"] else "  [no conf/task file]"
+        typer.echo(f"  {t['name']:<20} {n:>2} drone{'s' if n > 1 else ' '}  metric: {t['metric']}{cfg}")
+    typer.echo("algorithms (algo=NAME):")
+    for a in data["algorithms"]:
+        typer.echo(f"  {a['name']:<20} action spaces: {', '.join(a['action_spaces'])}; tasks: {', '.join(a['tasks'])}")
+    typer.echo("population methods (population=NAME, or algo=NAME; their learner is algo=, mappo by default):")
+    for p in data["populations"]:
+        typer.echo(f"  {p['name']:<20} solver: {p['solver']}; learners: {', '.join(p['learners'])}; tasks: {', '.join(p['tasks'])}")
+    for key, title in (("backends", "physics backends (env.physics=NAME):"), ("action_spaces", "action spaces (env.action_space=NAME):"),
+                       ("players", "built-in players (eval NAME, competitors, opponent=):")):
+        typer.echo(title)
+        for name, text in data[key].items():
+            typer.echo(f"  {name:<20} {text}")
+    typer.echo("zoo (trained policies shipped with the package: zoo:TASK/METHOD wherever a competitor goes):")
+    for e in data["zoo"]:
+        figures = ", ".join(f"{k} {v}" for k, v in e["figures"].items())
+        kind = {"policy": "", "mixture": f"a mixture of {e['members']} policies, ",
+                "team": f"a hierarchical team ({', '.join(e['drills'])}), "}[e["kind"]]
+        typer.echo(f"  {e['name']:<20} {kind}{e['frames']} frames, seed {e['seed']}; {figures}")
+    if not data["zoo"]:
+        typer.echo("  (none in this install)")
+
+
+def _catalogue() -> dict:
+    """What ``list`` shows, as plain data (the text and the JSON are two views of it)."""
     from volleybots.algos import ALGOS, LEARNERS, PRESETS
     from volleybots.algos.base import class_attr
     from volleybots.config import group_options
     from volleybots.physics import ACTION_SPACE_INFO, BACKEND_INFO
-    from volleybots.tasks import TASKS
-
-    typer.echo("tasks (task=NAME):")
-    for name, cls in TASKS.items():
-        n = class_attr(cls, "n_drones")
-        cfg = "" if name in group_options("task") else "  [no conf/task file]"
-        typer.echo(f"  {name:<20} {n:>2} drone{'s' if n > 1 else ' '}  metric: {cls.metric}{cfg}")
-    typer.echo("algorithms (algo=NAME):")
-    for name, cls in ALGOS.items():
-        fits = [t for t in TASKS if _fits(name, t)]
-        typer.echo(f"  {name:<20} action spaces: {', '.join(cls.action_spaces)}; tasks: {', '.join(fits)}")
-    typer.echo("population methods (population=NAME, or algo=NAME; their learner is algo=, mappo by default):")
-    for name, preset in PRESETS.items():
-        fits = [t for t in TASKS if _fits(name, t)]
-        typer.echo(f"  {name:<20} solver: {preset.solver}; learners: {', '.join(LEARNERS)}; tasks: {', '.join(fits)}")
-    typer.echo("physics backends (env.physics=NAME):")
-    for name, text in BACKEND_INFO.items():
-        typer.echo(f"  {name:<20} {text}")
-    typer.echo("action spaces (env.action_space=NAME):")
-    for name, text in ACTION_SPACE_INFO.items():
-        typer.echo(f"  {name:<20} {text}")
     from volleybots.policies import PLAYERS
+    from volleybots.tasks import TASKS
     from volleybots.zoo import PREFIX, entries
 
-    typer.echo("built-in players (eval NAME, competitors, opponent=):")
-    for name, player in PLAYERS.items():
-        typer.echo(f"  {name:<20} {player.description}")
-    typer.echo("zoo (trained policies shipped with the package: zoo:TASK/METHOD wherever a competitor goes):")
-    for name, e in entries().items() or ():
-        figures = ", ".join(f"{k} {v}" for k, v in (e.card.get("figures") or {}).items())
-        mixture = f"a mixture of {len(e.members)} policies, " if e.is_mixture else ""
-        mixture = f"a hierarchical team ({', '.join(e.card['hierarchical'])}), " if e.is_team else mixture
-        typer.echo(f"  {PREFIX + name:<20} {mixture}{e.card.get('frames', '?')} frames, seed {e.card.get('seed', '?')}; {figures}")
-    if not entries():
-        typer.echo("  (none in this install)")
+    tasks = [{"name": name, "drones": int(class_attr(cls, "n_drones")), "metric": cls.metric, "config_file": name in group_options("task")}
+             for name, cls in TASKS.items()]
+    algos = [{"name": name, "action_spaces": list(cls.action_spaces), "tasks": [t for t in TASKS if _fits(name, t)]}
+             for name, cls in ALGOS.items()]
+    populations = [{"name": name, "solver": p.solver, "learners": list(LEARNERS), "tasks": [t for t in TASKS if _fits(name, t)]}
+                   for name, p in PRESETS.items()]
+    zoo = []
+    for name, e in entries().items():
+        kind = "team" if e.is_team else "mixture" if e.is_mixture else "policy"
+        zoo.append({"name": PREFIX + name, "kind": kind, "task": e.card.get("task"), "members": len(e.members),
+                    "drills": list(e.card.get("hierarchical") or ()), "frames": e.card.get("frames", "?"), "seed": e.card.get("seed", "?"),
+                    "figures": dict(e.card.get("figures") or {})})
+    return {"tasks": tasks, "algorithms": algos, "populations": populations, "backends": dict(BACKEND_INFO), "action_spaces": dict(ACTION_SPACE_INFO),
+            "players": {name: p.description for name, p in PLAYERS.items()}, "zoo": zoo}
 
 
 def _fits(algo: str, task: str) -> bool:
@@ -81,12 +99,17 @@ def _fits(algo: str, task: str) -> bool:
     return True
 
 
+# the singular names every other verb takes (task=3v3), for bench's lists (tasks=[3v3]; one value is a list of one)
+BENCH_ALIASES = {"task": "tasks", "backend": "backends", "device": "devices"}
+
+
 @app.command(context_settings=_PASS_THROUGH)
 @_user_errors
 def bench(
     options: Optional[List[str]] = typer.Argument(
         None,
-        help="key=value arguments of volleybots.bench.run_bench: tasks=[solo_bump,3v3] num_envs=[256,4096] backends=[torch,mujoco] "
+        help="key=value arguments of volleybots.bench.run_bench: task=solo_bump or tasks=[solo_bump,3v3] num_envs=[256,4096] "
+        "backends=[torch,mujoco] "
         "devices=[cpu] threads=1 repeats=3 steps=100 train=true (adds PPO / MAPPO training frames/s).",
     ),
     compile: bool = typer.Option(False, "--compile", help="Compile the torch env step (static shapes); same as compile=true."),
@@ -104,7 +127,7 @@ def bench(
 
     allowed = [p for p in inspect.signature(run_bench).parameters if p != "progress"]
     kwargs = {"compile": True} if compile else {}
-    kwargs.update(parse_options(options or [], allowed, "bench"))
+    kwargs.update(parse_options(options or [], allowed, "bench", aliases=BENCH_ALIASES))
     kwargs = check_bench_options(kwargs)
 
     def measured(row: dict) -> None:

@@ -180,10 +180,11 @@ def train(
         return
     from volleybots.config import compose, validate
     from volleybots.config.compose import pin_default_algo
-    from volleybots.train import preflight
 
     jobs = _jobs(overrides, multirun)
     cfgs = [validate(compose(job)) for job in jobs]
+    from volleybots.train import preflight
+
     if show is None:
         for c in cfgs:
             preflight(c)  # memory, opponent= / seed_members / init= files: before Hydra writes any run dir
@@ -231,12 +232,14 @@ def _single_run(overrides: list[str], notes: list[str]) -> None:
     from pathlib import Path
 
     from volleybots.config import compose, validate
+
+    _jobs(overrides, False)  # a sweep value without -m is one clear line
+    # composed before the trainer is imported: a misspelt key or group option is reported before torch loads
+    full = compose(overrides, hydra_node=True)
     from volleybots.population.run import start
     from volleybots.runs import claim_run_dir, unlock
     from volleybots.train import preflight
 
-    _jobs(overrides, False)  # a sweep value without -m is one clear line
-    full = compose(overrides, hydra_node=True)
     key = _DIR_KEYS[False]
     path = str(full.hydra.run.dir)
     if not path.strip():

@@ -63,14 +63,20 @@ def split_args(args, options: dict, override_keys=OVERRIDE_KEYS) -> tuple[list[s
     return specs, opts, overrides
 
 
-def parse_options(args, allowed, what: str) -> dict:
-    """Only ``key=value`` options (``bench``): each key one of ``allowed``, values as Hydra reads them."""
-    out = {}
+def parse_options(args, allowed, what: str, aliases: dict | None = None) -> dict:
+    """Only ``key=value`` options (``bench``): each key one of ``allowed`` or of ``aliases`` (another
+    name of an allowed key: ``task`` for ``tasks``, as every other verb spells it), values as Hydra reads them."""
+    aliases = aliases or {}
+    out, spelled = {}, {}
     for o in args:
         key, value = split_arg(o)
-        if value is None or key not in allowed:
-            raise ConfigError(f"unknown {what} option {key!r}; allowed: {', '.join(allowed)}")
-        out[key] = parse_value(value)
+        if value is None or (key not in allowed and key not in aliases):
+            raise ConfigError(f"unknown {what} option {key!r}; allowed: {', '.join([*allowed, *aliases])}")
+        name = aliases.get(key, key)
+        if name in out:
+            both = f" (as {spelled[name]}= and {key}=)" if spelled[name] != key else ""
+            raise ConfigError(f"{what} option {name!r} is given twice{both}; give it once")
+        out[name], spelled[name] = parse_value(value), key
     return out
 
 

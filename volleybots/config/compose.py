@@ -31,8 +31,25 @@ def _check_overrides(overrides: list[str]) -> None:
         if key in GROUPS and not o.is_delete():
             values = list(o.sweep_string_iterator()) if o.is_sweep_override() else [o.value()]
             for v in values:
-                if str(v) not in group_options(key) and not (key == "population" and v is None):
-                    raise ConfigError(f"unknown {key} {v!r}; allowed: {', '.join(group_options(key))}")
+                check_group_value(key, v)
+
+
+def check_group_value(group: str, value) -> None:
+    """``value`` must be an option of config group ``group`` (a file of ``conf/<group>/``); ``population=null``
+    is none, and ``algo=`` may name a population method (read as ``population=``: ``config.spelling``)."""
+    if (group == "population" and value is None) or (group == "algo" and str(value) in group_options("population")):
+        return
+    if str(value) not in group_options(group):
+        raise ConfigError(f"unknown {group} {value!r}; allowed: {', '.join(group_options(group))}")
+
+
+def check_group_args(args) -> None:
+    """The group choices (``task=``, ``algo=``, ``env=``) among a verb's words checked against ``conf/``
+    alone: a verb calls this first, so a mistyped task is reported before torch and the policies load."""
+    for arg in args:
+        key, value = split_arg(str(arg))
+        if value is not None and key in GROUPS:
+            check_group_value(key, value)
 
 
 def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = False) -> DictConfig:

@@ -21,13 +21,15 @@ def build_env(
         seed: the env's random stream.
         **task_overrides: further task keywords (``reward_shaping``, ``substeps``, ``drone``,
             ``episode_len``, ...); ``compile=True`` compiles the whole env step and reset with
-            ``torch.compile`` (static shapes, torch backend).
+            ``torch.compile`` (static shapes, torch backend); ``group_map="teams"`` lays a match out
+            with one TorchRL group per team and agent-level flags (``volleybots.tasks.groups``).
 
     Returns:
-        The task's ``VolleyEnv``. Raises ``ValueError`` naming a bad name or value.
+        The task's ``VolleyEnv`` (with ``group_map="teams"``, a ``TeamGroups`` over it). Raises ``ValueError`` naming a bad name or value.
     """
     from volleybots.physics import ACTION_SPACES, BACKENDS
     from volleybots.tasks import TASKS
+    from volleybots.tasks.groups import GROUP_MAPS, TeamGroups
 
     check_env_args(num_envs=num_envs, seed=seed, **task_overrides)  # a ValueError naming the key
     if task not in TASKS:
@@ -41,7 +43,14 @@ def build_env(
     # generically): route ours to the env's own static-shape step and reset instead.
     if "compile" in task_overrides:
         task_overrides["compile_physics"] = task_overrides.pop("compile")
-    return TASKS[task](num_envs=num_envs, action_space=action_space, physics=physics, device=device, seed=seed, **task_overrides)
+    group_map = task_overrides.pop("group_map", GROUP_MAPS[0])  # the env's own layout unless asked
+    if group_map not in GROUP_MAPS:
+        raise ValueError(f"unknown group_map {group_map!r}; allowed: {list(GROUP_MAPS)}")
+    if group_map == "teams" and not TASKS[task].competitive:
+        raise ValueError(f"group_map='teams' needs a match; task {task!r} has one team (allowed: "
+                         f"{[n for n, c in TASKS.items() if c.competitive]})")
+    env = TASKS[task](num_envs=num_envs, action_space=action_space, physics=physics, device=device, seed=seed, **task_overrides)
+    return TeamGroups(env) if group_map == "teams" else env
 
 
 def _check_switches(task_cls, overrides: dict) -> None:

@@ -19,8 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from volleybots.algos import PRESETS
-from volleybots.algos.population import LoopConfig
+from volleybots.config.schema import group_options
 from volleybots.config.validate import OPPONENT_LEARNERS
 from volleybots.errors import ConfigError
 from volleybots.overrides import HYDRA_PREFIXES, names_key, override_key, override_value, split_arg
@@ -30,6 +29,8 @@ LEARNER_KEY = "algo.learner"  # the spelling of before of a population's learner
 
 def loop_keys() -> set[str]:
     """The population loop's own keys (``population.*``), as ``algo.*`` spelt them before."""
+    from volleybots.algos.population import LoopConfig  # here: importing this module loads no algorithm (torch)
+
     return {f.name for f in dataclasses.fields(LoopConfig)} - {"name"}
 
 
@@ -67,7 +68,7 @@ def _preset_algo(words: list[str]) -> list[str]:
             out.append(w)
             continue
         values = [v.strip() for v in value.split(",")]
-        presets = [v for v in values if v in PRESETS]
+        presets = [v for v in values if v in group_options("population")]  # the files: no algorithm (torch) loads
         if presets and len(presets) < len(values):
             raise ConfigError(f"algo={value} mixes learners and population methods; sweep population={','.join(presets)} "
                               f"and algo=LEARNER apart")
@@ -105,7 +106,7 @@ def _task_default(words: list[str], for_learner: bool) -> list[str]:
         return []  # a sweep, or a name that composition reports
     opponent = override_value(words, "opponent")
     default = OPPONENT_LEARNERS[0] if opponent not in (None, "null") else class_attr(TASKS[task], "default_algo")
-    if default in PRESETS:
+    if default in group_options("population"):
         return [f"population={default}"]
     return [] if for_learner or default == _config_default("algo") else [f"algo={default}"]
 

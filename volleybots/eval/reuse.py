@@ -33,6 +33,14 @@ def identity(provenance: dict) -> str:
     return json.dumps({"members": members, "mixture": [round(float(x), 12) for x in provenance["mixture"]]}, sort_keys=True)
 
 
+def verified(provenance: dict) -> bool:
+    """Whether what plays is pinned down by its record (a file's hash, a built-in's name), so that its
+    earlier games may stand for new ones; a user's callable or ``module:function`` is not."""
+    from volleybots.policies.foreign import UNVERIFIED
+
+    return not any(m.get("kind") in UNVERIFIED for m in provenance["members"])
+
+
 @dataclass
 class Reused:
     """A pair copied from an earlier results file, shaped as ``play.games.Games`` is for a progress line."""
@@ -82,6 +90,8 @@ class Reuse:
 
     def pair(self, a: dict, b: dict) -> Reused | None:
         """The earlier games of competitor ``a`` (row) against ``b`` (provenances), if it played them in this order."""
+        if not (verified(a) and verified(b)):  # a user's callable: nothing proves its code is what played then
+            return None
         i, j = self.index.get(identity(a)), self.index.get(identity(b))
         if i is None or j is None or i >= j:
             return None

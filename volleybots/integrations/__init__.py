@@ -6,6 +6,10 @@
 - ``VolleyParallelEnv``: any task, the multi-drone ones above all, as a PettingZoo ``ParallelEnv``
   with agents named per team and a ``groups`` map (one group per team).
 - ``VolleySB3VecEnv``: the single-drone tasks as a Stable-Baselines3 ``VecEnv`` over the batched env.
+- ``VolleyMatchVectorEnv`` / ``VolleyMatchSB3VecEnv``: the matches (1v1, 3v3, 6v6) as a Gymnasium
+  vector env and an SB3 ``VecEnv`` of the learning team's drones over batched worlds, the other team
+  played by any competitor (``match_env``); ``sb3_competitor``, ``SnapshotOpponent`` and
+  ``export_torchscript`` take an SB3 policy into the matches and the verbs (``sb3_match``).
 
 Both are views of the TorchRL env (``volleybots.make_env``): nothing of a task is written again here.
 They need optional extras, so that the core install stays as it is: ``pip install 'volleybots[gym]'``
@@ -26,6 +30,9 @@ from volleybots.integrations.gym_env import IDS, VolleyGymEnv, VolleyVectorEnv, 
 register()
 
 
+_SB3_MATCH = ("VolleyMatchSB3VecEnv", "SnapshotOpponent", "export_torchscript", "sb3_competitor")
+
+
 def __getattr__(name: str):
     # PettingZoo is imported on first use, so that the gym extra alone is enough for the Gymnasium envs
     if name in ("VolleyParallelEnv", "parallel_env"):
@@ -36,7 +43,16 @@ def __getattr__(name: str):
         from volleybots.integrations import sb3_env
 
         return sb3_env.VolleySB3VecEnv
+    if name == "VolleyMatchVectorEnv":  # the matches pull in the competitors (checkpoints, the zoo) on first use
+        from volleybots.integrations import match_env
+
+        return match_env.VolleyMatchVectorEnv
+    if name in _SB3_MATCH:
+        from volleybots.integrations import sb3_match
+
+        return getattr(sb3_match, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-__all__ = ["IDS", "VolleyGymEnv", "VolleyParallelEnv", "VolleySB3VecEnv", "VolleyVectorEnv", "parallel_env", "register"]
+__all__ = ["IDS", "SnapshotOpponent", "VolleyGymEnv", "VolleyMatchSB3VecEnv", "VolleyMatchVectorEnv", "VolleyParallelEnv",
+           "VolleySB3VecEnv", "VolleyVectorEnv", "export_torchscript", "parallel_env", "register", "sb3_competitor"]

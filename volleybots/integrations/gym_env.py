@@ -72,7 +72,56 @@ class _Closable:
             raise RuntimeError(f"this {type(self).__name__} is closed: make a new one")
 
 
-class VolleyVectorEnv(_Closable, VectorEnv):
+class _BatchedVectorEnv(_Closable, VectorEnv):
+    """What the vector envs over one batched env share (``self.env``; rows of the learner's agents
+    through ``_rows``): the seeded reset, ``step`` over ``step32``, the ending rows' info and closing."""
+
+    def _rows(self, x: torch.Tensor) -> torch.Tensor:
+        """The vector env's rows of a per-agent tensor [N, A, ...]: one agent per world here."""
+        return x[:, 0]
+
+    def _per_row(self, x: np.ndarray) -> np.ndarray:
+        """A per-world array [N] as the rows (one a world here)."""
+        return x
+
+    def _reseed(self, seed: int) -> None:
+        self.env.set_seed(seed)
+
+    def _after_reset(self) -> None:
+        """What a subclass clears when every world resets."""
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Reset every world; ``seed`` (one int for the whole batch) reseeds the env's generator first."""
+        self._check_open()
+        seed = check_seed(seed)
+        super().reset(seed=seed)
+        if seed is not None:
+            self._reseed(seed)
+        self._td = self.env.reset()
+        self._after_reset()
+        return self._observe(self._rows(self._td.get(OBS))), {}
+
+    def step(self, actions):
+        obs, reward, term, trunc, info = self.step32(actions)
+        return obs, reward.astype(np.float64), term, trunc, info
+
+    def _flags(self, nxt) -> tuple[np.ndarray, np.ndarray]:
+        """(terminated, truncated) of a step's output as the rows."""
+        return tuple(self._per_row(to_numpy(nxt.get(k).reshape(-1))) for k in (TERMINATED, TRUNCATED))
+
+    def _ended_info(self, nxt, done: np.ndarray) -> dict[str, Any]:
+        """The info of a same-step autoreset: the ended rows' last observation and episode statistics."""
+        if not done.any():
+            return {}
+        stats = {k: self._per_row(v) for k, v in episode_stats(self.env, nxt).items()}
+        return {"final_obs": self._observe(self._rows(nxt.get(OBS))), "_final_obs": done, STATS_KEY: stats, "_" + STATS_KEY: done.copy()}
+
+    def close_extras(self, **kwargs):
+        self._closed = True
+        self.env.close(raise_if_closed=False)
+
+
+class VolleyVectorEnv(_BatchedVectorEnv):
     """``num_envs`` worlds of a single-drone task as one Gymnasium vector env (numpy in and out).
 
     Args:
@@ -114,20 +163,8 @@ class VolleyVectorEnv(_Closable, VectorEnv):
         self._td = None
         self._pending = np.zeros(self.num_envs, bool)  # next_step: worlds whose episode ended last step
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        """Reset every world; ``seed`` (one int for the whole batch) reseeds the env's generator first."""
-        self._check_open()
-        seed = check_seed(seed)
-        super().reset(seed=seed)
-        if seed is not None:
-            self.env.set_seed(seed)
-        self._td = self.env.reset()
+    def _after_reset(self) -> None:
         self._pending[:] = False
-        return self._observe(self._td.get(OBS)[:, 0]), {}
-
-    def step(self, actions):
-        obs, reward, term, trunc, info = self.step32(actions)
-        return obs, reward.astype(np.float64), term, trunc, info
 
     def step32(self, actions):
         """``step`` with the reward as the env's float32 (what SB3's buffers hold: ``VolleySB3VecEnv``
@@ -141,15 +178,8 @@ class VolleyVectorEnv(_Closable, VectorEnv):
         self._td.set(ACTION, self._actions.tensor(arr))
         cur, self._td = self.env.step_and_maybe_reset(self._td)
         nxt = cur.get(NEXT)
-        term, trunc = to_numpy(nxt.get(TERMINATED).reshape(-1)), to_numpy(nxt.get(TRUNCATED).reshape(-1))
-        done = term | trunc
-        info: dict[str, Any] = {}
-        if done.any():
-            info["final_obs"] = self._observe(nxt.get(OBS)[:, 0])
-            info["_final_obs"] = done
-            info[STATS_KEY] = episode_stats(self.env, nxt)
-            info["_" + STATS_KEY] = done.copy()
-        return self._observe(self._td.get(OBS)[:, 0]), to_numpy(nxt.get(REWARD)[:, 0, 0]), term, trunc, info
+        term, trunc = self._flags(nxt)
+        return self._observe(self._td.get(OBS)[:, 0]), to_numpy(nxt.get(REWARD)[:, 0, 0]), term, trunc, self._ended_info(nxt, term | trunc)
 
     def _step_next(self, arr: np.ndarray):
         """Gymnasium's next-step autoreset: the worlds whose episode ended last step are stepped with a
@@ -176,10 +206,6 @@ class VolleyVectorEnv(_Closable, VectorEnv):
             info["_" + STATS_KEY] = done.copy()
         self._pending = done
         return obs, reward, term, trunc, info
-
-    def close_extras(self, **kwargs):
-        self._closed = True
-        self.env.close(raise_if_closed=False)
 
 
 class VolleyGymEnv(_Closable, gym.Env):

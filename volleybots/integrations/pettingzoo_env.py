@@ -34,20 +34,7 @@ from volleybots.integrations import spaces as sp
 from volleybots.integrations.render import RENDER_MODES, Trail, check_render_mode
 from volleybots.integrations.spaces import STATS_KEY, Actions, check_seed, episode_stats, to_numpy
 from volleybots.keys import ACTION, AGENTS, NEXT, OBS, REWARD, TERMINATED, TRUNCATED
-from volleybots.replay.style import TEAM_NAMES
-
-
-def agent_names(teams: tuple[int, ...], competitive: bool, legacy: bool = False) -> list[str]:
-    """One name per drone of a task whose drones play on ``teams`` (in agent order): ``blue_0``,
-    ``red_0`` ... in a match (``team0_drone0`` ... with ``legacy``), ``drone_0`` ... otherwise."""
-    if not competitive:
-        return [f"drone_{i}" for i in range(len(teams))]
-    rank = {0: 0, 1: 0}
-    names = []
-    for t in teams:
-        names.append(f"team{t}_drone{rank[t]}" if legacy else f"{TEAM_NAMES[t]}_{rank[t]}")
-        rank[t] += 1
-    return names
+from volleybots.tasks.groups import agent_names
 
 
 class VolleyParallelEnv(ParallelEnv):

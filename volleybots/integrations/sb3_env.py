@@ -52,19 +52,14 @@ def ppo_kwargs(num_envs: int, n_steps: int = 128, minibatches: int = 4) -> dict[
             "policy_kwargs": {"optimizer_kwargs": {"eps": 1e-5, "foreach": True}}}
 
 
-class VolleySB3VecEnv(VecEnv):
-    """``num_envs`` worlds of a single-drone task as one Stable-Baselines3 ``VecEnv``.
+class _BatchedVecEnv(VecEnv):
+    """SB3's ``VecEnv`` over one of the Gymnasium vector envs here (``self.venv``, same-step autoreset,
+    with ``step32``): its rows are SB3's envs, stepped in one batched call."""
 
-    Args: as for ``VolleyVectorEnv`` (``task``, ``num_envs``, ``action_space``, ``physics``,
-    ``device``, ``seed``, ``clip_obs`` and the task's overrides); the autoreset is SB3's (same step).
-    """
-
-    def __init__(self, task: str = "solo_bump", num_envs: int = 8, action_space: str = "prt", physics: str = "torch",
-                 device="cpu", seed: int = 0, **task_overrides):
-        self.venv = VolleyVectorEnv(task, num_envs, action_space=action_space, physics=physics, device=device, seed=seed,
-                                    autoreset_mode="same_step", **task_overrides)
+    def __init__(self, venv):
+        self.venv = venv
         self.render_mode = None
-        super().__init__(self.venv.num_envs, self.venv.single_observation_space, self.venv.single_action_space)
+        super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
         self._actions = None
 
     # ------------------------------------------------------------------ stepping
@@ -86,7 +81,7 @@ class VolleySB3VecEnv(VecEnv):
         obs, reward, term, trunc, info = self.venv.step32(actions)
         dones = term | trunc
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
-        if info:  # some world ended: only its dict is filled
+        if info:  # some world ended: only its rows' dicts are filled
             stats, final = info[STATS_KEY], info["final_obs"]
             for i in np.flatnonzero(dones).tolist():
                 infos[i] = {
@@ -128,4 +123,17 @@ class VolleySB3VecEnv(VecEnv):
         return [False] * self._count(indices)  # the worlds are no gymnasium.Env: nothing wraps them
 
     def get_images(self):
-        raise NotImplementedError("VolleySB3VecEnv renders nothing; VolleyGymEnv(render_mode='rgb_array') renders one world")
+        raise NotImplementedError(f"{type(self).__name__} renders nothing; VolleyGymEnv(render_mode='rgb_array') renders one world")
+
+
+class VolleySB3VecEnv(_BatchedVecEnv):
+    """``num_envs`` worlds of a single-drone task as one Stable-Baselines3 ``VecEnv``.
+
+    Args: as for ``VolleyVectorEnv`` (``task``, ``num_envs``, ``action_space``, ``physics``,
+    ``device``, ``seed``, ``clip_obs`` and the task's overrides); the autoreset is SB3's (same step).
+    """
+
+    def __init__(self, task: str = "solo_bump", num_envs: int = 8, action_space: str = "prt", physics: str = "torch",
+                 device="cpu", seed: int = 0, **task_overrides):
+        super().__init__(VolleyVectorEnv(task, num_envs, action_space=action_space, physics=physics, device=device, seed=seed,
+                                         autoreset_mode="same_step", **task_overrides))

@@ -11,20 +11,24 @@ from volleybots.policies.competitors import (
     Member,
     MixturePolicy,
     builtin_member,
+    callable_competitor,
     checkpoint_member,
     hierarchical_member,
+    import_competitor,
     member_path,
     population_members,
     read_meta,
     resolve_competitor,
     single_policy,
+    torchscript_competitor,
 )
 from volleybots.policies.store import load_learner, load_policy, parse_spec, policy_checkpoint, sha256
 from volleybots.policies.targets import EVAL_KEYS, Target, check_references, resolve_target
 
 __all__ = [
-    "BUILTIN", "EVAL_KEYS", "PLAYERS", "Competitor", "Member", "MixturePolicy", "Player", "Target", "builtin_member", "check_references",
-    "checkpoint_member", "hierarchical_member", "hierarchical_policy", "load_learner", "load_policy", "member_path", "parse_spec",
-    "policy_checkpoint", "population_members", "random_policy", "read_drills_file", "read_meta", "resolve_competitor", "resolve_target",
-    "scripted_policy", "sha256", "single_policy",
+    "BUILTIN", "EVAL_KEYS", "PLAYERS", "Competitor", "Member", "MixturePolicy", "Player", "Target", "builtin_member",
+    "callable_competitor", "check_references", "checkpoint_member", "hierarchical_member", "hierarchical_policy",
+    "import_competitor", "load_learner", "load_policy", "member_path", "parse_spec", "policy_checkpoint", "population_members",
+    "random_policy", "read_drills_file", "read_meta", "resolve_competitor", "resolve_target", "scripted_policy", "sha256",
+    "single_policy", "torchscript_competitor",
 ]

@@ -32,6 +32,7 @@ from volleybots.algos.population import method_name
 from volleybots.errors import ConfigError
 from volleybots.keys import ACTION, AGENTS
 from volleybots.policies.builtin import BUILTIN, HIERARCHICAL_TASK, PLAYERS, acted, hierarchical_policy, read_drills_file
+from volleybots.policies.foreign import TORCHSCRIPT, CallablePolicy, import_target, load_sb3, load_torchscript
 from volleybots.policies.store import load_learner, parse_single, parse_spec, saved_config, sha256, split_mixture
 from volleybots.runs import (
     META_FILE,
@@ -200,13 +201,72 @@ def member_files(path: Path, drills) -> dict | None:
     return out
 
 
+# ------------------------------------------------------------------------------- a user's policies
+def callable_competitor(fn: Callable, label: str = "", numpy: bool = False, task: str | None = None,
+                        action_space: str | None = None, obs_dim: int | None = None, source: dict | None = None) -> Competitor:
+    """A user's policy as a competitor (``volleybots.policies.foreign`` has the contract).
+
+    Args:
+        fn: observations ``[B, obs_dim]`` -> actions ``[B, 4]`` (or ``[B]`` discrete), torch or numpy.
+        label: its name in tables (default: the function's name).
+        numpy: hand ``fn`` a float32 numpy array instead of a torch tensor.
+        task: the task it was made for, if known: a cross-play then refuses a match it does not fit,
+            and a cross-play of it and the built-ins alone takes its task.
+        action_space: the action space it acts in, if known (checked as ``task`` is).
+        obs_dim: the observation size it takes, if known (checked as ``task`` is).
+        source: its provenance in results files (default: kind ``callable`` and the function's name).
+
+    Returns:
+        A ``Competitor`` of one member; its ``team_policy(env)`` acts for one team of ``env``.
+    """
+    if not callable(fn):
+        raise ConfigError(f"a callable competitor needs a function of the observation batch, got {type(fn).__name__}")
+    if not isinstance(numpy, bool):
+        raise ConfigError(f"numpy must be True or False, got {numpy!r}")
+    name = label or getattr(fn, "__name__", type(fn).__name__)
+    source = source or {"kind": "callable", "name": f"{getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', name)}"}
+
+    # ``deterministic`` is the user's to decide inside fn: a plain function acts one way only
+    def make(env, deterministic: bool = False):
+        return CallablePolicy(fn, env, name, numpy)
+
+    return Competitor(name, [Member(name, make, source, task, action_space, obs_dim)])
+
+
+def import_competitor(spec: str, label: str = "") -> Competitor:
+    """The competitor a ``module:function`` spec names: a function (torch in, as ``callable_competitor``)
+    or a ``Competitor`` the module built (with ``callable_competitor``, for numpy input or a task)."""
+    obj = import_target(spec)
+    if isinstance(obj, Competitor):
+        return replace(obj, label=label) if label else obj
+    if not callable(obj):
+        raise ConfigError(f"competitor {spec!r} is a {type(obj).__name__}; expected a function of the observation batch or a Competitor")
+    return callable_competitor(obj, label or spec, source={"kind": "import", "spec": spec})
+
+
+def exported_competitor(path, label: str = "", kind: str = "torchscript") -> Competitor:
+    """A policy exported to a file as a competitor: a TorchScript module (``torch.jit.save``, ``forward(obs
+    [B, obs_dim]) -> actions``) or, with ``kind="sb3"``, a model saved by Stable-Baselines3; a file of
+    another kind is one ``ConfigError`` line. Known by its sha256 in results files, as a checkpoint is."""
+    path = str(path)
+    module = load_torchscript(path) if kind == "torchscript" else load_sb3(path)
+    return callable_competitor(module, label or Path(path).stem, obs_dim=getattr(module, "obs_dim", None),
+                               source={"kind": kind, "path": path, "sha256": sha256(path)})
+
+
+def torchscript_competitor(path, label: str = "") -> Competitor:
+    """A TorchScript module (``torch.jit.save``) as a competitor (``exported_competitor``)."""
+    return exported_competitor(path, label, "torchscript")
+
+
 def read_meta(run_path: Path) -> list[list[float]]:
     """Every meta-strategy a population run wrote, oldest first (each line checked)."""
     return [m["mixture"] for m in read_metas(run_path)]
 
 
 def resolve_competitor(spec: str) -> Competitor:
-    """``scripted``, ``random``, ``hierarchical``, a checkpoint, a run dir, a population run, a zoo entry
+    """``scripted``, ``random``, ``hierarchical``, a checkpoint, a run dir, a population run, a zoo entry,
+    a user's ``module:function`` or ``torchscript:FILE`` (``volleybots.policies.foreign``)
     or a hierarchical team's drills file (``*.yaml``: ``hierarchical: {drill: checkpoint}``); ``name=PATH``
     labels it; ``A+B`` or ``A*3+B`` mixes competitors (the grammar of ``volleybots.policies.store.parse_spec``)."""
     mix = split_mixture(spec)
@@ -218,6 +278,10 @@ def resolve_competitor(spec: str) -> Competitor:
     if s.kind == "drills":
         label = s.label or s.zoo or s.path.stem
         return Competitor(label, [hierarchical_member(read_drills_file(s.path), label)])
+    if s.kind == "import":
+        return import_competitor(s.target, s.label)
+    if s.kind in ("torchscript", "sb3"):
+        return exported_competitor(s.target, s.label, s.kind)
     if s.kind == "checkpoint":
         m = checkpoint_member(s.path)
         return Competitor(s.label or s.zoo or m.label, [m])
@@ -256,7 +320,7 @@ def single_policy(spec: str, what: str) -> Competitor:
 
 
 __all__ = [
-    "META_FILE", "POPULATION_DIR", "AssignedPolicy", "Competitor", "Member", "MixturePolicy", "builtin_member", "checkpoint_member",
-    "hierarchical_member", "member_path", "population_members", "read_meta", "resolve_competitor",
-    "single_policy",
+    "META_FILE", "POPULATION_DIR", "TORCHSCRIPT", "AssignedPolicy", "Competitor", "Member", "MixturePolicy", "builtin_member",
+    "callable_competitor", "checkpoint_member", "exported_competitor", "hierarchical_member", "import_competitor", "member_path",
+    "population_members", "read_meta", "resolve_competitor", "single_policy", "torchscript_competitor",
 ]

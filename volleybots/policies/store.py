@@ -18,6 +18,9 @@ The grammar (``parse_spec``), used by ``eval``, ``replay``, ``eval crossplay``, 
     PATH.yaml                            a hierarchical team with trained drills: ``hierarchical: {drill: checkpoint}``
     zoo:TASK/METHOD                      a policy shipped in the package (``volleybots.zoo``), or a shipped
                                          mixture of policies (a population's meta-strategy)
+    MODULE:FUNCTION                      a user's policy in their own importable code (``volleybots.policies.foreign``)
+    torchscript:FILE                     a user's policy saved with ``torch.jit.save``
+    sb3:FILE.zip                         a PPO / A2C model saved by Stable-Baselines3 (loaded without unpickling)
     NAME=any of the above                the same, labelled NAME
     A+B[+...]                            where a competitor plays (``opponent=``, ``eval crossplay``): a mixture,
                                          one of A, B, ... drawn for each episode, uniformly ...
@@ -36,10 +39,11 @@ from volleybots import zoo
 from volleybots.errors import ConfigError
 from volleybots.files import exists, sha256
 from volleybots.overrides import split_arg
+from volleybots.policies.foreign import SB3, TORCHSCRIPT, is_import_spec
 from volleybots.runs import RunDir, load_algo_state, read_checkpoint, refuse_interpolation, run_policy_checkpoint
 
 MIX, WEIGHT = "+", "*"  # A+B, A*3+B: a mixture of competitors (a path holding them is that path)
-KINDS = ("builtin", "checkpoint", "run", "drills", "mixture")
+KINDS = ("builtin", "checkpoint", "run", "drills", "mixture", "import", "torchscript", "sb3")
 # (sha256, device, n_agents, obs_dim, action_space) -> the learner with its weights loaded; shared safely because
 # acting never changes a learner (observation statistics move only in ``update``)
 _CACHE: dict[tuple, object] = {}
@@ -72,6 +76,11 @@ def parse_spec(spec: str, builtins=BUILTIN_NAMES, what: str = "competitor") -> S
         raise ConfigError(f"{what} {spec!r} names no policy; expected {allowed}")
     if target in builtins:
         return Spec(label, "builtin", target)
+    for prefix, kind in ((TORCHSCRIPT, "torchscript"), (SB3, "sb3")):  # a user's exported policy (volleybots.policies.foreign)
+        if target.startswith(prefix):
+            return Spec(label, kind, target[len(prefix):])
+    if is_import_spec(target):  # a user's own code, imported by module name
+        return Spec(label, "import", target)
     if target.startswith(zoo.PREFIX):
         entry = zoo.lookup(target)
         if entry is None:

@@ -77,7 +77,7 @@ def copy_team(run_path, files: dict[str, str], k: int) -> dict[str, str]:
 
 def team_record(label: str, files: dict[str, str], **extra) -> dict:
     """A member file's record of a hierarchical team (weights-only: plain strings and numbers)."""
-    return {"format": CKPT_FORMAT, "builtin": "hierarchical", "label": label, "drills": dict(files), **extra}
+    return {"format": CKPT_FORMAT, "builtin": "hierarchical", "task": "3v3", "label": label, "drills": dict(files), **extra}
 
 
 def seed_member(run_path, spec: str, k: int) -> dict:

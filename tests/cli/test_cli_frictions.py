@@ -1,0 +1,59 @@
+"""Frictions of issue 55: ``volleybots list --json`` (the listing as data, equal to the lines it prints);
+``bench task=`` (the singular every other verb takes, refused when given twice); a bad config key or
+task reported before torch is imported (so in about a second, not ten)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+from helpers import CLI_ENV, one_line_exit_2
+from typer.testing import CliRunner
+
+from volleybots.cli import app
+
+runner = CliRunner()
+
+
+@pytest.mark.slow  # lists twice: every algorithm's check against every task, 4-8 s on the shared cores
+def test_list_json_holds_what_the_lines_show():
+    from volleybots.algos import ALGOS
+    from volleybots.tasks import TASKS
+
+    res = runner.invoke(app, ["list", "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    assert [t["name"] for t in data["tasks"]] == list(TASKS) and [a["name"] for a in data["algorithms"]] == list(ALGOS)
+    assert {t["name"]: t["drones"] for t in data["tasks"]}["3v3"] == 6
+    algos = {a["name"]: a["tasks"] for a in data["algorithms"]}
+    assert algos["sp"] == ["1v1", "3v3", "6v6"] and "hover" in algos["ppo"] and "1v1" not in algos["ppo"]
+    zoo = {e["name"]: e for e in data["zoo"]}
+    assert zoo["zoo:1v1/bc"]["kind"] == "policy" and zoo["zoo:1v1/fsp_long"]["kind"] == "mixture"
+    assert zoo["zoo:1v1/fsp_long"]["members"] == 6 and "scripted" in data["players"]
+    text = runner.invoke(app, ["list"]).stdout
+    for name in [*TASKS, *ALGOS, *data["backends"], *data["action_spaces"], *data["players"], *zoo]:
+        assert f"  {name} " in text, name
+
+
+def test_bench_takes_task_as_every_verb_does():
+    res = runner.invoke(app, ["bench", "task=hover", "backend=torch", "num_envs=[2]", "repeats=1", "steps=2", "--json"])
+    assert res.exit_code == 0, res.output
+    rows = json.loads(res.stdout)
+    assert [(r["task"], r["backend"], r["num_envs"]) for r in rows] == [("hover", "torch", 2)]
+    one_line_exit_2(runner.invoke(app, ["bench", "task=hover", "tasks=[3v3]"]), "'tasks' is given twice", "task=", "tasks=")
+    one_line_exit_2(runner.invoke(app, ["bench", "taks=hover"]), "unknown bench option 'taks'", "task")
+
+
+@pytest.mark.parametrize("argv", [["train", "task=hover", "algo.nonsense=1"], ["train", "task=hovr"],
+                                  ["train", "-m", "task=hover", "seed=0,1", "algo.nonsens=1"], ["eval", "scripted", "task=hovr"],
+                                  ["eval", "crossplay", "scripted", "random", "task=1vv1"], ["replay", "scripted", "task=hovr"]])
+def test_config_errors_come_before_torch_loads(argv):
+    """The error is the same one line, exit 2; and torch was never imported to give it (what made it take 8-11 s)."""
+    code = ("import sys\nfrom volleybots.cli import app\ntry:\n    app(%r)\nexcept SystemExit as e:\n"
+            "    print('exit', e.code, 'torch loaded' if 'torch' in sys.modules else 'torch not loaded')" % (argv,))
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=CLI_ENV, timeout=120)
+    assert res.stdout.strip().splitlines()[-1] == "exit 2 torch not loaded", res.stdout + res.stderr
+    err = res.stderr.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("error: unknown ") and ("allowed" in err), err
