@@ -70,8 +70,8 @@ def _catalogue() -> dict:
         zoo.append({"name": PREFIX + name, "kind": kind, "task": e.card.get("task"), "members": len(e.members),
                     "drills": list(e.card.get("hierarchical") or ()), "frames": e.card.get("frames", "?"), "seed": e.card.get("seed", "?"),
                     "figures": dict(e.card.get("figures") or {})})
-    return {"tasks": tasks, "algorithms": algos, "populations": populations, "backends": dict(BACKEND_INFO), "action_spaces": dict(ACTION_SPACE_INFO),
-            "players": {name: p.description for name, p in PLAYERS.items()}, "zoo": zoo}
+    return {"tasks": tasks, "algorithms": algos, "populations": populations, "backends": dict(BACKEND_INFO),
+            "action_spaces": dict(ACTION_SPACE_INFO), "players": {name: p.description for name, p in PLAYERS.items()}, "zoo": zoo}
 
 
 def _fits(algo: str, task: str) -> bool:

@@ -10,7 +10,7 @@ from __future__ import annotations
 from omegaconf import DictConfig, OmegaConf
 
 from volleybots.config.schema import GROUPS, group_options, to_dict
-from volleybots.config.spelling import respell
+from volleybots.config.spelling import respell, task_default
 from volleybots.config.validate import validate
 from volleybots.errors import ConfigError
 from volleybots.overrides import names_key, override_key, split_arg
@@ -54,7 +54,7 @@ def check_group_args(args) -> None:
 
 def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = False) -> DictConfig:
     """Compose ``conf/config.yaml`` with Hydra overrides (no sweeps), in today's spelling and with the
-    task's default method where none is named (``volleybots.config.spelling.respell``). Raises ``ConfigError``.
+    task's default method where none is named (``volleybots.config.spelling``). Raises ``ConfigError``.
 
     A misspelt key is reported with the keys allowed beside it."""
     from hydra import compose as hydra_compose
@@ -66,6 +66,11 @@ def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = Fals
     with initialize_config_dir(config_dir=str(conf_dir()), version_base="1.3"):
         try:
             cfg = hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node)
+            # then the task's default method where none is named (a bad word is reported above, before torch loads)
+            default = [] if names_key(overrides, "algo", "population") else task_default(overrides)
+            if default:
+                overrides = respell([*overrides, *default], population=names_key(default, "population"))[0]
+                cfg = hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node)
             return population_budget(algo_action_space(cfg, overrides), overrides)
         except HydraException as e:
             _explain_unknown_key(overrides, hydra_compose)

@@ -17,8 +17,6 @@ population's keys are accepted (``train task=3v3 population.iterations=3``).
 
 from __future__ import annotations
 
-import dataclasses
-
 from volleybots.config.schema import group_options
 from volleybots.config.validate import OPPONENT_LEARNERS
 from volleybots.errors import ConfigError
@@ -28,10 +26,18 @@ LEARNER_KEY = "algo.learner"  # the spelling of before of a population's learner
 
 
 def loop_keys() -> set[str]:
-    """The population loop's own keys (``population.*``), as ``algo.*`` spelt them before."""
-    from volleybots.algos.population import LoopConfig  # here: importing this module loads no algorithm (torch)
+    """The population loop's own keys (``population.*``), as ``algo.*`` spelt them before: those of the
+    population files (which repeat ``LoopConfig``, tests/config/test_registries.py), read without loading
+    an algorithm (torch), so that a bad word is still reported in a second."""
+    from omegaconf import OmegaConf
 
-    return {f.name for f in dataclasses.fields(LoopConfig)} - {"name"}
+    from volleybots.paths import conf_dir
+
+    keys = set()
+    for name in group_options("population"):
+        node = OmegaConf.load(conf_dir() / "population" / f"{name}.yaml").get("population") or {}
+        keys |= set(node)
+    return keys - {"name"}
 
 
 def respell(overrides, population: bool | None = None) -> tuple[list[str], list[str]]:
@@ -40,7 +46,8 @@ def respell(overrides, population: bool | None = None) -> tuple[list[str], list[
     words, notes = _preset_algo([str(o) for o in overrides]), []
     learner = override_value(words, LEARNER_KEY)
     if population is None:
-        words = [*words, *_task_default(words, learner is not None)]
+        if learner is not None or _population_words(words):  # the task's default method decides what they mean
+            words = [*words, *task_default(words, learner is not None)]
         population = names_key(words, "population") and override_value(words, "population") != "null"
     if learner is not None:
         plain = override_value(words, "algo")
@@ -89,11 +96,18 @@ def _loop_words(words: list[str]) -> tuple[list[str], list[str]]:
     return out, moved
 
 
-def _task_default(words: list[str], for_learner: bool) -> list[str]:
+def _population_words(words: list[str]) -> bool:
+    """Whether the words set a population's keys (``population.*``, or a loop key under ``algo``)."""
+    keys = {override_key(w) for w in words}
+    return any(k.startswith("population.") for k in keys) or bool({f"algo.{k}" for k in loop_keys()} & keys)
+
+
+def task_default(words: list[str], for_learner: bool = False) -> list[str]:
     """The group override of the method the task trains with when the words name none: its
     ``default_algo`` (a population preset on the matches), MAPPO against an ``opponent=``; ``for_learner``:
     ``algo.learner=`` is given, which names a population's learner (the task's default population).
-    A swept task is left to each job (``volleybots.config.compose.pin_default_algo``)."""
+    A swept task is left to each job (``volleybots.config.compose.pin_default_algo``). It loads the tasks
+    (torch): ``respell`` asks it only for words that need it, ``compose`` once the words composed."""
     from volleybots.algos.base import class_attr
     from volleybots.tasks import TASKS
 
@@ -123,4 +137,4 @@ def _config_default(group: str) -> str:
     raise KeyError(group)
 
 
-__all__ = ["LEARNER_KEY", "loop_keys", "respell"]
+__all__ = ["LEARNER_KEY", "loop_keys", "respell", "task_default"]
