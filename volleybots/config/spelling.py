@@ -10,9 +10,11 @@ compose the same config:
 * ``algo.learner=mat`` is ``algo=mat`` (with a one-line note): the only place the string is read;
 * ``algo.iterations=3`` (any loop key) given with a population is ``population.iterations=3`` (a note).
 
-A match task with no ``algo=`` / ``population=`` takes its default method here too (``default_algo``:
-``sp`` on the matches, MAPPO against an ``opponent=``), before any key is checked, so that the default
-population's keys are accepted (``train task=3v3 population.iterations=3``).
+A task with no ``algo=`` / ``population=`` trains its default method (``task_default``: ``sp`` on the
+matches, MAPPO against an ``opponent=``). Words that set a population's keys (``train task=3v3
+population.iterations=3``, ``algo.learner=``) take it here, before any key is checked, so that the
+default population's keys are accepted; other words compose first and take it after
+(``volleybots.config.compose``), so that a bad word is reported before the tasks (torch) load.
 """
 
 from __future__ import annotations
