@@ -13,7 +13,8 @@ from volleybots.population import hierarchical
 from volleybots.population.run import resume, start
 
 TINY = [
-    "task=3v3", "algo.high_level_games=32", "algo.high_level_batch=16", "algo.payoff_games=4", "evaluation.episodes=2",
+    "task=3v3", "algo.fixed_opponents=[]", "algo.high_level_games=32", "algo.high_level_batch=16", "algo.payoff_games=4",
+    "evaluation.episodes=2",
     "evaluation.record=false", "progress=false", "threads=1",
 ]
 
@@ -30,6 +31,7 @@ def test_members_auto_is_hierarchical_on_3v3_only_and_refused_where_it_cannot_pl
     cfg = load(["task=3v3", "algo=psro_nash"])
     pop = cfg.population
     assert pop.members == "hierarchical" and pop.seed_members == ["zoo:3v3/hcsp_return"] and pop.learner_init == "last"
+    assert (pop.fixed_opponents, pop.fixed_share, pop.high_level_games) == (["scripted"], 0.5, 1024)
     assert load(["task=1v1", "algo=psro_nash"]).population.members == "flat"
     assert load(["task=3v3", "algo=sp"]).population.members == "flat"  # one learner on both teams is a flat policy
     assert load(["task=3v3", "algo=psro_nash", "algo.members=flat"]).population.learner_init == "bc"  # the paper's table 3, one key away
