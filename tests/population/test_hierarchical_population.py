@@ -40,7 +40,7 @@ def test_members_auto_is_hierarchical_on_3v3_only_and_refused_where_it_cannot_pl
     with pytest.raises(ConfigError, match="unknown population.members 'tree'; allowed: auto, flat, hierarchical"):
         load(["task=3v3", "algo=psro_nash", "algo.members=tree"])
     with pytest.raises(ConfigError, match="population.fixed_share=0.5 needs population.fixed_opponents"):
-        load(["task=3v3", "algo=psro_nash", "algo.fixed_share=0.5"])
+        load(["task=3v3", "algo=psro_nash", "algo.fixed_opponents=[]", "algo.fixed_share=0.5"])  # 3v3's default has [scripted]
 
 
 @pytest.mark.slow  # trains or plays 3v3 games
