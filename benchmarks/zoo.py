@@ -29,6 +29,7 @@ from pathlib import Path
 import torch
 import yaml
 
+from volleybots.algos import method_name
 from volleybots.config import make_env, to_dict
 from volleybots.eval.crossplay import crossplay, match_config, resolve_all
 from volleybots.policies.store import load_learner, saved_config
@@ -106,7 +107,7 @@ def mixture_entry(run: RunDir, pop, task_dir: Path, method: str) -> dict:
             mixture.append({"file": file, "weight": float(weight)})
     cfg = run.load_config()
     last = pop.metas[-1]
-    return {"algo": cfg.algo.name, "frames": int(last["frames"]), "seed": int(cfg.seed), "wall_time": last["wall_time"],
+    return {"algo": method_name(cfg), "frames": int(last["frames"]), "seed": int(cfg.seed), "wall_time": last["wall_time"],
             "config": to_dict(cfg), "iteration": pop.iteration, "members": members, "mixture": mixture}
 
 
@@ -126,7 +127,7 @@ def entry(run: RunDir, task_dir: Path, method: str) -> dict:
     # iteration's: seed + iteration x 1000, the oracle's own budget and time limit)
     cfg = run.load_config()
     label = pop.labels[pop.members.index(playing[0])]
-    return {**single_entry(playing[0], task_dir, method), "algo": cfg.algo.name, "seed": int(cfg.seed), "config": to_dict(cfg),
+    return {**single_entry(playing[0], task_dir, method), "algo": method_name(cfg), "seed": int(cfg.seed), "config": to_dict(cfg),
             "iteration": pop.iteration, "member": label}
 
 

@@ -65,13 +65,15 @@ def _experiment(config: dict) -> tuple:
 def group_runs(runs: list[Run]) -> list[dict]:
     """Complete runs grouped by experiment; each group is labelled by task, algorithm and the config
     keys (its *variant*) that set it apart from the other groups of the same task and algorithm."""
+    from volleybots.algos.population import method_name  # a population run is labelled by its method
+
     groups: dict[tuple, list[Run]] = {}
     for r in runs:
         if r.status == "complete":
             groups.setdefault(_experiment(r.config), []).append(r)
     by_cell: dict[tuple, list[tuple]] = {}
     for key, members in groups.items():
-        by_cell.setdefault((members[0].config["task"]["name"], members[0].config["algo"]["name"]), []).append(key)
+        by_cell.setdefault((members[0].config["task"]["name"], method_name(members[0].config)), []).append(key)
     cells = []
     for (task, algo), keys in sorted(by_cell.items()):
         differ = sorted({k for key in keys for k, v in key if any(dict(other).get(k) != v for other in keys)})

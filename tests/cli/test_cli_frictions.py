@@ -28,12 +28,13 @@ def test_list_json_holds_what_the_lines_show():
     assert [t["name"] for t in data["tasks"]] == list(TASKS) and [a["name"] for a in data["algorithms"]] == list(ALGOS)
     assert {t["name"]: t["drones"] for t in data["tasks"]}["3v3"] == 6
     algos = {a["name"]: a["tasks"] for a in data["algorithms"]}
-    assert algos["sp"] == ["1v1", "3v3", "6v6"] and "hover" in algos["ppo"] and "1v1" not in algos["ppo"]
+    populations = {p["name"]: p["tasks"] for p in data["populations"]}  # their own registry (population=NAME)
+    assert populations["sp"] == ["1v1", "3v3", "6v6"] and "hover" in algos["ppo"] and "1v1" not in algos["ppo"]
     zoo = {e["name"]: e for e in data["zoo"]}
     assert zoo["zoo:1v1/bc"]["kind"] == "policy" and zoo["zoo:1v1/fsp_long"]["kind"] == "mixture"
     assert zoo["zoo:1v1/fsp_long"]["members"] == 6 and "scripted" in data["players"]
     text = runner.invoke(app, ["list"]).stdout
-    for name in [*TASKS, *ALGOS, *data["backends"], *data["action_spaces"], *data["players"], *zoo]:
+    for name in [*TASKS, *ALGOS, *populations, *data["backends"], *data["action_spaces"], *data["players"], *zoo]:
         assert f"  {name} " in text, name
 
 

@@ -10,7 +10,7 @@ import sys
 import pytest
 import torch
 
-from volleybots.algos import ALGOS
+from volleybots.algos import ALGOS, method_name
 from volleybots.algos.base import class_attr
 from volleybots.config import ConfigError, group_options, load, make_env
 from volleybots.paths import conf_dir
@@ -81,7 +81,7 @@ def test_a_multi_drone_task_gets_a_multi_agent_algo_unless_one_is_named():
     assert load(["task=hover"]).algo.name == "ppo"  # the config's default
     for task, algo in (("bump_and_pass", "mappo"), ("3v3", "sp"), ("1v1", "sp")):  # cooperative: MAPPO; matches: self-play
         cfg = load([f"task={task}"])
-        assert cfg.algo.name == algo and ALGOS[cfg.algo.name].multi_agent
+        assert method_name(cfg) == algo and ALGOS[cfg.algo.name].multi_agent
     with pytest.raises(ConfigError, match="trains one drone"):
         load(["task=3v3", "algo=ppo"])  # named: still an error, not silently replaced
 

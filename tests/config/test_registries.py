@@ -1,4 +1,4 @@
-"""Contract tests over every registry: algorithms (population presets included), built-in players,
+"""Contract tests over every registry: algorithms, population presets, built-in players,
 meta-solvers and rating methods. A new entry is held to the same contract without a new test."""
 
 from __future__ import annotations
@@ -36,12 +36,28 @@ def test_the_yaml_of_every_algorithm_equals_its_dataclass_defaults(name):
     assert missing == set(), f"{cls.config_cls.__name__} keys missing from conf/algo/{name}.yaml: {sorted(missing)}"
 
 
+@pytest.mark.parametrize("name", sorted(PRESETS))
+def test_the_yaml_of_every_population_equals_its_dataclass_defaults(name):
+    """conf/population/<name>.yaml repeats its preset's loop dataclass (the name and solver are the preset's),
+    and sets under algo the fine-tuning recipe (``FINE_TUNING``) and nothing else of the learner's."""
+    from volleybots.algos.population import FINE_TUNING
+
+    preset = PRESETS[name]
+    cfg = compose(["task=1v1", f"population={name}"])
+    yaml = OmegaConf.to_container(cfg.population)
+    defaults = {**OmegaConf.to_container(OmegaConf.structured(preset.config_cls)), "name": name, "solver": preset.solver}
+    assert yaml == defaults, f"conf/population/{name}.yaml differs from {preset.config_cls.__name__}"
+    assert cfg.algo.name == preset.learner  # the file's default learner is the preset's
+    learner = OmegaConf.to_container(OmegaConf.structured(preset.learner_cls.config_cls))
+    assert {k: v for k, v in OmegaConf.to_container(cfg.algo).items() if _plain(learner.get(k)) != _plain(v)} == FINE_TUNING
+
+
 def test_the_top_level_yaml_equals_the_config_dataclass():
     from volleybots.config.schema import CheckpointConfig, Config, EvaluationConfig, WandbConfig
 
     cfg = OmegaConf.to_container(compose([]))
     for f in dataclasses.fields(Config):
-        if f.name in ("task", "algo", "env"):
+        if f.name in ("task", "algo", "population", "env"):  # the groups: compared with their own dataclasses
             continue
         default = f.default if f.default is not dataclasses.MISSING else dataclasses.asdict(f.default_factory())
         assert cfg[f.name] == default, f"conf/config.yaml {f.name}: {cfg[f.name]!r}, Config: {default!r}"
@@ -64,7 +80,7 @@ def test_every_algorithm_composes_validates_and_builds_on_a_task_it_accepts(name
     cfg = load([f"task={task}", f"algo={name}", f"env.action_space={cls.action_spaces[0]}", "env.num_envs=2", "threads=1"])
     assert validate(OmegaConf.to_container(cfg)).algo == cfg.algo  # validation is idempotent
     env = make_env(cfg, num_envs=2)
-    n = len(env.team_index(0)) if is_population(cls) else env.n_drones
+    n = len(env.team_index(0)) if is_population(cfg) else env.n_drones
     learner = learner_class(cfg.algo)(cfg.algo, AgentSpec.of(env, n), seed=0)
     if hasattr(learner, "attach"):
         learner.attach(env)
@@ -92,20 +108,20 @@ def _accepts(cls, task: str) -> bool:
 @pytest.mark.parametrize("name", sorted(PRESETS))
 def test_every_population_preset_accepts_its_own_default_start_and_refuses_the_others_by_name(name):
     """A preset that is defined by its learners' start (FSP: each continues the newest member) refuses
-    every other ``algo.learner_init`` with one line naming the value; the rest take every start."""
+    every other ``population.learner_init`` with one line naming the value; the rest take every start."""
     from volleybots.algos.population import INITS
     from volleybots.config import ConfigError
 
     preset = PRESETS[name]
     assert set(preset.learner_inits) <= set(INITS) and bool(preset.learner_inits) == bool(preset.otherwise)
-    defaults = {init for _, init, _ in preset.starts}  # what each algo.start gives learner_init
+    defaults = {init for _, init, _ in preset.starts}  # what each population.start gives learner_init
     base = OmegaConf.to_container(compose(["task=1v1", f"algo={name}", "env.num_envs=2", "threads=1"]))
     for init in INITS:
-        raw = {**base, "algo": {**base["algo"], "learner_init": init}}
+        raw = {**base, "population": {**base["population"], "learner_init": init}}
         if not preset.learner_inits or init in preset.learner_inits:
-            assert validate(raw).algo.learner_init == init
+            assert validate(raw).population.learner_init == init
         else:
-            with pytest.raises(ConfigError, match=f"^algo={name} .*'{init}'"):
+            with pytest.raises(ConfigError, match=f"^population={name} .*'{init}'"):
                 validate(raw)
     assert not preset.learner_inits or defaults <= set(preset.learner_inits)
 

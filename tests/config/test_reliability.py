@@ -15,7 +15,7 @@ import pytest
 from helpers import HOVER_FPB, TINY_HOVER, snapshot, tiny_hover_run, train_rows
 from typer.testing import CliRunner
 
-from volleybots.algos import ALGOS, is_population
+from volleybots.algos import ALGOS, PRESETS, is_population
 from volleybots.algos.base import class_attr
 from volleybots.cli import app
 from volleybots.config import BenchOptions, Config, ConfigError, compose, task_schema, to_dict, validate
@@ -41,11 +41,12 @@ def _one_line_exit_2(res, *words):
 def _schemas():
     """(prefix, schema, a task it validates with, an algo) for every schema holding numeric keys."""
     out = [("", Config, "hover", "ppo")]
-    for name, cls in ALGOS.items():
+    methods = {**ALGOS, **PRESETS}  # algo=PRESET composes the population with its default learner
+    for name, cls in methods.items():
         task = next(t for t, tc in sorted(TASKS.items()) if _fits(cls, tc))
-        out.append(("algo.", cls.config_cls, task, name))
+        out.append(("population." if is_population(cls) else "algo.", cls.config_cls, task, name))
     for name in sorted(TASKS):
-        out.append(("task.", task_schema(name), name, next(a for a, c in ALGOS.items() if _fits(c, TASKS[name]))))
+        out.append(("task.", task_schema(name), name, next(a for a, c in methods.items() if _fits(c, TASKS[name]))))
     return out
 
 

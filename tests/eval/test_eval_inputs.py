@@ -149,5 +149,5 @@ def test_a_non_ascii_run_dir_gets_the_quoting_hint(tmp_path):
 def test_a_yardstick_of_another_task_is_refused_before_the_run_dir(tmp_path):
     where = tmp_path / "run"
     one_line_exit_2(runner.invoke(app, ["train", "task=1v1", "algo=sp", "algo.eval_opponent=hierarchical", f"hydra.run.dir={where}"]),
-                    "algo.eval_opponent='hierarchical'", "3v3")
+                    "population.eval_opponent='hierarchical'", "3v3")
     assert not where.exists()

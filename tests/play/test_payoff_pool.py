@@ -57,7 +57,7 @@ def test_a_ray_pool_plays_the_same_payoff_entries_as_serial_play(serial_run, tmp
 
 
 def test_an_unknown_pool_is_refused():
-    with pytest.raises(ConfigError, match="unknown algo.payoff_pool 'dask'; allowed: serial, ray"):
+    with pytest.raises(ConfigError, match="unknown population.payoff_pool 'dask'; allowed: serial, ray"):
         load([*TINY, "algo.payoff_pool=dask"])
 
 

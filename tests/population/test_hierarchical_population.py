@@ -1,4 +1,4 @@
-"""Hierarchical members of a population (algo.members=hierarchical): drills under a learned high level,
+"""Hierarchical members of a population (population.members=hierarchical): drills under a learned high level,
 each oracle a high level trained against the meta-solver's mixture; kill and resume; every verb plays it."""
 
 import json
@@ -29,17 +29,18 @@ def _members(run):
 
 def test_members_auto_is_hierarchical_on_3v3_only_and_refused_where_it_cannot_play():
     cfg = load(["task=3v3", "algo=psro_nash"])
-    assert cfg.algo.members == "hierarchical" and cfg.algo.seed_members == ["zoo:3v3/hcsp_return"] and cfg.algo.learner_init == "last"
-    assert (cfg.algo.fixed_opponents, cfg.algo.fixed_share, cfg.algo.high_level_games) == (["scripted"], 0.5, 1024)
-    assert load(["task=1v1", "algo=psro_nash"]).algo.members == "flat"
-    assert load(["task=3v3", "algo=sp"]).algo.members == "flat"  # one learner on both teams is a flat policy
-    assert load(["task=3v3", "algo=psro_nash", "algo.members=flat"]).algo.learner_init == "bc"  # the paper's table 3, one key away
-    with pytest.raises(ConfigError, match="algo.members=hierarchical plays task 3v3, not '1v1'"):
+    pop = cfg.population
+    assert pop.members == "hierarchical" and pop.seed_members == ["zoo:3v3/hcsp_return"] and pop.learner_init == "last"
+    assert (pop.fixed_opponents, pop.fixed_share, pop.high_level_games) == (["scripted"], 0.5, 1024)
+    assert load(["task=1v1", "algo=psro_nash"]).population.members == "flat"
+    assert load(["task=3v3", "algo=sp"]).population.members == "flat"  # one learner on both teams is a flat policy
+    assert load(["task=3v3", "algo=psro_nash", "algo.members=flat"]).population.learner_init == "bc"  # the paper's table 3, one key away
+    with pytest.raises(ConfigError, match="population.members=hierarchical plays task 3v3, not '1v1'"):
         load(["task=1v1", "algo=psro_nash", "algo.members=hierarchical"])
-    with pytest.raises(ConfigError, match="unknown algo.members 'tree'; allowed: auto, flat, hierarchical"):
+    with pytest.raises(ConfigError, match="unknown population.members 'tree'; allowed: auto, flat, hierarchical"):
         load(["task=3v3", "algo=psro_nash", "algo.members=tree"])
-    with pytest.raises(ConfigError, match="algo.fixed_share=0.5 needs algo.fixed_opponents"):
-        load(["task=3v3", "algo=psro_nash", "algo.fixed_opponents=[]", "algo.fixed_share=0.5"])
+    with pytest.raises(ConfigError, match="population.fixed_share=0.5 needs population.fixed_opponents"):
+        load(["task=3v3", "algo=psro_nash", "algo.fixed_opponents=[]", "algo.fixed_share=0.5"])  # 3v3's default has [scripted]
 
 
 @pytest.mark.slow  # trains or plays 3v3 games

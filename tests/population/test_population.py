@@ -31,7 +31,7 @@ def tiny(algo, *more):
 
 def test_every_method_accepts_matches_only():
     for algo in ("sp", "fsp", "psro_uniform", "psro_nash"):
-        assert tiny(algo).algo.name == algo
+        assert tiny(algo).population.name == algo
         with pytest.raises(ConfigError, match="trains for matches"):
             load(["task=bump_and_pass", f"algo={algo}"])
 
@@ -40,13 +40,14 @@ def test_every_method_accepts_matches_only():
 def test_fsp_refuses_a_learner_start_that_would_make_it_psro_uniform(init):
     """A 3v3 run of algo=fsp algo.learner_init=bc repeated PSRO-uniform's run oracle for oracle: FSP's one
     difference is that each learner continues from the newest member, so any other start is refused."""
-    with pytest.raises(ConfigError, match=f"algo=fsp continues .* not '{init}', which makes it algo=psro_uniform.*seed_members=\\[bc\\]"):
+    fsp = f"population=fsp continues .* not '{init}', which makes it population=psro_uniform.*seed_members=\\[bc\\]"
+    with pytest.raises(ConfigError, match=fsp):
         tiny("fsp", f"algo.learner_init={init}")
-    assert tiny("psro_uniform", f"algo.learner_init={init}").algo.learner_init == init
-    with pytest.raises(ConfigError, match="unknown algo.solver 'best'; allowed: uniform, nash"):
+    assert tiny("psro_uniform", f"algo.learner_init={init}").population.learner_init == init
+    with pytest.raises(ConfigError, match="unknown population.solver 'best'; allowed: uniform, nash"):
         tiny("psro_nash", "algo.solver=best")
     # a match with no algo named trains self-play; a cooperative task MAPPO
-    assert load(["task=3v3"]).algo.name == "sp" and load(["task=bump_and_pass"]).algo.name == "mappo"
+    assert load(["task=3v3"]).population.name == "sp" and load(["task=bump_and_pass"]).algo.name == "mappo"
 
 
 def test_mixture_draws_members_per_env_as_weighted_and_only_at_episode_starts():
@@ -74,7 +75,7 @@ def test_self_play_trains_on_both_sides_mirrored():
     batch, _ = collect(env, policy, td, 60)
     view = seat.view(env, batch)
     assert view.batch_size == (16, 60) and view["agents"].batch_size == (16, 60, 1)
-    assert seat.spec(env).n_drones == 1 and cfg.algo.self_play
+    assert seat.spec(env).n_drones == 1 and cfg.population.self_play
     obs, nobs = batch["agents", "observation"], batch["next", "agents", "observation"]
     assert torch.equal(view["agents", "observation"][:8, :, 0], obs[:, :, 0])
     assert torch.equal(view["agents", "observation"][8:, :, 0], obs[:, :, 1])
@@ -118,9 +119,9 @@ def test_psro_run_grows_the_population_and_fills_the_payoffs(tmp_path):
     assert len(comp.members) == 3 and comp.mixture == meta[-1]["mixture"]
     # a finished run is refused untouched; more iterations continue it
     before = (tmp_path / "run" / "config.yaml").read_text()
-    with pytest.raises(ConfigError, match="has finished .*raise algo.iterations"):
+    with pytest.raises(ConfigError, match="has finished .*raise population.iterations"):
         resume(tmp_path / "run")
-    with pytest.raises(ConfigError, match="cannot change 'algo.solver'"):
+    with pytest.raises(ConfigError, match="cannot change 'population.solver'"):
         resume(tmp_path / "run", ["algo.solver=uniform"])
     assert (tmp_path / "run" / "config.yaml").read_text() == before
     resume(tmp_path / "run", ["algo.iterations=3"])
@@ -278,7 +279,7 @@ def test_bad_seed_members_are_refused_before_anything_is_written(tmp_path):
     ckpt = tmp_path / "sp1v1" / "checkpoints" / "final.pt"
     ok = tiny("fsp", f"algo.seed_members=[random,{ckpt}]")
     check_references(ok)
-    assert ok.algo.seed_members[1] == str(ckpt)
+    assert ok.population.seed_members[1] == str(ckpt)
     with pytest.raises(ConfigError, match="plays task '1v1', not '3v3'"):
         check_references(load(["task=3v3", "algo=fsp", f"algo.seed_members=[{ckpt}]"]))
     # an SP run is a single policy (its one member), so it may seed a population
@@ -399,21 +400,22 @@ def test_the_defaults_start_every_population_from_the_clone_and_fit_every_announ
                "psro_nash": ("scratch", ["random"])}
     for algo in want:
         cfg = load([f"task={task}", f"algo={algo}"])
-        assert (cfg.algo.learner_init, list(cfg.algo.seed_members)) == want[algo]
-        raw = load([f"task={task}", f"algo={algo}", "algo.start=scratch"]).algo
+        assert (cfg.population.learner_init, list(cfg.population.seed_members)) == want[algo]
+        raw = load([f"task={task}", f"algo={algo}", "algo.start=scratch"]).population
         assert (raw.learner_init, list(raw.seed_members), raw.members) == (*scratch[algo], "flat")
-        if algo != "sp" and cfg.algo.members == "flat":
+        if algo != "sp" and cfg.population.members == "flat":
             per_batch = cfg.env.num_envs * cfg.algo.steps_per_batch
-            assert cfg.total_frames == cfg.algo.iterations * cfg.algo.max_updates * per_batch
+            assert cfg.total_frames == cfg.population.iterations * cfg.population.max_updates * per_batch
             loop = PopulationLoop.__new__(PopulationLoop)
-            loop.cfg, loop.m, loop.hierarchical = cfg, cfg.algo, False
-            assert loop._planned(1, 0) == cfg.algo.iterations  # the progress line's "iteration i/N"
+            loop.cfg, loop.m, loop.hierarchical = cfg, cfg.population, False
+            assert loop._planned(1, 0) == cfg.population.iterations  # the progress line's "iteration i/N"
             # a budget that leaves the last oracle fewer than min_updates batches announces one iteration less
-            loop.cfg = load([f"task={task}", f"algo={algo}", f"total_frames={cfg.total_frames - per_batch * (cfg.algo.max_updates - 1)}"])
-            assert loop._planned(1, 0) == cfg.algo.iterations - 1
+            short = cfg.total_frames - per_batch * (cfg.population.max_updates - 1)
+            loop.cfg = load([f"task={task}", f"algo={algo}", f"total_frames={short}"])
+            assert loop._planned(1, 0) == cfg.population.iterations - 1
     # an explicit value wins over algo.start; a bad start is one line
-    assert load(["task=1v1", "algo=psro_nash", "algo.start=scratch", "algo.learner_init=bc"]).algo.learner_init == "bc"
-    with pytest.raises(ConfigError, match="unknown algo.start 'none'; allowed: auto, clone, scratch, zoo"):
+    assert load(["task=1v1", "algo=psro_nash", "algo.start=scratch", "algo.learner_init=bc"]).population.learner_init == "bc"
+    with pytest.raises(ConfigError, match="unknown population.start 'none'; allowed: auto, clone, scratch, zoo"):
         load(["task=1v1", "algo=psro_nash", "algo.start=none"])
 
 

@@ -139,7 +139,7 @@ def test_a_population_with_a_learned_member_is_never_cleared(tiny_population, co
 def test_resume_of_a_finished_self_play_run_says_what_continues_it(tiny_population, copy_run):
     run = copy_run(tiny_population)
     cfg = yaml.safe_load((run / "config.yaml").read_text())
-    cfg["algo"].update(name="sp", self_play=True, seed_members=[])
+    cfg["population"].update(name="sp", self_play=True, seed_members=[])  # the loop's keys
     (run / "config.yaml").write_text(yaml.safe_dump(cfg))
     validate(cfg)
     err = one_line_exit_2(runner.invoke(app, ["train", f"resume={run}", "total_frames=100000"]), "self-play", f"init={run}")

@@ -94,6 +94,6 @@ def test_an_oracle_stops_early_enough_for_its_payoff_games_to_end_by_the_time_li
     # iteration i's learner gets the run's time limit less the reserve; without a limit nothing changes
     for limit, want in ((100.0, 80.0), (0.0, 0.0)):
         cfg = load([*TINY, "algo=psro_nash", "algo.start=scratch", f"time_limit={limit}"])
-        loop = SimpleNamespace(cfg=cfg, m=cfg.algo, clone=None)
+        loop = SimpleNamespace(cfg=cfg, m=cfg.population, clone=None)
         assert PopulationLoop._iteration_cfg(loop, 2, 0, reserve=20.0).time_limit == want
         assert PopulationLoop._iteration_cfg(loop, 2, 0).time_limit == limit

@@ -58,11 +58,6 @@ class Algorithm(ABC):
         self.action_dim = env.actions.dim if self.continuous else env.actions.n
 
     @classmethod
-    def config_class(cls, data=None) -> type:
-        """The dataclass of its ``algo.*`` keys (a population preset's depends on the learner ``data`` names)."""
-        return cls.config_cls
-
-    @classmethod
     def check(cls, cfg, task_cls, env_cfg) -> None:
         """Raise ``ConfigError`` when the algorithm's config ``cfg`` is bad or it cannot train
         ``task_cls`` in the env of ``env_cfg`` (action space, batch size)."""

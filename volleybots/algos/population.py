@@ -1,18 +1,18 @@
-"""The population presets of the registry: ``sp``, ``fsp``, ``psro_uniform``, ``psro_nash``.
+"""The population presets: ``sp``, ``fsp``, ``psro_uniform``, ``psro_nash`` (``population=NAME``).
 
 They are one loop (``volleybots.population.loop``); a preset names its three parts: a meta-solver, a
-learner (``algo.learner``: MAPPO with a critic over its own team by default, PPO for one drone a side;
-HAPPO or MAT on teams of several drones) and its loop settings (``LoopConfig``). ``algo.*`` holds the
-learner's keys and the loop's flat, so ``algo.actor_lr=...`` sets the learner's and ``algo.iterations=...``
-the loop's; ``Preset.config_class`` joins the two dataclasses. ``is_population`` is the one question
-that sends a config to the loop.
+learner (``algo=``: MAPPO with a critic over its own team by default, PPO for one drone a side; HAPPO or
+MAT on teams of several drones) and its loop settings (``LoopConfig``). A run config holds the loop's
+keys under ``population.*`` and the learner's, from the learner's own file, under ``algo.*``;
+``population_of(cfg)`` is how code reads the loop's keys, ``is_population`` the one question that sends
+a config to the loop. ``PRESETS`` is their registry, apart from the algorithms' (``volleybots.algos.ALGOS``).
 """
 
 from __future__ import annotations
 
 import copy
-import functools
-from dataclasses import dataclass, field, make_dataclass
+import dataclasses
+from dataclasses import dataclass
 
 from volleybots.algos.base import class_attr
 from volleybots.algos.happo import HAPPO
@@ -24,20 +24,20 @@ from volleybots.ratings.solvers import SOLVERS  # a leaf module (numpy and scipy
 CLONE = "bc"  # the run's behaviour clone of the scripted team: a learner_init and a seed_members name
 ZOO = "zoo"  # learners fine-tuned from the task's zoo start (ZOO_STARTS), the first member that policy
 INITS = ("scratch", "last", CLONE, ZOO)
-# algo.start: what a population starts from where algo.learner_init / algo.seed_members are left unset.
+# population.start: what a population starts from where population.learner_init / seed_members are left unset.
 # "clone" is the default because learners from scratch do not hit the ball within a default budget:
 # a bare `train task=3v3 algo=psro_nash` from scratch ended with the Nash mixture on `random` alone
 # "zoo" starts from the package's best learned policy of the task (ZOO_STARTS), with the scripted player
-# as a fixed opponent beside the mixture (algo.fixed_opponents): a 1v1 population from the clone stayed
+# as a fixed opponent beside the mixture (population.fixed_opponents): a 1v1 population from the clone stayed
 # below scripted (0.39 against it), from dag_rally it keeps the returns the receive work taught;
 # "auto": zoo where the task has a zoo start (not for sp), clone elsewhere
 STARTS = ("auto", "clone", "scratch", ZOO)
 ZOO_STARTS = {"1v1": "zoo:1v1/dag_rally"}
 ZOO_FIXED = (["scripted"], 0.5)  # fixed opponents and their share of a zoo start or hierarchical members, where unset
-# the learners an oracle may train (algo.learner): those that learn one team of a match with a critic
+# the learners an oracle may train (algo=): those that learn one team of a match with a critic
 # over their own team; HAPPO and MAT only where the team has several drones (3v3, 6v6)
 LEARNERS = {cls.name: cls for cls in (MAPPO, HAPPO, MAT)}
-# algo.members: the policy space of a population. flat: every member one network over the whole team
+# population.members: the policy space of a population. flat: every member one network over the whole team
 # (the paper's table 3); hierarchical (3v3): drills under a learned high level, each oracle training a
 # high level over the run's drills (the HCSP route, volleybots/population/hierarchical.py); auto:
 # hierarchical on 3v3, flat elsewhere (what the headline's targets were met with: docs/competitive.md)
@@ -48,14 +48,13 @@ POOLS = ("serial", "ray")  # where payoff games are played: here, or as tasks of
 
 @dataclass
 class LoopConfig:
-    """The population loop's own keys (``algo.solver``, ``algo.iterations``, ...); the learner's (``algo.actor_lr``,
-    ``algo.hidden``, ...) are its config class's. ``algo.*`` holds both flat: ``Preset.config_class`` joins them."""
+    """The population loop's own keys (``population.solver``, ``population.iterations``, ...); the learner's
+    (``algo.actor_lr``, ``algo.hidden``, ...) are its own config class's, under ``algo``."""
 
     name: str = "psro_nash"
     solver: str = "nash"
-    learner: str = "mappo"  # the oracle's learner (LEARNERS): what trains every best response
     start: str = "auto"
-    # None: from algo.start (Preset.starts); saved configs hold the resolved value
+    # None: from population.start (Preset.starts); saved configs hold the resolved value
     learner_init: str | None = None
     bc_frames: int = ranged(200_000, ge=1)
     # the clone's fit: Adam steps per teacher frame sampled (bc's replay_ratio); a small bc_frames
@@ -80,7 +79,7 @@ class LoopConfig:
     high_level_lr: float = ranged(1e-3, gt=0, le=1)  # Adam's learning rate of a high level
     # fixed opponents every oracle also trains against (a league's anchors), beside the meta-strategy;
     # never members, so never in the mixture; fixed_share: their share of the oracle's games
-    # (None: from algo.start; saved configs hold the resolved values)
+    # (None: from population.start; saved configs hold the resolved values)
     fixed_opponents: list[str] | None = None
     fixed_share: float | None = ranged(None, ge=0, le=1)
     oracle_fall_fault: bool = True  # hierarchical oracles train with task.fall_fault on (payoffs and evaluations: the task's rule)
@@ -93,81 +92,66 @@ class SelfPlayLoop(LoopConfig):
 
 
 # the learner keys whose population defaults differ from the learner's own: the fine-tuning recipe of
-# docs/imitation.md (critic warm-up, KL anchor at 0.3); they act on learners that start from a policy (the
-# clone, or init=); the loop sets both to 0 for a learner from scratch
-FINE_TUNING = (("actor_freeze_updates", int, ranged(10, ge=0)), ("anchor_coeff", float, ranged(0.3, ge=0)))
-
-
-@functools.cache
-def population_config(loop_cls: type, learner_cls: type, name: str, solver: str, learner: str) -> type:
-    """The flat ``algo.*`` dataclass of a preset: the learner's config, the fine-tuning defaults, the loop's keys."""
-    own = [*FINE_TUNING, ("name", str, field(default=name)), ("solver", str, field(default=solver)),
-           ("learner", str, field(default=learner))]
-    cls_name = f"{name.title().replace('_', '')}{learner_cls.__name__}Config"
-    cls = make_dataclass(cls_name, own, bases=(loop_cls, learner_cls.config_cls))
-    cls.__module__ = __name__
-    return cls
+# docs/imitation.md (critic warm-up, KL anchor at 0.3), set under algo by conf/population/psro_nash.yaml;
+# they act on learners that start from a policy (the clone, or init=); the loop sets both to 0 for a
+# learner from scratch
+FINE_TUNING = {"actor_freeze_updates": 10, "anchor_coeff": 0.3}
 
 
 @dataclass(frozen=True)
 class Preset:
     """A population method in three parts: its meta-solver, its learner and its loop settings. Not an
-    algorithm of its own: ``algo=NAME`` selects it like one, and ``volleybots.population.run.start`` hands
-    its config to the population loop, which trains the named learner as its oracle (``algo.learner``)
-    and the meta-solver over the members."""
+    algorithm of its own: ``population=NAME`` selects it (``algo=NAME`` is read as that, with its default
+    learner), and ``volleybots.population.run.start`` hands its config to the population loop, which
+    trains the learner ``algo=`` names as its oracle and the meta-solver over the members."""
 
     name: str
     solver: str  # the meta-solver (volleybots.ratings.solvers.SOLVERS) over the payoff table
     loop: type = LoopConfig  # the loop settings' dataclass
-    learner: str = "mappo"  # the default learner (LEARNERS); algo.learner picks another
-    multi_agent: bool = True
-    task_kinds: tuple[str, ...] = ("competitive",)
-    # the learner starts (algo.learner_init) the method is defined by, and what any other start would
+    learner: str = "mappo"  # the default learner (LEARNERS); algo= picks another
+    # the learner starts (population.learner_init) the method is defined by, and what any other start would
     # make it instead; empty: every start in INITS
     learner_inits: tuple[str, ...] = ()
     otherwise: str = ""
-    # algo.start -> (learner_init, seed_members) where the config leaves them unset
+    # population.start -> (learner_init, seed_members) where the config leaves them unset
     starts: tuple = (("clone", CLONE, (CLONE,)), ("scratch", "scratch", ("random",)))
-
-    def config_class(self, data=None) -> type:
-        """The ``algo.*`` dataclass for the composed ``data``: the loop's keys and those of the learner
-        ``data`` names (saved configs name none: theirs was MAPPO)."""
-        learner = (data or {}).get("learner") or self.learner
-        if learner not in LEARNERS:
-            raise ConfigError(f"unknown algo.learner {learner!r}; allowed: {', '.join(LEARNERS)}")
-        return population_config(self.loop, LEARNERS[learner], self.name, self.solver, learner)
 
     @property
     def config_cls(self) -> type:
-        return self.config_class()
+        """The dataclass of its ``population.*`` keys."""
+        return self.loop
 
     @property
     def learner_cls(self) -> type:
         return LEARNERS[self.learner]
 
-    def learner_of(self, cfg) -> type:
-        """The class of the learner the config ``cfg.algo`` trains (what its member checkpoints hold)."""
-        return LEARNERS[cfg.get("learner") or self.learner]
+    def learner_of(self, algo_cfg) -> type:
+        """The class of the learner ``algo_cfg`` (a run's ``algo`` node) names: what the member checkpoints hold."""
+        name = algo_cfg.get("name") or self.learner
+        if name not in LEARNERS:
+            raise ConfigError(f"population={self.name} cannot train algo={name} as its learner; allowed: {', '.join(LEARNERS)}")
+        return LEARNERS[name]
 
-    def resolve(self, cfg, has_init: bool = False, task: str | None = None) -> None:
-        """Fill ``learner_init`` and ``seed_members`` the config leaves unset (None) from ``algo.start``,
-        and ``members=auto`` from the ``task``, so that a saved config holds what the run did and reloads
-        the same whatever the defaults become. ``has_init``: the run names ``init=``, which is then every
-        learner's start (``scratch``: no clone; the loop hands each learner ``init=`` with the fine-tuning
-        recipe) where the start would clone. A hierarchical population starts from its drills' team
-        (``algo.drills``, with its high level if it has one) and each oracle from the newest high level."""
+    def resolve(self, cfg, has_init: bool = False, task: str | None = None, learner: str | None = None) -> None:
+        """Fill ``learner_init`` and ``seed_members`` the ``population`` node ``cfg`` leaves unset (None) from its
+        ``start``, and ``members=auto`` from the ``task``, so that a saved config holds what the run did and
+        reloads the same whatever the defaults become. ``has_init``: the run names ``init=``, which is then
+        every learner's start (``scratch``: no clone; the loop hands each learner ``init=`` with the
+        fine-tuning recipe) where the start would clone. A hierarchical population starts from its drills'
+        team (``population.drills``, with its high level if it has one) and each oracle from the newest high level.
+        ``learner``: the run's ``algo=`` (None: the preset's own)."""
         if cfg.members not in MEMBERS:
-            raise ConfigError(f"unknown algo.members {cfg.members!r}; allowed: {', '.join(MEMBERS)}")
+            raise ConfigError(f"unknown population.members {cfg.members!r}; allowed: {', '.join(MEMBERS)}")
         if cfg.members == "auto":
-            # self-play has one learner on both teams: a flat policy; so are a named flat learner (algo.learner)
-            # and the from-scratch recipe (algo.start=scratch), as they were before hierarchical members
-            flat = cfg.self_play or cfg.learner != self.learner or cfg.start == "scratch"
+            # self-play has one learner on both teams: a flat policy; so are another learner than the preset's
+            # (algo=mat) and the from-scratch recipe (start=scratch), as they were before hierarchical members
+            flat = cfg.self_play or (learner or self.learner) != self.learner or cfg.start == "scratch"
             cfg.members = "hierarchical" if task in HIERARCHICAL_TASKS and not flat else "flat"
         if cfg.start not in STARTS:
-            raise ConfigError(f"unknown algo.start {cfg.start!r}; allowed: {', '.join(STARTS)}")
+            raise ConfigError(f"unknown population.start {cfg.start!r}; allowed: {', '.join(STARTS)}")
         if cfg.start == "auto":
             # self-play keeps the clone (table 3's sp); a hierarchical population starts from its drills' team
-            # and init= names every learner's start itself (as it did beside algo.start=clone)
+            # and init= names every learner's start itself (as it did beside start=clone)
             zoo = task in ZOO_STARTS and cfg.members != "hierarchical" and not cfg.self_play and not has_init
             cfg.start = ZOO if zoo else "clone"
         # a zoo start and hierarchical members keep the scripted team beside the mixture: without it the
@@ -185,7 +169,7 @@ class Preset:
             return
         if cfg.start == ZOO:
             if task not in ZOO_STARTS:
-                raise ConfigError(f"algo.start=zoo: task {task!r} has no zoo start; tasks with one: {', '.join(ZOO_STARTS)}")
+                raise ConfigError(f"population.start=zoo: task {task!r} has no zoo start; tasks with one: {', '.join(ZOO_STARTS)}")
             # FSP continues from the newest member: its first learner from the zoo start itself
             init = self.learner_inits[0] if self.learner_inits else ZOO
             members = (ZOO_STARTS[task],) if not cfg.self_play else ()
@@ -197,73 +181,71 @@ class Preset:
         if cfg.seed_members is None:
             cfg.seed_members = list(members)
 
-    @property
-    def action_spaces(self) -> tuple[str, ...]:
-        return self.learner_cls.action_spaces
-
-    def supported_kinds(self) -> tuple[str, ...]:
-        return self.task_kinds
-
-    def check(self, cfg, task_cls, env_cfg) -> None:
-        """The preset's own values and its learner's; the files and players it names (``seed_members``,
-        ``eval_opponent``) are checked before a run by ``volleybots.policies.check_references``."""
+    def check(self, pop, algo, task_cls, env_cfg) -> None:
+        """The preset's own values (the ``population`` node ``pop``) and its learner's (``algo``); the files
+        and players it names (``seed_members``, ``eval_opponent``) are checked before a run by
+        ``volleybots.policies.check_references``."""
         if not class_attr(task_cls, "competitive"):
             from volleybots.tasks import TASKS
 
             matches = [n for n, t in TASKS.items() if class_attr(t, "competitive")]
-            raise ConfigError(f"algo {self.name!r} trains for matches, not task {task_cls.name!r}; allowed tasks: {', '.join(matches)}")
-        if cfg.fixed_share and not cfg.fixed_opponents:
-            raise ConfigError(f"algo.fixed_share={cfg.fixed_share} needs algo.fixed_opponents (e.g. [scripted, hierarchical])")
-        if cfg.members == "hierarchical":
-            self.check_hierarchical(cfg, task_cls)
+            raise ConfigError(f"population={self.name} trains for matches, not task {task_cls.name!r}; allowed tasks: {', '.join(matches)}")
+        if pop.fixed_share and not pop.fixed_opponents:
+            raise ConfigError(f"population.fixed_share={pop.fixed_share} needs population.fixed_opponents (e.g. [scripted, hierarchical])")
+        if pop.members == "hierarchical":
+            self.check_hierarchical(pop, algo.name, task_cls)
             return
-        learner_cls = self.learner_of(cfg)
-        if cfg.learner_init == CLONE and learner_cls is not MAPPO:
-            raise ConfigError(f"algo.learner={cfg.learner} cannot start from the clone (algo.learner_init=bc: its networks are "
-                              "MAPPO's); give algo.start=scratch or algo.learner_init=scratch")
-        view = cfg
-        if cfg.learner_init != CLONE:  # the loop gives a learner from scratch no fine-tuning (_iteration_cfg)
-            view = copy.deepcopy(cfg)
+        learner_cls = self.learner_of(algo)
+        if pop.learner_init == CLONE and learner_cls is not MAPPO:
+            raise ConfigError(f"algo={algo.name} cannot start from the clone (population.learner_init=bc: its networks are "
+                              "MAPPO's); give population.start=scratch or population.learner_init=scratch")
+        view = algo
+        if pop.learner_init != CLONE:  # the loop gives a learner from scratch no fine-tuning (_iteration_cfg)
+            view = copy.deepcopy(algo)
             view.actor_freeze_updates, view.anchor_coeff = 0, 0.0
-        check_team_learner(learner_cls, view, task_cls, env_cfg, f"algo={self.name} algo.learner={cfg.learner}")
-        for value, allowed, key in ((cfg.solver, SOLVERS, "algo.solver"), (cfg.learner_init, INITS, "algo.learner_init"),
-                                    (cfg.payoff_pool, POOLS, "algo.payoff_pool")):
+        check_team_learner(learner_cls, view, task_cls, env_cfg, f"population={self.name} algo={algo.name}")
+        for value, allowed, key in ((pop.solver, SOLVERS, "population.solver"), (pop.learner_init, INITS, "population.learner_init"),
+                                    (pop.payoff_pool, POOLS, "population.payoff_pool")):
             if value not in allowed:
                 raise ConfigError(f"unknown {key} {value!r}; allowed: {', '.join(allowed)}")
-        if self.learner_inits and cfg.learner_init not in self.learner_inits:
-            raise ConfigError(f"algo={self.name} {self.otherwise.format(init=cfg.learner_init)}")
-        if cfg.max_updates < cfg.min_updates:
-            raise ConfigError(f"algo.max_updates={cfg.max_updates} is below algo.min_updates={cfg.min_updates}")
-        if cfg.learner_init == CLONE or CLONE in [str(s) for s in cfg.seed_members]:
+        if self.learner_inits and pop.learner_init not in self.learner_inits:
+            raise ConfigError(f"population={self.name} {self.otherwise.format(init=pop.learner_init)}")
+        if pop.max_updates < pop.min_updates:
+            raise ConfigError(f"population.max_updates={pop.max_updates} is below population.min_updates={pop.min_updates}")
+        if pop.learner_init == CLONE or CLONE in [str(s) for s in pop.seed_members]:
             from volleybots.algos.bc import BC
 
             try:  # the clone is a bc run against the scripted team: it must be one this task can train
-                BC.check(cfg, task_cls, env_cfg)
+                BC.check(algo, task_cls, env_cfg)
             except ConfigError as e:
-                raise ConfigError(f"algo.learner_init=bc / algo.seed_members=[bc] clone the scripted team: {e}") from None
-        if not cfg.self_play and not cfg.seed_members:
-            raise ConfigError(f"algo {self.name!r} needs a first opponent: algo.seed_members=[random] (or scripted, or checkpoint paths)")
+                raise ConfigError(f"population.learner_init=bc / population.seed_members=[bc] clone the scripted team: {e}") from None
+        if not pop.self_play and not pop.seed_members:
+            raise ConfigError(f"population={self.name} needs a first opponent: population.seed_members=[random] "
+                              "(or scripted, or checkpoint paths)")
 
 
-    def check_hierarchical(self, cfg, task_cls) -> None:
-        """A hierarchical population's own values (its learner is the high level's PPO, not algo.learner)."""
+    def check_hierarchical(self, pop, learner: str, task_cls) -> None:
+        """A hierarchical population's own values (the ``population`` node ``pop``; its learner is the high
+        level's PPO, not ``algo=``, which must be the preset's own ``learner``)."""
         if task_cls.name not in HIERARCHICAL_TASKS:
-            raise ConfigError(f"algo.members=hierarchical plays task {', '.join(HIERARCHICAL_TASKS)}, not {task_cls.name!r}; "
-                              "give algo.members=flat")
-        if cfg.learner != self.learner:
-            raise ConfigError(f"algo.learner={cfg.learner} trains flat members; a hierarchical member's oracle trains its high level "
-                              "(algo.high_level_*): give algo.members=flat with it")
-        if cfg.self_play:
-            raise ConfigError(f"algo={self.name} has no hierarchical members (one learner plays both teams); use algo=fsp, "
-                              "psro_uniform or psro_nash with algo.members=hierarchical, or algo.members=flat")
-        for value, allowed, key in ((cfg.solver, SOLVERS, "algo.solver"), (cfg.learner_init, ("scratch", "last"), "algo.learner_init"),
-                                    (cfg.payoff_pool, POOLS, "algo.payoff_pool")):
+            raise ConfigError(f"population.members=hierarchical plays task {', '.join(HIERARCHICAL_TASKS)}, not {task_cls.name!r}; "
+                              "give population.members=flat")
+        if learner != self.learner:
+            raise ConfigError(f"algo={learner} trains flat members; a hierarchical member's oracle trains its high level "
+                              "(population.high_level_*): give population.members=flat with it")
+        if pop.self_play:
+            raise ConfigError(f"population={self.name} has no hierarchical members (one learner plays both teams); use population=fsp, "
+                              "psro_uniform or psro_nash with population.members=hierarchical, or population.members=flat")
+        for value, allowed, key in ((pop.solver, SOLVERS, "population.solver"),
+                                    (pop.learner_init, ("scratch", "last"), "population.learner_init"),
+                                    (pop.payoff_pool, POOLS, "population.payoff_pool")):
             if value not in allowed:
-                raise ConfigError(f"unknown {key} {value!r} for algo.members=hierarchical; allowed: {', '.join(allowed)}")
-        if self.learner_inits and cfg.learner_init not in self.learner_inits:
-            raise ConfigError(f"algo={self.name} {self.otherwise.format(init=cfg.learner_init)}")
-        if not cfg.seed_members:
-            raise ConfigError(f"algo {self.name!r} needs a first opponent: algo.seed_members=[{cfg.drills}] (or scripted, hierarchical)")
+                raise ConfigError(f"unknown {key} {value!r} for population.members=hierarchical; allowed: {', '.join(allowed)}")
+        if self.learner_inits and pop.learner_init not in self.learner_inits:
+            raise ConfigError(f"population={self.name} {self.otherwise.format(init=pop.learner_init)}")
+        if not pop.seed_members:
+            raise ConfigError(f"population={self.name} needs a first opponent: population.seed_members=[{pop.drills}] "
+                              "(or scripted, hierarchical)")
 
 
 def check_team_learner(learner_cls: type, cfg, task_cls, env_cfg, what: str) -> None:
@@ -278,26 +260,53 @@ def check_team_learner(learner_cls: type, cfg, task_cls, env_cfg, what: str) -> 
     learner_cls.check(cfg, team, env_cfg)
 
 
-# what a population config saved before algo.members existed did: flat members from algo.start=clone
+# what a population config saved before population.members existed did: flat members from start=clone
 # with no fixed opponents; a saved config reads as the run it was, whatever the defaults became since
 LEGACY_KEYS = {"members": "flat", "start": "clone", "fixed_opponents": [], "fixed_share": 0.0}
 
 
-def with_legacy_keys(algo: dict) -> dict:
-    """``algo`` (a population's ``algo`` dict) with the keys it lacks from before ``members`` filled as
-    that version ran them; a config composed today holds every key and is returned as it is."""
-    if "members" in algo:
-        return algo
-    return {**{k: v for k, v in LEGACY_KEYS.items() if k not in algo}, **algo}
-
-
-def is_population(algo) -> bool:
-    """Whether ``algo`` (a name, an ``algo`` config or a registry entry) is a population preset: the one
-    question that sends a run to the population loop instead of the trainer alone."""
-    name = algo if isinstance(algo, str) else getattr(algo, "name", None)
-    if name is None and hasattr(algo, "get"):
-        name = algo.get("name")
+def is_population(x) -> bool:
+    """Whether ``x`` is a population: a preset's name, a preset, a run config with a ``population`` node,
+    that node itself, or an ``algo`` node saved before ``population=`` was a group (named by a preset).
+    The one question that sends a run to the population loop instead of the trainer alone."""
+    if isinstance(x, Preset):
+        return True
+    if isinstance(x, str):
+        return x in PRESETS
+    if not hasattr(x, "get"):
+        return False
+    if x.get("population") is not None:
+        return True
+    name = x.get("name")
     return isinstance(name, str) and name in PRESETS
+
+
+def population_of(cfg):
+    """The population loop's keys of the run config ``cfg`` (its ``population`` node), or None for a run
+    of one learner: the one accessor of the loop's keys."""
+    return cfg.get("population") if hasattr(cfg, "get") else None
+
+
+def method_name(cfg) -> str:
+    """What a run config (or a saved one, a dict) trains with, by name: its population method, else its algorithm."""
+    pop = population_of(cfg)
+    return pop.get("name") if pop is not None else cfg["algo"]["name"]
+
+
+def upgrade_saved(data: dict) -> dict:
+    """A run config saved before ``population=`` was a group (``algo.name`` a preset, its loop's keys and its
+    learner's flat under ``algo``, the learner named by ``algo.learner`` or MAPPO) in today's shape: the
+    loop's keys under ``population``, the learner's under ``algo``. Any other config is returned as is."""
+    algo = data.get("algo")
+    if data.get("population") is not None or not isinstance(algo, dict) or algo.get("name") not in PRESETS:
+        return data
+    loop = {f.name for f in dataclasses.fields(PRESETS[algo["name"]].loop)}
+    learner = {k: v for k, v in algo.items() if k not in loop and k != "learner"}
+    learner["name"] = algo.get("learner") or "mappo"
+    pop = {k: v for k, v in algo.items() if k in loop}
+    if "members" not in pop:  # saved before population.members: the keys added since read as that version ran them
+        pop = {**LEGACY_KEYS, **pop}
+    return {**data, "population": pop, "algo": learner}
 
 
 # self-play has no frozen members: its one learner starts from the clone or from scratch
@@ -306,10 +315,9 @@ SP = Preset("sp", "last", SelfPlayLoop, starts=(("clone", CLONE, ()), ("scratch"
 # makes it PSRO-uniform, run for run (a 3v3 run with learner_init=bc was)
 FSP = Preset(
     "fsp", "uniform", learner_inits=("last",), starts=(("clone", "last", (CLONE,)), ("scratch", "last", ("random",))),
-    otherwise="continues each learner from the newest member (algo.learner_init=last), not {init!r}, which makes it "
-    "algo=psro_uniform; to start FSP from the clone give algo.seed_members=[bc] (its first learner continues from the clone)",
+    otherwise="continues each learner from the newest member (population.learner_init=last), not {init!r}, which makes it "
+    "population=psro_uniform; to start FSP from the clone give population.seed_members=[bc] (its first learner continues from the clone)",
 )
 PSROUniform = Preset("psro_uniform", "uniform")
 PSRONash = Preset("psro_nash", "nash")
 PRESETS = {p.name: p for p in (SP, FSP, PSROUniform, PSRONash)}
-PopulationConfig = PSRONash.config_cls  # psro_nash's algo.* with its default learner (MAPPO)

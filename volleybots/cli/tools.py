@@ -14,10 +14,10 @@ from volleybots.errors import ConfigError
 
 @app.command("list")
 def list_cmd(
-    as_json: bool = typer.Option(False, "--json", help="Print the lists as one JSON object (tasks, algorithms, backends, "
+    as_json: bool = typer.Option(False, "--json", help="Print the lists as one JSON object (tasks, algorithms, populations, backends, "
                                  "action spaces, players, zoo) instead of lines."),
 ) -> None:
-    """List tasks, algorithms, physics backends, action spaces, built-in players and the zoo, one line each."""
+    """List tasks, algorithms, population methods, physics backends, action spaces, built-in players and the zoo, one line each."""
     data = _catalogue()
     if as_json:
         typer.echo(json.dumps(data, indent=1))
@@ -30,6 +30,9 @@ def list_cmd(
     typer.echo("algorithms (algo=NAME):")
     for a in data["algorithms"]:
         typer.echo(f"  {a['name']:<20} action spaces: {', '.join(a['action_spaces'])}; tasks: {', '.join(a['tasks'])}")
+    typer.echo("population methods (population=NAME, or algo=NAME; their learner is algo=, mappo by default):")
+    for p in data["populations"]:
+        typer.echo(f"  {p['name']:<20} solver: {p['solver']}; learners: {', '.join(p['learners'])}; tasks: {', '.join(p['tasks'])}")
     for key, title in (("backends", "physics backends (env.physics=NAME):"), ("action_spaces", "action spaces (env.action_space=NAME):"),
                        ("players", "built-in players (eval NAME, competitors, opponent=):")):
         typer.echo(title)
@@ -47,7 +50,7 @@ def list_cmd(
 
 def _catalogue() -> dict:
     """What ``list`` shows, as plain data (the text and the JSON are two views of it)."""
-    from volleybots.algos import ALGOS
+    from volleybots.algos import ALGOS, LEARNERS, PRESETS
     from volleybots.algos.base import class_attr
     from volleybots.config import group_options
     from volleybots.physics import ACTION_SPACE_INFO, BACKEND_INFO
@@ -59,30 +62,38 @@ def _catalogue() -> dict:
              for name, cls in TASKS.items()]
     algos = [{"name": name, "action_spaces": list(cls.action_spaces), "tasks": [t for t in TASKS if _fits(name, t)]}
              for name, cls in ALGOS.items()]
+    populations = [{"name": name, "solver": p.solver, "learners": list(LEARNERS), "tasks": [t for t in TASKS if _fits(name, t)]}
+                   for name, p in PRESETS.items()]
     zoo = []
     for name, e in entries().items():
         kind = "team" if e.is_team else "mixture" if e.is_mixture else "policy"
         zoo.append({"name": PREFIX + name, "kind": kind, "task": e.card.get("task"), "members": len(e.members),
                     "drills": list(e.card.get("hierarchical") or ()), "frames": e.card.get("frames", "?"), "seed": e.card.get("seed", "?"),
                     "figures": dict(e.card.get("figures") or {})})
-    return {"tasks": tasks, "algorithms": algos, "backends": dict(BACKEND_INFO), "action_spaces": dict(ACTION_SPACE_INFO),
-            "players": {name: p.description for name, p in PLAYERS.items()}, "zoo": zoo}
+    return {"tasks": tasks, "algorithms": algos, "populations": populations, "backends": dict(BACKEND_INFO),
+            "action_spaces": dict(ACTION_SPACE_INFO), "players": {name: p.description for name, p in PLAYERS.items()}, "zoo": zoo}
 
 
 def _fits(algo: str, task: str) -> bool:
-    """Whether ``algo`` accepts ``task`` in its own first action space (its ``check`` decides)."""
-    from volleybots.algos import ALGOS, is_population
+    """Whether ``algo`` (or a population method with its default learner) accepts ``task`` in its own first
+    action space (its ``check`` decides)."""
+    from omegaconf import OmegaConf
+
+    from volleybots.algos import ALGOS, PRESETS
     from volleybots.config import EnvConfig
     from volleybots.tasks import TASKS
 
-    cls = ALGOS[algo]
+    preset = PRESETS.get(algo)
+    cls = preset.learner_cls if preset is not None else ALGOS[algo]
     try:
-        from omegaconf import OmegaConf
-
         cfg = OmegaConf.structured(cls.config_cls)
-        if is_population(cls):  # a population preset fills its start's learner_init / seed_members first, as validate does
-            cls.resolve(cfg, task=task)
-        cls.check(cfg, TASKS[task], EnvConfig(action_space=cls.action_spaces[0]))
+        env = EnvConfig(action_space=cls.action_spaces[0])
+        if preset is not None:  # a population preset fills its start's learner_init / seed_members first, as validate does
+            pop = OmegaConf.structured(preset.config_cls)
+            preset.resolve(pop, task=task)
+            preset.check(pop, cfg, TASKS[task], env)
+        else:
+            cls.check(cfg, TASKS[task], env)
     except ConfigError:
         return False
     return True

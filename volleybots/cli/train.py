@@ -130,7 +130,7 @@ def _echo_summary(summary: dict, run_dir) -> None:
             say("oracles: " + "; ".join(_oracle_text(i, o) for i, o in enumerate(oracles, 1)))
         if d := summary.get("dropped_oracle"):
             say(f"oracle {d['iteration']} dropped: the budget ended it after {d['updates']} update(s) ({d['frames']} frames), "
-                       f"before algo.min_updates; resume with more total_frames or time_limit to train it")
+                f"before population.min_updates; resume with more total_frames or time_limit to train it")
         return
     ev = summary["final_eval"]["stats"][summary["metric"]]
     say(
@@ -170,8 +170,13 @@ def train(
         summary = resume(resume_dir, [o for o in overrides if not o.startswith("resume=")])
         _echo_summary(summary, resume_dir)
         return
+    from volleybots.config.spelling import respell
+
+    # old spellings and the task's default method, once for every job; the notes on old spellings are
+    # printed once the config is accepted (a refusal stays one line)
+    overrides, notes = respell(overrides)
     if not multirun and show is None:
-        _single_run(overrides)
+        _single_run(overrides, notes)
         return
     from volleybots.config import compose, validate
     from volleybots.config.compose import pin_default_algo
@@ -183,7 +188,8 @@ def train(
     if show is None:
         for c in cfgs:
             preflight(c)  # memory, opponent= / seed_members / init= files: before Hydra writes any run dir
-    overrides = [*overrides, *pin_default_algo(cfgs, overrides)]
+    overrides = pin_default_algo(cfgs, overrides)
+    _echo_notes(notes)
     if show is not None:
         _run_hydra(overrides, multirun, ["--cfg", show])
         return
@@ -213,7 +219,12 @@ def _sweep_report(sweep_dir) -> None:
     say(f"sweep report: {files[0]}")
 
 
-def _single_run(overrides: list[str]) -> None:
+def _echo_notes(notes: list[str]) -> None:
+    for note in notes:
+        say(f"note: {note}", err=True)
+
+
+def _single_run(overrides: list[str], notes: list[str]) -> None:
     """One run without a sweep: the config is composed once (its ``hydra`` node gives the run dir) and
     validated once, every file it names is checked, and only then is the directory claimed and
     written. Hydra's launcher machinery is for sweeps; a single run records its overrides in
@@ -237,6 +248,7 @@ def _single_run(overrides: list[str]) -> None:
 
     cfg = validate(OmegaConf.masked_copy(full, [k for k in full if k != "hydra"]))
     preflight(cfg)
+    _echo_notes(notes)
     explicit = names_key(overrides, key)
     run_dir = claim_run_dir(Path(path).absolute(), unique=not explicit)  # absolute, as Hydra's output_dir is
     try:

@@ -8,9 +8,10 @@ schemas so that a misspelt key or a value of the wrong type is rejected with one
 * a task's keys are derived from its class's constructor signature (``schema.task_schema``), so a new
   task needs only its YAML file;
 * an algorithm's keys are its own dataclass config (``volleybots.algos.ALGOS[name].config_cls``), a
-  population preset's are ``volleybots.algos.population``'s.
+  population method's loop keys (``population.*``) its preset's (``volleybots.algos.PRESETS[name].config_cls``).
 
 Modules: ``schema`` (dataclasses, ranges), ``validate``, ``compose`` (Hydra, ``key=value`` values),
+``spelling`` (the command line's population words: old spellings, a task's default method),
 ``envs`` (an env from a config), ``resources`` (memory checks, bench options).
 """
 

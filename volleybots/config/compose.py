@@ -7,14 +7,13 @@ same way everywhere.
 
 from __future__ import annotations
 
-import dataclasses
-
 from omegaconf import DictConfig, OmegaConf
 
 from volleybots.config.schema import GROUPS, group_options, to_dict
-from volleybots.config.validate import OPPONENT_LEARNERS, validate
+from volleybots.config.spelling import respell, task_default
+from volleybots.config.validate import validate
 from volleybots.errors import ConfigError
-from volleybots.overrides import names_key, override_key, override_value, split_arg
+from volleybots.overrides import names_key, override_key, split_arg
 from volleybots.paths import conf_dir
 
 
@@ -36,7 +35,10 @@ def _check_overrides(overrides: list[str]) -> None:
 
 
 def check_group_value(group: str, value) -> None:
-    """``value`` must be an option of config group ``group`` (a file of ``conf/<group>/``)."""
+    """``value`` must be an option of config group ``group`` (a file of ``conf/<group>/``); ``population=null``
+    is none, and ``algo=`` may name a population method (read as ``population=``: ``config.spelling``)."""
+    if (group == "population" and value is None) or (group == "algo" and str(value) in group_options("population")):
+        return
     if str(value) not in group_options(group):
         raise ConfigError(f"unknown {group} {value!r}; allowed: {', '.join(group_options(group))}")
 
@@ -51,41 +53,28 @@ def check_group_args(args) -> None:
 
 
 def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = False) -> DictConfig:
-    """Compose ``conf/config.yaml`` with Hydra overrides (no sweeps). Raises ``ConfigError``.
+    """Compose ``conf/config.yaml`` with Hydra overrides (no sweeps), in today's spelling and with the
+    task's default method where none is named (``volleybots.config.spelling``). Raises ``ConfigError``.
 
     A misspelt key is reported with the keys allowed beside it."""
     from hydra import compose as hydra_compose
     from hydra import initialize_config_dir
     from hydra.errors import HydraException
 
-    overrides = learner_keys(list(overrides))
+    overrides = respell(overrides)[0]
     _check_overrides(overrides)
     with initialize_config_dir(config_dir=str(conf_dir()), version_base="1.3"):
         try:
             cfg = hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node)
-            default = _task_default_algo(cfg, overrides)
-            if default is not None:
-                cfg = hydra_compose("config", overrides=[*overrides, f"algo={default}"], return_hydra_config=hydra_node)
+            # then the task's default method where none is named (a bad word is reported above, before torch loads)
+            default = [] if names_key(overrides, "algo", "population") else task_default(overrides)
+            if default:
+                overrides = respell([*overrides, *default], population=names_key(default, "population"))[0]
+                cfg = hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node)
             return population_budget(algo_action_space(cfg, overrides), overrides)
         except HydraException as e:
             _explain_unknown_key(overrides, hydra_compose)
             raise ConfigError(f"bad override: {_one_line(e)}") from None
-
-
-def learner_keys(overrides: list[str]) -> list[str]:
-    """A population's ``algo.learner=happo`` / ``mat`` brings keys of its own that the preset's file (MAPPO's
-    keys) lacks: an override of one (``algo.embed_dim=64``) adds it, as ``+algo.embed_dim=64`` would."""
-    named = override_value(overrides, "algo.learner")
-    if named is None:  # the usual case, answered without importing the algorithms (torch): a bad key is reported in a second
-        return overrides
-    from volleybots.algos import LEARNERS, PRESETS
-
-    learner = LEARNERS.get(str(named))
-    if learner is None:
-        return overrides
-    base = {f.name for f in dataclasses.fields(PRESETS["psro_nash"].config_cls)}
-    extra = {f"algo.{f.name}" for f in dataclasses.fields(learner.config_cls)} - {f"algo.{k}" for k in base}
-    return [f"+{o}" if split_arg(o)[0] in extra else o for o in overrides]
 
 
 def _explain_unknown_key(overrides: list[str], hydra_compose) -> None:
@@ -111,34 +100,20 @@ def _explain_unknown_key(overrides: list[str], hydra_compose) -> None:
 _ABSENT = object()
 
 
-def _task_default_algo(cfg: DictConfig, overrides) -> str | None:
-    """The algorithm a task trains with when the command line names none (the task's
-    ``default_algo``: MAPPO for the cooperative tasks, SP for the matches, MAPPO against an
-    ``opponent=``), if it is not the config's
-    default already. ``eval scripted task=3v3`` needs no algo at all, and ``train task=3v3`` then does
-    what one expects. A named algo that cannot train the task is still an error."""
-    from volleybots.algos.base import class_attr
-    from volleybots.tasks import TASKS
-
-    if names_key(overrides, "algo"):
-        return None
-    task_cls = TASKS.get(OmegaConf.select(cfg, "task.name", default=None))
-    if task_cls is None:
-        return None
-    default = OPPONENT_LEARNERS[0] if OmegaConf.select(cfg, "opponent", default=None) is not None else class_attr(task_cls, "default_algo")
-    return None if default == OmegaConf.select(cfg, "algo.name", default=None) else default
-
-
 def pin_default_algo(cfgs, overrides) -> list[str]:
-    """The ``algo=`` override that pins the default algorithm the composed ``cfgs`` took (each task's own,
-    ``_task_default_algo``) for a launcher that composes again, or none when the command line names one;
-    swept tasks of different defaults are one ``ConfigError`` line."""
-    if names_key(overrides, "algo"):
-        return []
-    algos = sorted({c.algo.name for c in cfgs})
-    if len(algos) > 1:
-        raise ConfigError(f"the swept tasks train with different default algorithms ({', '.join(algos)}); name one with algo=NAME")
-    return [f"algo={algos[0]}"]
+    """The overrides (in today's spelling) with the default method the composed ``cfgs`` took pinned (each
+    task's own, ``respell``: ``population=sp`` on a match) for a launcher that composes again; unchanged
+    when the command line names one; swept tasks of different defaults are one ``ConfigError`` line."""
+    from volleybots.algos import method_name
+
+    if names_key(overrides, "algo", "population"):
+        return overrides
+    methods = sorted({method_name(c) for c in cfgs})
+    if len(methods) > 1:
+        raise ConfigError(f"the swept tasks train with different default methods ({', '.join(methods)}); name one with "
+                          "algo=NAME or population=NAME")
+    pin = f"population={methods[0]}" if cfgs[0].population is not None else f"algo={methods[0]}"
+    return respell([*overrides, pin], population=cfgs[0].population is not None)[0]
 
 
 def algo_action_space(cfg: DictConfig, overrides) -> DictConfig:
@@ -158,15 +133,15 @@ def population_budget(cfg: DictConfig, overrides) -> DictConfig:
     """A population run that the command line gives no ``total_frames`` gets the frames its iterations
     take at most (``iterations x max_updates`` batches), so that it trains every iteration it announces;
     the clone's ``bc_frames`` come on top. Self-play keeps ``total_frames``: its one learner is the budget."""
-    from volleybots.algos import is_population
+    from volleybots.algos import population_of
 
     if names_key(overrides, "total_frames"):
         return cfg
-    m = OmegaConf.select(cfg, "algo")
-    if m is None or not is_population(m) or m.get("self_play"):
+    m = population_of(cfg)
+    if m is None or m.get("self_play"):
         return cfg
     try:
-        cfg.total_frames = int(m.iterations) * int(m.max_updates) * int(cfg.env.num_envs) * int(m.steps_per_batch)
+        cfg.total_frames = int(m.iterations) * int(m.max_updates) * int(cfg.env.num_envs) * int(cfg.algo.steps_per_batch)
     except (TypeError, ValueError):  # a bad value: validate names it
         pass
     return cfg

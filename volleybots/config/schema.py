@@ -17,7 +17,7 @@ from omegaconf.errors import ConfigKeyError, OmegaConfBaseException, ValidationE
 from volleybots.errors import ConfigError, Range, field_range, ranged
 from volleybots.paths import conf_dir
 
-GROUPS = ("task", "algo", "env")  # config groups selected by `group=option`
+GROUPS = ("task", "algo", "population", "env")  # config groups selected by `group=option`
 LOGGERS = ("csv", "wandb")
 WANDB_MODES = ("offline", "online", "disabled")
 # constructor arguments of a task that come from the env config (or the run), not the task's YAML
@@ -74,6 +74,7 @@ class EvaluationConfig:
 class Config:
     task: Any = MISSING  # checked against task_schema(task.name)
     algo: Any = MISSING  # checked against the algorithm's config dataclass
+    population: Any = None  # a population method's loop keys, checked against its preset's dataclass (None: one learner)
     env: EnvConfig = field(default_factory=EnvConfig)
     seed: int = ranged(0, ge=0, le=MAX_SEED)
     threads: int = ranged(1, ge=0, le=MAX_THREADS)  # 1: fast on a shared small machine; 0: torch's default (docs/training.md)

@@ -2,7 +2,7 @@
 
 ``validate`` checks names, types, ranges and the choices that depend on each other (an algorithm that
 cannot act in the action space, ``opponent=`` on a task that is no match). It never opens the files a
-config names (``opponent=``, ``init=``, ``algo.seed_members``): a saved run's config stays valid after
+config names (``opponent=``, ``init=``, ``population.seed_members``): a saved run's config stays valid after
 the files it was trained against have moved. Whether those files exist and fit is the pre-flight
 check of whoever is about to use them (``volleybots.policies.check_references``).
 """
@@ -22,13 +22,13 @@ def validate(cfg) -> DictConfig:
     """Check a composed config (DictConfig or dict) against the schemas and the registries.
 
     Returns a typed, resolved DictConfig without the ``hydra`` node. Raises ``ConfigError``."""
-    from volleybots.algos import ALGOS, is_population
+    from volleybots.algos import ALGOS, upgrade_saved
     from volleybots.algos.base import class_attr
     from volleybots.physics import ACTION_SPACES, BACKENDS
     from volleybots.tasks import TASKS
 
     data = cfg if isinstance(cfg, dict) else OmegaConf.to_container(cfg, resolve=True)
-    data = {k: v for k, v in data.items() if k != "hydra"}
+    data = upgrade_saved({k: v for k, v in data.items() if k != "hydra"})  # a population run saved before population=
     task, algo = data.get("task"), data.get("algo")
     if isinstance(task, dict) and "compile_physics" in task:
         # saved by versions whose task constructor took compile_physics (now env.compile): the
@@ -44,21 +44,17 @@ def validate(cfg) -> DictConfig:
         raise ConfigError(f"unknown algo {algo['name']!r}; allowed: {', '.join(ALGOS)}")
     task_cls_schema = task_schema(task["name"])
     typed_task = _typed(task_cls_schema, task, "task.")
-    algo_cls = ALGOS[algo["name"]]
-    if is_population(algo_cls):  # a config saved before algo.members reads as the run it was
-        from volleybots.algos.population import with_legacy_keys
-
-        algo = with_legacy_keys(algo)
-    algo_schema = algo_cls.config_class(algo)
-    typed_algo = _typed(algo_schema, algo, "algo.")
-    if is_population(algo_cls):  # a population preset fills what algo.start leaves to it
-        algo_cls.resolve(typed_algo, has_init=data.get("init") is not None, task=task["name"])
-    rest = _typed(Config, {k: v for k, v in data.items() if k not in ("task", "algo")}, "")
-    rest.task, rest.algo = typed_task, typed_algo
+    preset, typed_pop = _population(data.get("population"), data.get("init") is not None, task["name"], algo["name"])
+    algo_cls = preset.learner_of(algo) if preset is not None else ALGOS[algo["name"]]  # a population's learner is one of LEARNERS
+    typed_algo = _typed(algo_cls.config_cls, algo, "algo.")
+    rest = _typed(Config, {k: v for k, v in data.items() if k not in ("task", "algo", "population")}, "")
+    rest.task, rest.algo, rest.population = typed_task, typed_algo, typed_pop
 
     check_values(Config, rest, "")
     check_values(task_cls_schema, typed_task, "task.")
-    check_values(algo_schema, typed_algo, "algo.")
+    check_values(algo_cls.config_cls, typed_algo, "algo.")
+    if preset is not None:
+        check_values(preset.config_cls, typed_pop, "population.")
     env = rest.env
     for value, allowed, what in (
         (env.action_space, ACTION_SPACES, "env.action_space"),
@@ -77,7 +73,10 @@ def validate(cfg) -> DictConfig:
         if importlib.util.find_spec("wandb") is None:
             raise ConfigError("logger=wandb needs the wandb package: pip install 'volleybots[wandb]' (or use logger=csv)")
         check_wandb(rest.wandb)
-    algo_cls.check(typed_algo, TASKS[typed_task.name], env)
+    if preset is not None:  # a population checks its learner as one team's
+        preset.check(typed_pop, typed_algo, TASKS[typed_task.name], env)
+    else:
+        algo_cls.check(typed_algo, TASKS[typed_task.name], env)
     if rest.opponent is not None:
         _check_opponent(rest, TASKS[typed_task.name], algo_cls)
     elif getattr(algo_cls, "needs_seat_on_matches", False) and class_attr(TASKS[typed_task.name], "competitive"):
@@ -86,6 +85,23 @@ def validate(cfg) -> DictConfig:
         )
     return rest
 
+
+
+def _population(pop, has_init: bool, task: str, learner: str):
+    """The preset and the typed ``population`` node of a config (``(None, None)`` for a run of one learner),
+    with what ``population.start`` and ``members=auto`` leave to the preset filled in (``has_init``: the run
+    names ``init=``; ``task``, ``learner``: the run's task and ``algo=``)."""
+    from volleybots.algos import PRESETS
+
+    if pop is None:
+        return None, None
+    if not isinstance(pop, dict) or pop.get("name") not in PRESETS:
+        name = pop.get("name") if isinstance(pop, dict) else pop
+        raise ConfigError(f"unknown population {name!r}; allowed: {', '.join(PRESETS)}")
+    preset = PRESETS[pop["name"]]
+    typed = _typed(preset.config_cls, pop, "population.")
+    preset.resolve(typed, has_init=has_init, task=task, learner=learner)
+    return preset, typed
 
 
 WANDB_ENV_MODES = ("online", "offline", "shared", "disabled", "dryrun", "run")  # what wandb reads from WANDB_MODE
@@ -128,13 +144,13 @@ OPPONENT_LEARNERS = ("mappo", "bc")  # learners that can play one team (MAPPO ov
 def _check_opponent(cfg, task_cls, algo_cls) -> None:
     """``opponent=``: a match and a learner that plays one team (whether the competitor it names
     exists and fits is ``volleybots.policies.check_references``'s: this opens no file)."""
-    from volleybots.algos import is_population
     from volleybots.algos.base import class_attr
 
     if not class_attr(task_cls, "competitive"):
         raise ConfigError(f"opponent={cfg.opponent!r} is for matches (1v1, 3v3, 6v6), not task {task_cls.name!r}")
-    if is_population(algo_cls):
-        raise ConfigError(f"algo {algo_cls.name!r} chooses its own opponents; give it algo.seed_members=[...] instead of opponent=")
+    if cfg.population is not None:
+        raise ConfigError(f"population={cfg.population.name} chooses its own opponents; give it population.seed_members=[...] "
+                          "instead of opponent=")
     if algo_cls.name not in OPPONENT_LEARNERS:
         raise ConfigError(f"algo {algo_cls.name!r} cannot learn one team against opponent=; allowed: {', '.join(OPPONENT_LEARNERS)}")
 

@@ -28,6 +28,7 @@ import torch
 from tensordict import TensorDictBase
 
 from volleybots import zoo
+from volleybots.algos.population import method_name
 from volleybots.errors import ConfigError
 from volleybots.keys import ACTION, AGENTS
 from volleybots.policies.builtin import BUILTIN, HIERARCHICAL_TASK, PLAYERS, acted, hierarchical_policy, read_drills_file
@@ -176,8 +177,9 @@ def checkpoint_member(path, label: str | None = None) -> Member:
     def make(env, deterministic: bool = False):
         return load_learner(path, env, n_agents)[0].policy(deterministic=deterministic)
 
-    source = {"kind": "checkpoint", "path": str(path), "sha256": sha256(path), "frames": int(state["frames"]), "algo": cfg.algo.name}
-    label = label or f"{cfg.algo.name}@{int(state['frames'])}"
+    method = method_name(cfg)  # a population member's is its population method's, as before population= was a group
+    source = {"kind": "checkpoint", "path": str(path), "sha256": sha256(path), "frames": int(state["frames"]), "algo": method}
+    label = label or f"{method}@{int(state['frames'])}"
     return Member(label, make, source, cfg.task.name, cfg.env.action_space, int(state["obs_dim"]))
 
 
@@ -308,7 +310,7 @@ def mixed(label: str, parts: list[tuple[str, float]]) -> Competitor:
 
 
 def single_policy(spec: str, what: str) -> Competitor:
-    """The competitor ``spec`` names where one policy must play (``algo.seed_members``): a population
+    """The competitor ``spec`` names where one policy must play (``population.seed_members``): a population
     run or a zoo mixture is one ``ConfigError`` line."""
     parse_single(spec, what)
     comp = resolve_competitor(spec)

@@ -8,7 +8,7 @@ agent shape, so a cross-play of several runs builds each network once however ma
 plays, and a file changed on disk is read again.
 
 The grammar (``parse_spec``), used by ``eval``, ``replay``, ``eval crossplay``, ``opponent=``,
-``algo.seed_members`` and ``init=``::
+``population.seed_members`` and ``init=``::
 
     scripted | receiver | random | hierarchical
                                          a built-in player (``volleybots.policies.builtin.PLAYERS``)
@@ -142,12 +142,10 @@ def split_mixture(spec: str) -> tuple[str, list[tuple[str, float]]] | None:
 
 
 def learner_class(algo_cfg):
-    """The class whose networks a checkpoint of the ``algo`` config holds (a population preset's: the
-    learner its ``algo.learner`` names; MAPPO for configs saved before there was a choice)."""
-    from volleybots.algos import ALGOS, PRESETS, is_population
+    """The class whose networks a checkpoint of the validated ``algo`` config holds (a population's
+    learner too: ``validate`` reads an old population config's ``algo.learner``, MAPPO before there was one)."""
+    from volleybots.algos import ALGOS
 
-    if is_population(algo_cfg):
-        return PRESETS[algo_cfg.name].learner_of(algo_cfg)
     return ALGOS[algo_cfg.name]
 
 
@@ -204,7 +202,7 @@ def load_policy(path, env, deterministic: bool = True, n_agents: int | None = No
 
 
 def parse_single(spec: str, what: str, builtins=BUILTIN_NAMES) -> Spec:
-    """``parse_spec`` where one policy must play (``init=``, a target, ``algo.seed_members``): a zoo
+    """``parse_spec`` where one policy must play (``init=``, a target, ``population.seed_members``): a zoo
     mixture is one ``ConfigError`` line naming its member files, which are what to give instead."""
     mix = split_mixture(spec)
     if mix is not None:

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from volleybots.algos.population import CLONE
+from volleybots.algos.population import CLONE, method_name
 from volleybots.errors import ConfigError
 from volleybots.policies.builtin import BUILTIN, PLAYERS
 from volleybots.policies.store import load_learner, parse_single, policy_checkpoint
@@ -62,7 +62,7 @@ def resolve_target(target: str, overrides=()) -> Target:
         algo, _ = load_learner(ckpt, env, int(state.get("n_agents", env.n_drones)), cfg, "its config")
         return algo.policy(deterministic=cfg.deterministic)
 
-    return Target(f"{cfg.algo.name}@{int(state['frames'])}", cfg, Path(ckpt), make_policy)
+    return Target(f"{method_name(cfg)}@{int(state['frames'])}", cfg, Path(ckpt), make_policy)
 
 
 def population_target(path: Path, overrides=()) -> Target:
@@ -94,9 +94,9 @@ def both_sides(spec: str, saved, overrides, what: str) -> Target:
 
 def check_references(cfg) -> None:
     """Open and check the files a config names, before a run starts (``validate`` opens none):
-    ``opponent=`` and ``algo.seed_members`` must be competitors made for the run's task, action space
+    ``opponent=`` and ``population.seed_members`` must be competitors made for the run's task, action space
     and observation (``bc`` in ``seed_members`` names the clone the run makes itself),
-    ``algo.eval_opponent`` a built-in player of the task, and ``algo.payoff_pool=ray`` needs ray
+    ``population.eval_opponent`` a built-in player of the task, and ``population.payoff_pool=ray`` needs ray
     installed. ``init=`` is checked by ``volleybots.train.check_init``, which builds the networks."""
     from volleybots.algos.base import class_attr
     from volleybots.policies.competitors import resolve_competitor, single_policy
@@ -106,26 +106,27 @@ def check_references(cfg) -> None:
     obs_dim = class_attr(task_cls, "obs_dim_prt") - (4 if cfg.env.action_space == "ctbr" else 0)
     if cfg.get("opponent") is not None:
         resolve_competitor(cfg.opponent).check_fits(task_cls.name, cfg.env.action_space, obs_dim)
-    yardstick = cfg.algo.get("eval_opponent")
+    pop = cfg.get("population") or {}  # a population's loop keys (volleybots.algos.population_of)
+    yardstick = pop.get("eval_opponent")
     if yardstick is not None:
         if yardstick not in PLAYERS:
-            raise ConfigError(f"unknown algo.eval_opponent {yardstick!r}; allowed: {', '.join(PLAYERS)}")
+            raise ConfigError(f"unknown population.eval_opponent {yardstick!r}; allowed: {', '.join(PLAYERS)}")
         fits = PLAYERS[yardstick].task
         if fits is not None and fits != task_cls.name:
-            raise ConfigError(f"algo.eval_opponent={yardstick!r} plays task {fits!r} only, not {task_cls.name!r}; allowed here: "
+            raise ConfigError(f"population.eval_opponent={yardstick!r} plays task {fits!r} only, not {task_cls.name!r}; allowed here: "
                               f"{', '.join(n for n, p in PLAYERS.items() if p.task in (None, task_cls.name))}")
-    pool = cfg.algo.get("payoff_pool")
+    pool = pop.get("payoff_pool")
     if pool == "ray":
         import importlib.util
 
         if importlib.util.find_spec("ray") is None:
             raise ConfigError(
-                "algo.payoff_pool=ray needs the ray package: pip install 'volleybots[cluster]' (or use algo.payoff_pool=serial)"
+                "population.payoff_pool=ray needs the ray package: pip install 'volleybots[cluster]' (or use population.payoff_pool=serial)"
             )
-    for spec in cfg.algo.get("seed_members") or ():
+    for spec in pop.get("seed_members") or ():
         if str(spec) == CLONE:  # the run's own clone of the scripted team: made by the run, checked by the preset
             continue
-        single_policy(str(spec), "algo.seed_members entry").check_fits(task_cls.name, cfg.env.action_space, obs_dim)
+        single_policy(str(spec), "population.seed_members entry").check_fits(task_cls.name, cfg.env.action_space, obs_dim)
 
 
 __all__ = ["BUILTIN", "EVAL_KEYS", "Target", "check_references", "resolve_target"]

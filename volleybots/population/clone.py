@@ -1,7 +1,7 @@
-"""The behaviour clone a population starts from (``algo.learner_init=bc``, ``algo.seed_members=[bc]``).
+"""The behaviour clone a population starts from (``population.learner_init=bc``, ``population.seed_members=[bc]``).
 
 The clone is an ordinary ``algo=bc`` run (docs/imitation.md): the learner sits on team 0 against the
-task's scripted team and clones its own team's scripted player, for ``algo.bc_frames`` frames, the
+task's scripted team and clones its own team's scripted player, for ``population.bc_frames`` frames, the
 first half driven by the teacher alone, then DAgger. It is made once per population run, in
 ``<run>/population/bc/`` (a normal run dir: ``replay``, ``eval`` and ``resume=`` work on it), before
 the first iteration, and reused by every iteration and by every resume of the run: a finished clone
@@ -34,19 +34,20 @@ def clone_dir(run_path: Path) -> Path:
     return Path(run_path) / POPULATION_DIR / CLONE
 
 
-def needs_clone(algo_cfg) -> bool:
-    return algo_cfg.learner_init == CLONE or CLONE in [str(s) for s in algo_cfg.seed_members]
+def needs_clone(pop) -> bool:
+    """Whether the population node ``pop`` starts learners or its first members from the clone."""
+    return pop.learner_init == CLONE or CLONE in [str(s) for s in pop.seed_members]
 
 
 def clone_config(cfg):
     """The validated config of the clone's run: the population's task, env, seed stream and networks;
-    ``algo=bc opponent=scripted`` for ``algo.bc_frames`` frames, fitted at ``algo.bc_replay_ratio``."""
+    ``algo=bc opponent=scripted`` for ``population.bc_frames`` frames, fitted at ``population.bc_replay_ratio``."""
     data = to_dict(cfg)
-    m = cfg.algo
-    net = {f.name: getattr(m, f.name) for f in dataclasses.fields(PPONetConfig) if f.name not in _NOT_COPIED}
+    m = cfg.population
+    net = {f.name: getattr(cfg.algo, f.name) for f in dataclasses.fields(PPONetConfig) if f.name not in _NOT_COPIED}
     net["hidden"] = list(net["hidden"])
     data["algo"] = {"name": "bc", **net, "expert_frames": m.bc_frames // 2, "replay_ratio": m.bc_replay_ratio}
-    data.update(opponent="scripted", opponent_deterministic=False, total_frames=m.bc_frames, init=None, time_limit=0,
+    data.update(population=None, opponent="scripted", opponent_deterministic=False, total_frames=m.bc_frames, init=None, time_limit=0,
                 seed=cfg.seed + CLONE_SEED, resume=None)
     return validate(data)
 

@@ -1,5 +1,5 @@
 """A population run's final evaluation: its final mixture against the fixed yardstick
-(``algo.eval_opponent``), as a plain run evaluates its learner at the end.
+(``population.eval_opponent``), as a plain run evaluates its learner at the end.
 
 The games are ``play_games``: both sides equally often, a member drawn per game from the mixture, on
 seeds of their own (the run's seed + ``EVAL_SEED_OFFSET``). The result has the trainer's summary

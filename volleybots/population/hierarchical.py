@@ -1,11 +1,11 @@
-"""Hierarchical members of a population (``algo.members=hierarchical``; the HCSP route, docs/competitive.md).
+"""Hierarchical members of a population (``population.members=hierarchical``; the HCSP route, docs/competitive.md).
 
 A hierarchical member is the 3 vs 3 team of drills under a learned high level
 (``volleybots.scripted.hierarchical``, ``volleybots.policies.high_level``). The run copies the drills it
-plays with into ``population/drills/`` once (from ``algo.drills``: a zoo team, a team file, or the
+plays with into ``population/drills/`` once (from ``population.drills``: a zoo team, a team file, or the
 scripted drills), so a run dir holds everything its members need; each oracle trains a high level over
 those drills against the opponent the loop hands it (the meta-solver's mixture of the population, with
-``algo.fixed_opponents`` beside it) and writes:
+``population.fixed_opponents`` beside it) and writes:
 
     population/member_<k>.pt       a record: builtin hierarchical, its files relative to the folder
     population/high_level_<k>.pt   the member's high level (``save_high_level``: weights only)
@@ -27,6 +27,7 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
+from volleybots.algos.population import population_of
 from volleybots.config import to_dict
 from volleybots.errors import ConfigError
 from volleybots.files import sha256, write_atomic
@@ -44,7 +45,7 @@ def high_level_path(run_path, k: int) -> Path:
     return Path(run_path) / POPULATION_DIR / f"high_level_{k:03d}.pt"
 
 
-def team_files(spec: str, what: str = "algo.drills") -> tuple[str, dict[str, str]]:
+def team_files(spec: str, what: str = "population.drills") -> tuple[str, dict[str, str]]:
     """The label and files (drill -> checkpoint file, and ``high_level``) of the hierarchical team ``spec``."""
     comp = single_policy(spec, what)
     src = comp.members[0].source
@@ -81,12 +82,12 @@ def team_record(label: str, files: dict[str, str], **extra) -> dict:
 
 def seed_member(run_path, spec: str, k: int) -> dict:
     """Member ``k`` from the seed ``spec`` when it is a hierarchical team: its files copied into the run."""
-    label, files = team_files(spec, "algo.seed_members entry")
+    label, files = team_files(spec, "population.seed_members entry")
     return team_record(label, copy_team(run_path, files, k), frames=0)
 
 
 def run_drills(run_path, drills_spec: str) -> dict[str, str]:
-    """The run's own copies of ``algo.drills``' drills (absolute paths), made on first use."""
+    """The run's own copies of ``population.drills``' drills (absolute paths), made on first use."""
     _, files = team_files(drills_spec)
     rel = copy_team(run_path, {k: v for k, v in files.items() if k != HIGH_LEVEL}, 0)
     return {k: str(Path(run_path) / POPULATION_DIR / v) for k, v in rel.items()}
@@ -116,7 +117,7 @@ def train_member(cfg, run_path, metrics_path, i: int, k: int, opponent, frames: 
     """Iteration ``i``'s oracle: a high level over the run's drills trained on ``seed`` against
     ``opponent`` (a ``Competitor``, the loop's choice), to be written as member ``k``; ``frames`` were
     spent before it, ``time_left`` seconds remain to it (inf: no limit). Returns the member's record."""
-    m = cfg.algo
+    m = population_of(cfg)  # the loop's keys
     drills = run_drills(run_path, m.drills)
     coming, attack = team_options(m.drills)
     start = newest_high_level(run_path, population_members(run_path)[:k]) if m.learner_init == "last" else None

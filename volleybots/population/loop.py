@@ -32,8 +32,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from volleybots.algos.population import ZOO, ZOO_STARTS
+from volleybots.algos.population import ZOO, ZOO_STARTS, population_of
 from volleybots.config import to_dict, validate
+from volleybots.config.spelling import respell
 from volleybots.errors import ConfigError
 from volleybots.files import sha256, write_atomic
 from volleybots.play.pool import payoff_row
@@ -67,14 +68,14 @@ class PopulationLoop:
     learner the preset names, ``Oracle.of(cfg)``)."""
 
     def __init__(self, cfg, run: RunDir, oracle: Oracle | None = None):
-        self.cfg, self.run, self.m = cfg, run, cfg.algo
+        self.cfg, self.run, self.m = cfg, run, population_of(cfg)  # the loop's keys (population.*)
         self.oracle = oracle or Oracle.of(cfg)
         self.dir = run.path / POPULATION_DIR
         self.meta_path = self.dir / "meta.jsonl"
         self.payoffs_path = self.dir / "payoffs.json"
         self.wandb = None
         self.dropped: dict | None = None  # the oracle the budget cut before min_updates, if one was
-        self.hierarchical = getattr(cfg.algo, "members", "flat") == "hierarchical"  # saved configs before algo.members: flat
+        self.hierarchical = self.m.get("members", "flat") == "hierarchical"  # saved configs before population.members: flat
 
     # ---------------------------------------------------------------------------- disk state
     def metas(self) -> list[dict]:
@@ -154,7 +155,7 @@ class PopulationLoop:
             if str(spec) == CLONE:
                 clone_member(self.clone, path)
                 continue
-            src = single_policy(spec, "algo.seed_members entry").members[0].source
+            src = single_policy(spec, "population.seed_members entry").members[0].source
             if src["kind"] == "hierarchical" and self.hierarchical:  # its files copied: the run dir holds its members
                 self._save_member(k, seed_member(self.run.path, spec, k))
             elif src["kind"] in BUILTIN:  # a record naming it (a hierarchical team also its drills' checkpoints)
@@ -213,12 +214,12 @@ class PopulationLoop:
             data["init"] = str(self.clone)
         elif self.m.learner_init == ZOO:  # every learner fine-tuned from the task's zoo start, in its networks' shape
             data["init"] = ZOO_STARTS[self.cfg.task.name]
-            saved = read_checkpoint(policy_checkpoint(data["init"], "algo.start=zoo")).get("config", {}).get("algo", {})
+            saved = read_checkpoint(policy_checkpoint(data["init"], "population.start=zoo")).get("config", {}).get("algo", {})
             data["algo"].update({k: saved[k] for k in NETWORK_KEYS if k in saved})
         elif data.get("init") is None:  # a learner from scratch has no policy to warm up for or hold to
             data["algo"].update(actor_freeze_updates=0, anchor_coeff=0.0)
         if not self.m.self_play:
-            per_batch = self.cfg.env.num_envs * self.m.steps_per_batch
+            per_batch = self.cfg.env.num_envs * self.cfg.algo.steps_per_batch
             data["total_frames"] = min(self.cfg.total_frames, frames + self.m.max_updates * per_batch)
         return validate(data)
 
@@ -229,7 +230,7 @@ class PopulationLoop:
         criterion could not judge it, so it would not join). Self-play: its one iteration."""
         if self.m.self_play or self.hierarchical:
             return self.m.iterations
-        per_batch = self.cfg.env.num_envs * self.m.steps_per_batch
+        per_batch = self.cfg.env.num_envs * self.cfg.algo.steps_per_batch
         full, rest = divmod(max(self.cfg.total_frames - frames, 0), self.m.max_updates * per_batch)
         return min(self.m.iterations, i - 1 + full + (rest >= self.m.min_updates * per_batch))
 
@@ -352,7 +353,7 @@ def start(cfg, run_dir) -> dict:
         return PopulationLoop(cfg, run).fit()
 
 
-RESUME_KEYS = (*TRAIN_RESUME_KEYS, "algo.iterations")  # a population run may also be given more iterations
+RESUME_KEYS = (*TRAIN_RESUME_KEYS, "population.iterations")  # a population run may also be given more iterations
 
 
 def resume(run_dir, overrides=(), check=None) -> dict:
@@ -364,7 +365,7 @@ def resume(run_dir, overrides=(), check=None) -> dict:
     from volleybots.policies.targets import check_references
 
     run = RunDir(run_dir)
-    cfg = resume_config(run_dir, overrides, RESUME_KEYS)
+    cfg = resume_config(run_dir, respell(overrides, population=True)[0], RESUME_KEYS)  # algo.iterations= as before
     check_writable(run.path, "the run directory")
     run.check_contained()
     check_references(cfg)
@@ -380,16 +381,17 @@ def resume(run_dir, overrides=(), check=None) -> dict:
     run.check_metrics()
     done = sum(1 for m in metas if m["iteration"] >= 1)
     frames = metas[-1]["frames"] if metas else 0
-    if cfg.algo.self_play and done >= 1:
+    if cfg.population.self_play and done >= 1:
         raise ConfigError(
             f"run {str(run_dir)!r} has finished: self-play trains one learner for the run's whole budget ({frames} frames), and its "
-            f"member is final; neither total_frames nor algo.iterations continues it. Start a new run from its policy: "
-            f"volleybots train task={cfg.task.name} algo=sp init={run_dir} total_frames=N"
+            f"member is final; neither total_frames nor population.iterations continues it. Start a new run from its policy: "
+            f"volleybots train task={cfg.task.name} population=sp init={run_dir} total_frames=N"
         )
-    if done >= cfg.algo.iterations or frames >= cfg.total_frames:
+    iterations = cfg.population.iterations
+    if done >= iterations or frames >= cfg.total_frames:
         raise ConfigError(
             f"run {str(run_dir)!r} has finished ({done} iteration(s), {frames} frames); raise "
-            + " and ".join(x for x, spent in ((f"algo.iterations (now {cfg.algo.iterations})", done >= cfg.algo.iterations),
+            + " and ".join(x for x, spent in ((f"population.iterations (now {iterations})", done >= iterations),
                                               (f"total_frames (now {cfg.total_frames})", frames >= cfg.total_frames)) if spent)
             + " to continue it"
         )

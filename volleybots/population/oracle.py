@@ -1,6 +1,6 @@
 """The population loop's oracle: what trains a best response (OpenSpiel's ``psro_v2`` is handed its
 oracle the same way). The loop decides against whom and for how long; the oracle builds the learner
-that the preset names (``algo.learner``: MAPPO by default, HAPPO or MAT on teams of several drones), so
+that the run's ``algo=`` names (MAPPO by default, HAPPO or MAT on teams of several drones), so
 the members it writes hold the class the policy store rebuilds them as."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ class Oracle:
 
     @classmethod
     def of(cls, cfg) -> "Oracle":
-        """The oracle of the population config ``cfg`` (a saved config of before ``algo.learner``: MAPPO)."""
+        """The oracle of the population config ``cfg``: its learner (``algo=``)."""
         return cls(learner_class(cfg.algo))
 
     def trainer(self, cfg, run, checkpoint: Path | None, seat, extra_state, logger) -> Trainer:

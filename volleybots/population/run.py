@@ -8,7 +8,8 @@ from volleybots.runs import RunDir
 
 
 def is_population(cfg) -> bool:
-    return _is_population(cfg.algo)
+    """Whether the run config ``cfg`` trains a population (it has a ``population`` node)."""
+    return _is_population(cfg)
 
 
 def start(cfg, run_dir, checked: bool = False) -> dict:

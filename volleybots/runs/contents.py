@@ -41,17 +41,19 @@ def population_members(run_path) -> list[Path]:
 
 
 def is_population_run(run_path) -> bool:
-    """Whether the run's config names a population preset (``sp``, ``fsp``, ``psro_*``) or it holds a population."""
+    """Whether the run's config names a population preset (``population.name``, or ``algo.name`` as saved
+    before ``population=`` was a group: ``sp``, ``fsp``, ``psro_*``) or it holds a population."""
     from volleybots.algos.population import is_population
 
     path = Path(run_path)
     if (path / POPULATION_DIR).is_dir():
         return True
     try:
-        algo = (yaml.safe_load(read_yaml_text(path / "config.yaml", "the run's config")) or {}).get("algo") or {}
+        cfg = yaml.safe_load(read_yaml_text(path / "config.yaml", "the run's config")) or {}
+        algo = cfg.get("algo") or {}
     except (ConfigError, yaml.YAMLError, AttributeError):
         return False
-    return isinstance(algo, dict) and is_population(algo)
+    return is_population(cfg) or (isinstance(algo, dict) and is_population(algo))
 
 
 def read_metas(run_path) -> list[dict]:

@@ -289,7 +289,9 @@ def _to_device(state, device):
 def load_algo_state(algo, state: dict, what: str, cfg, side: str = "run") -> None:
     """Load a checkpoint's algorithm state into ``algo``; a mismatch is a user error naming ``what``
     and both sides: "checkpoint is solo_bump (obs 32, prt, ppo), run is hover (obs 26, prt, ppo)"."""
-    saved = state.get("config") or {}
+    from volleybots.algos.population import upgrade_saved
+
+    saved = upgrade_saved(state.get("config") or {})  # an old population member's config names its learner so
     theirs = (state.get("task"), state.get("obs_dim"), state.get("action_space"), (saved.get("algo") or {}).get("name"))
     mine = (cfg.task.name, algo.obs_dim, cfg.env.action_space, cfg.algo.name)
     # what the checkpoint does not record (an older or a population member's) is not compared

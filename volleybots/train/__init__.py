@@ -7,7 +7,7 @@ run the population loop over this trainer: ``volleybots.population.start`` dispa
 
 from __future__ import annotations
 
-from volleybots.algos import PRESETS
+from volleybots.algos import population_of
 from volleybots.config import apply_overrides, check_memory, to_dict
 from volleybots.errors import ConfigError
 from volleybots.play.episodes import collect, finished_stats
@@ -22,30 +22,31 @@ def preflight(cfg) -> None:
     """Everything a start checks before writing: memory, the files the config names, ``init=``.
 
     (A population run gives each learner ``init=`` its clone itself, in configs that skip this.)"""
-    if cfg.algo.get("learner_init") == "bc" and cfg.get("init") is not None:
-        raise ConfigError(f"init={cfg.init!r} and algo.learner_init=bc both say where learners start; give one "
-                          f"(algo.learner_init=scratch with init=, or no init=)")
+    pop = population_of(cfg)
+    if pop is not None and pop.learner_init == "bc" and cfg.get("init") is not None:
+        raise ConfigError(f"init={cfg.init!r} and population.learner_init=bc both say where learners start; give one "
+                          f"(population.learner_init=scratch with init=, or no init=)")
     check_memory(cfg)
     check_references(cfg)
     check_init(cfg)
-    if cfg.algo.name in PRESETS:
+    if pop is not None:
         check_payoff_games(cfg)
 
 
 def check_payoff_games(cfg) -> None:
     """Before anything is written or trained: the pool the payoff games play in (a ``RAY_ADDRESS``
-    nothing answers at is refused here, not after the first oracle), and ``algo.payoff_games`` against
-    memory for the last member's row (``algo.payoff_games=1e12`` is a one-line refusal)."""
+    nothing answers at is refused here, not after the first oracle), and ``population.payoff_games`` against
+    memory for the last member's row (``population.payoff_games=1e12`` is a one-line refusal)."""
     from volleybots.config.resources import check_play
     from volleybots.play.games import DEFAULT_BATCH
     from volleybots.play.pool import check_pool
 
-    m = cfg.algo
-    check_pool(m.payoff_pool, "algo.payoff_pool")
+    m = population_of(cfg)
+    check_pool(m.payoff_pool, "population.payoff_pool")
     try:
         check_play(cfg, m.payoff_games, max(1, len(m.seed_members) + m.iterations - 1), DEFAULT_BATCH)
     except ConfigError as e:
-        raise ConfigError(f"algo.payoff_games={m.payoff_games}: {e} (algo.payoff_games)") from None
+        raise ConfigError(f"population.payoff_games={m.payoff_games}: {e} (population.payoff_games)") from None
 
 
 def train(cfg, run_dir, checked: bool = False, stop=None) -> dict:

@@ -105,7 +105,7 @@ def learner_spec(cfg, env) -> AgentSpec:
     """What the learner of ``cfg`` is built for (a population method's learner plays one team)."""
     from volleybots.algos import is_population
 
-    if is_population(cfg.algo):
+    if is_population(cfg):
         return SelfPlay().spec(env)
     return default_seat(cfg).spec(env)
 

@@ -70,12 +70,17 @@ def run_identity(run_dir: Path, resume: bool) -> dict:
 
 
 def run_name(cfg) -> str:
-    return f"{cfg.task.name}_{cfg.algo.name}_s{cfg.seed}"
+    from volleybots.algos import method_name
+
+    return f"{cfg.task.name}_{method_name(cfg)}_s{cfg.seed}"
 
 
 def run_tags(cfg) -> list[str]:
-    """The task, algorithm, action space and physics backend, then ``wandb.tags`` (each once, in order)."""
-    tags = [cfg.task.name, cfg.algo.name, cfg.env.action_space, cfg.env.physics, *cfg.wandb.tags]
+    """The task, method (a population's, else the algorithm), action space and physics backend, then
+    ``wandb.tags`` (each once, in order)."""
+    from volleybots.algos import method_name
+
+    tags = [cfg.task.name, method_name(cfg), cfg.env.action_space, cfg.env.physics, *cfg.wandb.tags]
     return list(dict.fromkeys(str(t) for t in tags))
 
 

@@ -1,6 +1,6 @@
 """The zoo: trained policies shipped inside the package, named ``zoo:<task>/<method>`` wherever a
 competitor is (``eval crossplay``, ``opponent=``, ``replay A B``); a single policy also wherever one
-policy goes (``eval``, ``replay TARGET``, ``init=``, ``algo.seed_members``).
+policy goes (``eval``, ``replay TARGET``, ``init=``, ``population.seed_members``).
 
 An entry is its card ``<task>/<method>.yaml`` (the command that trained it, its frames, seed and wall
 time, and the figures measured on held-out evaluation seeds) with either of:
