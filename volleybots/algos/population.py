@@ -144,8 +144,10 @@ class Preset:
             raise ConfigError(f"unknown population.members {cfg.members!r}; allowed: {', '.join(MEMBERS)}")
         if cfg.members == "auto":
             # self-play has one learner on both teams: a flat policy; so are another learner than the preset's
-            # (algo=mat) and the from-scratch recipe (start=scratch), as they were before hierarchical members
-            flat = cfg.self_play or (learner or self.learner) != self.learner or cfg.start == "scratch"
+            # (algo=mat), the from-scratch recipe (start=scratch) and the clone named as a start or member
+            # (learner_init=bc, seed_members=[bc]: table 3's commands), as they were before hierarchical members
+            clone = cfg.learner_init == CLONE or CLONE in [str(x) for x in (cfg.seed_members or [])]
+            flat = cfg.self_play or (learner or self.learner) != self.learner or cfg.start == "scratch" or clone
             cfg.members = "hierarchical" if task in HIERARCHICAL_TASKS and not flat else "flat"
         if cfg.start not in STARTS:
             raise ConfigError(f"unknown population.start {cfg.start!r}; allowed: {', '.join(STARTS)}")
