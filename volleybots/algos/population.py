@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from volleybots.algos.base import class_attr
 from volleybots.algos.happo import HAPPO
@@ -43,7 +43,7 @@ LEARNERS = {cls.name: cls for cls in (MAPPO, HAPPO, MAT)}
 # hierarchical on 3v3, flat elsewhere (what the headline's targets were met with: docs/competitive.md)
 MEMBERS = ("auto", "flat", "hierarchical")
 HIERARCHICAL_TASKS = ("3v3",)
-POOLS = ("serial", "ray")  # where payoff games are played: here, or as tasks of a Ray pool (volleybots.play.pool)
+POOLS = ("serial", "ray")  # where payoff games (and hierarchical oracles' games) are played: here, or as Ray tasks (volleybots.play.pool)
 
 
 @dataclass
@@ -72,6 +72,12 @@ class LoopConfig:
     opponent_deterministic: bool = False
     eval_opponent: str = "random"
     payoff_pool: str = "serial"
+    oracle_pool: str = "serial"  # where a hierarchical oracle's games are played (volleybots.train.high_level.play_chunks)
+    oracle_chunks: int = ranged(1, ge=1)  # the parts each of its batches is played in (the games depend on it, not on the pool)
+    # the run's time_limit by task where it gives none (0), seconds: conf/population/psro_nash.yaml bounds
+    # the bare 6v6 headline (five oracles take about 100 minutes on 2 cores); empty here, so that a run
+    # saved before the key reads back as it ran, unbounded
+    default_time_limit: dict[str, float] = field(default_factory=dict)
     members: str = "auto"
     drills: str = "zoo:3v3/hcsp_return"  # a hierarchical population's drills: a zoo team, a team file, or hierarchical
     high_level_games: int = ranged(1024, ge=1)  # games each hierarchical oracle trains its high level on
@@ -207,9 +213,12 @@ class Preset:
             view.actor_freeze_updates, view.anchor_coeff = 0, 0.0
         check_team_learner(learner_cls, view, task_cls, env_cfg, f"population={self.name} algo={algo.name}")
         for value, allowed, key in ((pop.solver, SOLVERS, "population.solver"), (pop.learner_init, INITS, "population.learner_init"),
-                                    (pop.payoff_pool, POOLS, "population.payoff_pool")):
+                                    (pop.payoff_pool, POOLS, "population.payoff_pool"), (pop.oracle_pool, POOLS, "population.oracle_pool")):
             if value not in allowed:
                 raise ConfigError(f"unknown {key} {value!r}; allowed: {', '.join(allowed)}")
+        if pop.oracle_pool != "serial" or pop.oracle_chunks != 1:  # a flat oracle is one learner stepping its own envs
+            raise ConfigError(f"population.oracle_pool / oracle_chunks play hierarchical oracles' games; a flat member's oracle "
+                              f"(algo={algo.name}) trains in this process: give population.oracle_pool=serial oracle_chunks=1")
         if self.learner_inits and pop.learner_init not in self.learner_inits:
             raise ConfigError(f"population={self.name} {self.otherwise.format(init=pop.learner_init)}")
         if pop.max_updates < pop.min_updates:
@@ -240,11 +249,14 @@ class Preset:
                               "psro_uniform or psro_nash with population.members=hierarchical, or population.members=flat")
         for value, allowed, key in ((pop.solver, SOLVERS, "population.solver"),
                                     (pop.learner_init, ("scratch", "last"), "population.learner_init"),
-                                    (pop.payoff_pool, POOLS, "population.payoff_pool")):
+                                    (pop.payoff_pool, POOLS, "population.payoff_pool"), (pop.oracle_pool, POOLS, "population.oracle_pool")):
             if value not in allowed:
                 raise ConfigError(f"unknown {key} {value!r} for population.members=hierarchical; allowed: {', '.join(allowed)}")
         if self.learner_inits and pop.learner_init not in self.learner_inits:
             raise ConfigError(f"population={self.name} {self.otherwise.format(init=pop.learner_init)}")
+        if pop.oracle_chunks > pop.high_level_batch:
+            raise ConfigError(f"population.oracle_chunks={pop.oracle_chunks} must be at most population.high_level_batch="
+                              f"{pop.high_level_batch} (a chunk plays at least one game)")
         if not pop.seed_members:
             raise ConfigError(f"population={self.name} needs a first opponent: population.seed_members=[{pop.drills}] "
                               "(or scripted, hierarchical)")

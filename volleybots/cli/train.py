@@ -112,6 +112,25 @@ def _oracle_text(i: int, o: dict) -> str:
     return f"br{i} win {win} after {o['updates']} updates, {state}"
 
 
+def _time_bound(summary: dict, run_dir) -> str:
+    """A population run's time limit and whether it ended the run before its iterations ('' for none): a
+    bound the user did not give (``population.default_time_limit``, the bare 6v6 headline) is said aloud."""
+    from volleybots.runs import RunDir
+
+    try:
+        cfg = RunDir(run_dir).load_config()
+    except ConfigError:
+        return ""
+    limit, planned = float(cfg.time_limit or 0), int(cfg.population.iterations)
+    if not limit:
+        return ""
+    given = "population.default_time_limit" if cfg.population.default_time_limit.get(cfg.task.name) == limit else "time_limit"
+    if summary["iterations"] >= planned:
+        return f"  time_limit {limit:.0f} s ({given}): not reached, all {planned} iteration(s) done"
+    return (f"  time_limit {limit:.0f} s ({given}) ended the run after {summary['iterations']} of {planned} iteration(s); "
+            f"resume={run_dir} time_limit=SECONDS (above {limit:.0f}) continues it")
+
+
 def _echo_summary(summary: dict, run_dir) -> None:
     if "population" in summary:
         pop = summary["population"]
@@ -125,6 +144,8 @@ def _echo_summary(summary: dict, run_dir) -> None:
             say(f"  final mixture against {ev['opponent']}: W/D/L {'/'.join(map(str, ev['wdl']))} over {ev['episodes']} games")
         if split:
             say("  wall time: " + ", ".join(f"{k.replace('_', ' ')} {v:.0f} s" for k, v in split.items()))
+        if bound := _time_bound(summary, run_dir):
+            say(bound)
         oracles = [o for o in summary.get("oracles", []) if o and o.get("converged") is not None]
         if oracles:
             say("oracles: " + "; ".join(_oracle_text(i, o) for i, o in enumerate(oracles, 1)))

@@ -49,6 +49,8 @@ def validate(cfg) -> DictConfig:
     typed_algo = _typed(algo_cls.config_cls, algo, "algo.")
     rest = _typed(Config, {k: v for k, v in data.items() if k not in ("task", "algo", "population")}, "")
     rest.task, rest.algo, rest.population = typed_task, typed_algo, typed_pop
+    if typed_pop is not None and not rest.time_limit:  # a population's bound on a slow task (the bare 6v6 headline)
+        rest.time_limit = float(typed_pop.default_time_limit.get(typed_task.name, 0.0))
 
     check_values(Config, rest, "")
     check_values(task_cls_schema, typed_task, "task.")

@@ -96,7 +96,7 @@ def check_references(cfg) -> None:
     """Open and check the files a config names, before a run starts (``validate`` opens none):
     ``opponent=`` and ``population.seed_members`` must be competitors made for the run's task, action space
     and observation (``bc`` in ``seed_members`` names the clone the run makes itself),
-    ``population.eval_opponent`` a built-in player of the task, and ``population.payoff_pool=ray`` needs ray
+    ``population.eval_opponent`` a built-in player of the task, and ``population.payoff_pool=ray`` (or ``oracle_pool``) needs ray
     installed. ``init=`` is checked by ``volleybots.train.check_init``, which builds the networks."""
     from volleybots.algos.base import class_attr
     from volleybots.policies.competitors import resolve_competitor, single_policy
@@ -115,14 +115,13 @@ def check_references(cfg) -> None:
         if fits is not None and fits != task_cls.name:
             raise ConfigError(f"population.eval_opponent={yardstick!r} plays task {fits!r} only, not {task_cls.name!r}; allowed here: "
                               f"{', '.join(n for n, p in PLAYERS.items() if p.task in (None, task_cls.name))}")
-    pool = pop.get("payoff_pool")
-    if pool == "ray":
-        import importlib.util
+    for key in ("payoff_pool", "oracle_pool"):
+        if pop.get(key) == "ray":
+            import importlib.util
 
-        if importlib.util.find_spec("ray") is None:
-            raise ConfigError(
-                "population.payoff_pool=ray needs the ray package: pip install 'volleybots[cluster]' (or use population.payoff_pool=serial)"
-            )
+            if importlib.util.find_spec("ray") is None:
+                raise ConfigError(f"population.{key}=ray needs the ray package: pip install 'volleybots[cluster]' "
+                                  f"(or use population.{key}=serial)")
     for spec in pop.get("seed_members") or ():
         if str(spec) == CLONE:  # the run's own clone of the scripted team: made by the run, checked by the preset
             continue

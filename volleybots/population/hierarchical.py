@@ -123,7 +123,8 @@ def train_member(cfg, run_path, metrics_path, i: int, k: int, opponent, frames: 
     start = newest_high_level(run_path, population_members(run_path)[:k]) if m.learner_init == "last" else None
     limit = 0.0 if time_left == float("inf") else max(time_left, 1e-3)
     hc = HighLevelConfig(games=m.high_level_games, batch=m.high_level_batch, lr=m.high_level_lr, seed=seed,
-                         receive_coming=coming, receive_attack=attack, time_limit=limit)
+                         receive_coming=coming, receive_attack=attack, time_limit=limit,
+                         pool=m.oracle_pool, chunks=m.oracle_chunks)
     metrics = MetricsLog(metrics_path, keep_until_frames=frames)  # rows of an oracle a kill cut short go
     t0, spent = time.monotonic(), [0]
 

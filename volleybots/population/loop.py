@@ -353,7 +353,7 @@ def start(cfg, run_dir) -> dict:
         return PopulationLoop(cfg, run).fit()
 
 
-RESUME_KEYS = (*TRAIN_RESUME_KEYS, "population.iterations")  # a population run may also be given more iterations
+RESUME_KEYS = (*TRAIN_RESUME_KEYS, "population.iterations", "population.payoff_pool", "population.oracle_pool")  # pools change no result
 
 
 def resume(run_dir, overrides=(), check=None) -> dict:

@@ -43,6 +43,7 @@ def check_payoff_games(cfg) -> None:
 
     m = population_of(cfg)
     check_pool(m.payoff_pool, "population.payoff_pool")
+    check_pool(m.oracle_pool, "population.oracle_pool")
     try:
         check_play(cfg, m.payoff_games, max(1, len(m.seed_members) + m.iterations - 1), DEFAULT_BATCH)
     except ConfigError as e:

@@ -9,19 +9,31 @@ a team made in a game is paid that game's result from its side (+1 won, -1 lost,
 the value head's estimate for that choice, and the heads take ``epochs`` clipped-ratio (PPO)
 steps on it. Games are short and each holds a handful of choices, so the result itself is the return:
 there is nothing to discount.
+
+A batch's games are played in ``chunks`` parts of near-equal size (``play_chunk``), each in a fresh env
+seeded by the run's seed, the batch and the chunk alone (``chunk_seed``), so where a chunk is played does
+not change its games: ``pool`` plays them here in turn or as Ray tasks (``volleybots.play.pool``,
+``population.oracle_pool``), and the chunks' choices and results are joined in chunk order before the
+update, so either pool trains the same high level, bit for bit (one torch thread). The number of chunks
+does change the games (and costs serial play: a chunk lasts as long as its longest game, and stepping
+64 worlds costs nearly what 256 do, so 4 chunks of 64 took 2.3-4.9x one batch of 256 on 2 cores), so it
+is part of the recipe: 1 by default, more only to spread a batch over a cluster.
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from types import SimpleNamespace
 
+import numpy as np
 import torch
 
 from volleybots.errors import ConfigError
 from volleybots.keys import DONE
 from volleybots.play.episodes import run_episodes
 from volleybots.play.games import side_env
+from volleybots.play.pool import check_pool, pool_map
 from volleybots.policies.builtin import learned_drill
 from volleybots.policies.competitors import resolve_competitor
 from volleybots.policies.high_level import HighLevelNet, LearnedChooser
@@ -43,9 +55,11 @@ class HighLevelConfig:
     receive_coming: bool = False  # call a receiver only for balls coming down in the own half (saved with the net)
     receive_attack: bool = False  # a front drone called to receive returns the ball at once with the attack drill (saved too)
     time_limit: float = 0.0  # seconds; 0: none (the batch under way is finished)
+    pool: str = "serial"  # where a batch's chunks are played: serial (here, in turn) or ray (Ray tasks; the same games)
+    chunks: int = 1  # parts a batch's games are played in (each its own env; Ray tasks with pool=ray); at most batch
 
     def check(self) -> None:
-        for key in ("games", "batch", "epochs"):
+        for key in ("games", "batch", "epochs", "chunks"):
             v = getattr(self, key)
             if not isinstance(v, int) or isinstance(v, bool) or not 1 <= v <= 10**8:
                 raise ConfigError(f"high level {key}={v!r} must be an int in 1..1e8")
@@ -53,6 +67,8 @@ class HighLevelConfig:
             v = getattr(self, key)
             if not isinstance(v, (int, float)) or isinstance(v, bool) or not 0 <= v <= hi:
                 raise ConfigError(f"high level {key}={v!r} must be a number in [0, {hi}]")
+        if self.chunks > self.batch:
+            raise ConfigError(f"high level chunks={self.chunks} must be at most batch={self.batch} (a chunk plays at least one game)")
 
 
 def _results(winner: torch.Tensor, side: int) -> torch.Tensor:
@@ -86,8 +102,8 @@ def play_batch(env, team, opponent, chooser: LearnedChooser, side: int) -> tuple
     return _results(stats["winner"], side), stats
 
 
-def update(net: HighLevelNet, opt, chooser: LearnedChooser, results: torch.Tensor, cfg: HighLevelConfig) -> dict:
-    """PPO steps on the recorded choices, each paid its game's result."""
+def update(net: HighLevelNet, opt, chooser, results: torch.Tensor, cfg: HighLevelConfig) -> dict:
+    """PPO steps on the recorded choices (``chooser.memory``), each paid its game's result."""
     by_kind = {}
     for kind in CHOICES:
         rows = [(e, f, ok, p) for k, e, _, f, ok, p in chooser.memory if k == kind and len(e)]
@@ -118,6 +134,51 @@ def update(net: HighLevelNet, opt, chooser: LearnedChooser, results: torch.Tenso
             **{f"choices_{k}": int(len(v[0])) for k, v in by_kind.items()}}
 
 
+def chunk_seed(seed: int, batch: int, chunk: int) -> int:
+    """The seed of chunk ``chunk`` of batch ``batch`` of a run seeded ``seed``: a hash of the three (numpy's
+    SeedSequence), so neighbouring runs, batches and chunks do not share games; below 2**62, so that the
+    env's seed offsets stay in a torch generator's range."""
+    a, b = np.random.SeedSequence([seed, batch, chunk]).generate_state(2)
+    return (int(a) << 30) | (int(b) >> 2)
+
+
+def play_chunk(match_cfg, drills: dict | None, opponent, state: dict, hidden, options: tuple[bool, bool], side: int, size: int,
+               seed: int) -> dict:
+    """One chunk of a batch: ``size`` games with the high level of weights ``state`` (sampling its
+    choices) on team ``side`` against ``opponent``, in a fresh env, every random number drawn from
+    ``seed``. Returns the results from its side, the frames, the team's touches per game and the
+    recorded choices (world indices within the chunk). Runs here or in a Ray worker, alike."""
+    with torch.random.fork_rng(devices=[]):  # drills and flat opponents sample from torch's global generator
+        net = HighLevelNet(hidden)
+        net.load_state_dict(state)
+        torch.manual_seed(seed)
+        gen = torch.Generator().manual_seed(seed)
+        chooser = LearnedChooser(net, greedy=False, generator=gen, record=True, receive_coming=options[0], receive_attack=options[1])
+        env = side_env(match_cfg, side, "any", size, seed)
+        team = make_hierarchical(env, {k: learned_drill(k, v, env, True) for k, v in (drills or {}).items()}, gen, chooser)
+        comp = resolve_competitor(opponent) if isinstance(opponent, str) else opponent
+        results, stats = play_batch(env, team, comp.team_policy(env, False, gen), chooser, side)
+    return {"results": results, "frames": int(stats["episode_len"].sum()), "touches": stats[f"hits_team{side}"], "memory": chooser.memory}
+
+
+def play_chunks(match_cfg, drills: dict | None, opponent, net: HighLevelNet, cfg: HighLevelConfig, index: int):
+    """Batch ``index``'s games (side ``index % 2``) in chunks, played by ``cfg.pool``; the chunks joined in
+    order: the results [batch], frames, mean touches and a holder of the choices (``update``'s ``chooser``)."""
+    side = index % 2
+    sizes = [cfg.batch // cfg.chunks + (c < cfg.batch % cfg.chunks) for c in range(cfg.chunks)]
+    state = {k: v.detach().clone() for k, v in net.state_dict().items()}
+    calls = [(drills, opponent, state, net.hidden, (cfg.receive_coming, cfg.receive_attack), side, n, chunk_seed(cfg.seed, index, c))
+             for c, n in enumerate(sizes)]
+    parts = list(pool_map(play_chunk, match_cfg, calls, cfg.pool, "population.oracle_pool"))
+    memory, offset = [], 0
+    for n, part in zip(sizes, parts):  # a chunk's worlds follow the ones before it
+        memory += [(kind, envs + offset, step, f, ok, pick) for kind, envs, step, f, ok, pick in part["memory"]]
+        offset += n
+    results = torch.cat([p["results"] for p in parts])
+    touches = float(torch.cat([p["touches"] for p in parts]).mean())
+    return results, sum(p["frames"] for p in parts), touches, SimpleNamespace(memory=memory)
+
+
 def train_high_level(match_cfg, drills: dict | None, opponent, cfg: HighLevelConfig, log=None,
                       start: HighLevelNet | None = None) -> tuple[HighLevelNet, list[dict]]:
     """A high level trained against ``opponent`` (a competitor spec, or a ``Competitor``: a population's
@@ -128,42 +189,32 @@ def train_high_level(match_cfg, drills: dict | None, opponent, cfg: HighLevelCon
     cfg.check()
     if match_cfg.task.name != "3v3":
         raise ConfigError(f"a high level plays task 3v3, not {match_cfg.task.name!r}")
+    if cfg.pool != "serial":
+        check_pool(cfg.pool, "population.oracle_pool")  # before the first game: ray installed, RAY_ADDRESS answering
     torch.manual_seed(cfg.seed)
-    gen = torch.Generator().manual_seed(cfg.seed)
     net = HighLevelNet(start.hidden if start is not None else cfg.hidden)
     if start is not None:
         net.load_state_dict(start.state_dict())
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
-    comp = resolve_competitor(opponent) if isinstance(opponent, str) else opponent
-    envs, teams, opps = [], [], []
-    chooser = LearnedChooser(net, greedy=False, generator=gen, record=True, receive_coming=cfg.receive_coming,
-                             receive_attack=cfg.receive_attack)
-    for side in (0, 1):
-        env = side_env(match_cfg, side, "any", cfg.batch, cfg.seed * 2 + side)
-        lows = {k: learned_drill(k, v, env, True) for k, v in (drills or {}).items()}
-        envs.append(env)
-        teams.append(make_hierarchical(env, lows, gen, chooser))
-        opps.append(comp.team_policy(env, False, gen))
-    history, played, start = [], 0, time.monotonic()
+    history, played, t0 = [], 0, time.monotonic()
     while played < cfg.games:
-        side = (played // cfg.batch) % 2
-        results, stats = play_batch(envs[side], teams[side], opps[side], chooser, side)
-        row = {"games": played + cfg.batch, "side": side, "frames": int(stats["episode_len"].sum()), "won": int((results > 0).sum()),
-               "drawn": int((results == 0).sum()),
-               "lost": int((results < 0).sum()), "touches": float(stats[f"hits_team{side}"].mean()),
-               "wall_s": round(time.monotonic() - start, 1), **update(net, opt, chooser, results, cfg)}
+        index = played // cfg.batch
+        results, frames, touches, chosen = play_chunks(match_cfg, drills, opponent, net, cfg, index)
+        row = {"games": played + cfg.batch, "side": index % 2, "frames": frames, "won": int((results > 0).sum()),
+               "drawn": int((results == 0).sum()), "lost": int((results < 0).sum()), "touches": touches,
+               "wall_s": round(time.monotonic() - t0, 1), **update(net, opt, chosen, results, cfg)}
         for kind, n in CHOICES.items():
-            picks = [p for k, *_, p in chooser.memory if k == kind]
+            picks = [p for k, *_, p in chosen.memory if k == kind]
             if picks:
                 row[f"share_{kind}"] = torch.bincount(torch.cat(picks), minlength=n).tolist()
         history.append(row)
         if log is not None:
             log(row)
         played += cfg.batch
-        if cfg.time_limit and time.monotonic() - start > cfg.time_limit:
+        if cfg.time_limit and time.monotonic() - t0 > cfg.time_limit:
             break
     net.eval()
     return net, history
 
 
-__all__ = ["HighLevelConfig", "play_batch", "train_high_level", "update"]
+__all__ = ["HighLevelConfig", "chunk_seed", "play_batch", "play_chunk", "play_chunks", "train_high_level", "update"]
