@@ -1,5 +1,5 @@
-"""A hierarchical oracle's games played as Ray tasks train the same high level as played here in turn
-(``population.oracle_pool=ray``, volleybots/train/high_level.py ``play_chunks``), and a hierarchical
+"""A hierarchical oracle's games played by Ray actors train the same high level as played here in turn
+(``population.oracle_pool=ray``, volleybots/train/high_level.py ``ChunkPlayer``), and a hierarchical
 population run (member files naming drills relative to the run's population folder, the run dir itself
 relative) gives the same members and payoff table with both pools on Ray as with both serial."""
 
@@ -31,10 +31,10 @@ def local_ray(monkeypatch):
     ray.shutdown()
 
 
-def test_chunk_seeds_differ_by_run_batch_and_chunk_and_fit_a_generator():
-    seeds = {chunk_seed(s, b, c) for s in (0, 1, 2**63 - 1) for b in range(3) for c in range(4)}
-    assert len(seeds) == 36 and max(seeds) < 2**62
-    assert chunk_seed(5, 1, 2) == chunk_seed(5, 1, 2)  # a function of the three alone
+def test_chunk_seeds_differ_by_run_and_chunk_and_fit_a_generator():
+    seeds = {chunk_seed(s, c) for s in (0, 1, 2**63 - 1) for c in range(1, 9)}
+    assert len(seeds) == 24 and max(seeds) < 2**61
+    assert chunk_seed(5, 2) == chunk_seed(5, 2)  # a function of the two alone
 
 
 @pytest.mark.slow  # plays 3v3 games, on a local Ray instance too
@@ -42,19 +42,20 @@ def test_oracle_games_played_as_ray_tasks_train_the_same_high_level(local_ray, m
     cfg = load(["task=3v3", "threads=1", "task.episode_len=150"])  # short games: drawn where no point is won by then
     # a mixture opponent, so the chunks' generators also draw members
     mix = Competitor("mix", [builtin_member("scripted"), builtin_member("hierarchical")], [0.5, 0.5])
-    calls = []
-    real = high_level.play_chunk
 
-    def counted(*args):  # runs here for serial play; pickled by value, a Ray worker counts into its own copy
-        calls.append(args[-1])
-        return real(*args)
+    class Counted(high_level.ChunkPlayer):  # pickled by value: a Ray actor counts into its own copy of plays
+        plays: list = []
 
-    monkeypatch.setattr(high_level, "play_chunk", counted)
+        def play(self, state, side):
+            Counted.plays.append(side)
+            return super().play(state, side)
+
+    monkeypatch.setattr(high_level, "ChunkPlayer", Counted)
     tiny = dict(games=12, batch=6, chunks=2, seed=7, epochs=2)  # two batches (one a side) of two chunks each
     net_s, hist_s = train_high_level(cfg, None, mix, HighLevelConfig(**tiny))
-    assert calls == [chunk_seed(7, b, c) for b in range(2) for c in range(2)]
+    assert Counted.plays == [0, 0, 1, 1]
     net_r, hist_r = train_high_level(cfg, None, mix, HighLevelConfig(**tiny, pool="ray"))
-    assert len(calls) == 4  # no chunk of the Ray run was played in this process
+    assert Counted.plays == [0, 0, 1, 1]  # no chunk of the Ray run was played in this process
     a, b = net_s.state_dict(), net_r.state_dict()
     assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
     assert _timeless(hist_s) == _timeless(hist_r)
@@ -97,3 +98,16 @@ def test_an_oracle_pool_is_refused_where_it_would_do_nothing_or_is_unknown():
         load(["task=3v3", "algo=psro_nash", "algo.oracle_chunks=300"])
     with pytest.raises(ConfigError, match="high level chunks=5 must be at most batch=4"):
         HighLevelConfig(batch=4, chunks=5).check()
+
+
+def test_a_resume_may_move_the_games_to_ray_and_change_nothing_else(tmp_path):
+    from volleybots.population.loop import RESUME_KEYS
+    from volleybots.runs import RunDir
+    from volleybots.train import resume_config
+
+    run = RunDir(tmp_path)
+    run.write_config(load(["task=3v3", "algo=psro_nash"]))
+    cfg = resume_config(tmp_path, ["population.oracle_pool=ray", "population.payoff_pool=ray"], RESUME_KEYS)
+    assert (cfg.population.oracle_pool, cfg.population.payoff_pool, cfg.population.oracle_chunks) == ("ray", "ray", 1)
+    with pytest.raises(ConfigError, match="population.oracle_chunks"):  # the chunks make the games: not a resume's to change
+        resume_config(tmp_path, ["population.oracle_chunks=2"], RESUME_KEYS)

@@ -103,6 +103,61 @@ def pool_map(fn, cfg, calls: list[tuple], pool: str = "serial", key: str = "pool
         yield ray.get(ref)
 
 
+def start_workers(cls, cfg, inits: list[tuple], pool: str = "serial", key: str = "pool") -> list:
+    """Stateful workers ``cls(cfg, *init)``, one per ``inits``: objects here, or Ray actors (each in its own
+    process, one torch thread, spread over the cluster's nodes) for ``pool=ray``. ``call_workers`` calls
+    them alike; ``stop_workers`` ends the actors. A worker must draw its random numbers from its own
+    state alone, so that where it runs changes the wall time, never the results."""
+    if pool == "serial":
+        return [cls(cfg, *init) for init in inits]
+    check_pool(pool, key)
+    import ray
+
+    if not ray.is_initialized():
+        ray.init(address=os.environ.get("RAY_ADDRESS"), include_dashboard=False, log_to_driver=False)
+    # Ray's default actor resources: one CPU to be placed, none held while it runs, so more workers than
+    # the cluster's CPUs still all start (with num_cpus=1 the ones beyond would wait for ever)
+    actor = ray.remote(_Worker).options(scheduling_strategy="SPREAD")
+    data = ray.put(to_dict(cfg))
+    return [actor.remote(cls, data, *init) for init in inits]
+
+
+def call_workers(workers: list, method: str, calls: list[tuple]) -> list:
+    """``worker.method(*call)`` for each worker and its call, all at once on Ray; the results in order."""
+    if workers and _is_actor(workers[0]):
+        import ray
+
+        return ray.get([w.call.remote(method, *c) for w, c in zip(workers, calls)])
+    return [getattr(w, method)(*c) for w, c in zip(workers, calls)]
+
+
+def stop_workers(workers: list) -> None:
+    """End the Ray actors among ``workers`` (objects here are left to the garbage collector)."""
+    for w in workers:
+        if _is_actor(w):
+            import ray
+
+            ray.kill(w)
+
+
+def _is_actor(worker) -> bool:
+    """A Ray actor's handle (its methods are called with ``.remote``), not an object here."""
+    return hasattr(getattr(worker, "call", None), "remote")
+
+
+class _Worker:
+    """A worker of ``start_workers`` inside a Ray actor: the object, built from the plain config."""
+
+    def __init__(self, cls, cfg: dict, *init):
+        import torch
+
+        torch.set_num_threads(1)
+        self.obj = cls(validate(cfg), *init)
+
+    def call(self, method: str, *args):
+        return getattr(self.obj, method)(*args)
+
+
 def _call(fn, cfg: dict, *args):
     """One call of ``pool_map`` in a Ray worker."""
     import torch

@@ -10,14 +10,16 @@ the value head's estimate for that choice, and the heads take ``epochs`` clipped
 steps on it. Games are short and each holds a handful of choices, so the result itself is the return:
 there is nothing to discount.
 
-A batch's games are played in ``chunks`` parts of near-equal size (``play_chunk``), each in a fresh env
-seeded by the run's seed, the batch and the chunk alone (``chunk_seed``), so where a chunk is played does
-not change its games: ``pool`` plays them here in turn or as Ray tasks (``volleybots.play.pool``,
-``population.oracle_pool``), and the chunks' choices and results are joined in chunk order before the
-update, so either pool trains the same high level, bit for bit (one torch thread). The number of chunks
-does change the games (and costs serial play: a chunk lasts as long as its longest game, and stepping
-64 worlds costs nearly what 256 do, so 4 chunks of 64 took 2.3-4.9x one batch of 256 on 2 cores), so it
-is part of the recipe: 1 by default, more only to spread a batch over a cluster.
+A batch's games are played in ``chunks`` parts of near-equal size, each by a ``ChunkPlayer`` that keeps
+its own envs, generator and share of torch's random stream from batch to batch, seeded by the run's
+seed and the chunk alone (``chunk_seed``), so where a chunk is played does not change its games:
+``pool`` keeps the players here, playing in turn, or in Ray actors playing at once
+(``volleybots.play.pool``, ``population.oracle_pool``), and the chunks' choices and results are joined in
+chunk order before the update, so either pool trains the same high level, bit for bit (one torch
+thread). The number of chunks does change the games, and costs serial play (a chunk lasts as long as
+its longest game, and stepping 64 worlds costs nearly what 256 do: 4 chunks of 64 took 2.3-4.9x one
+batch of 256 on 2 cores), so it is part of the recipe: 1 by default (the games of before chunks), more
+only to spread a batch over a cluster.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from volleybots.errors import ConfigError
 from volleybots.keys import DONE
 from volleybots.play.episodes import run_episodes
 from volleybots.play.games import side_env
-from volleybots.play.pool import check_pool, pool_map
+from volleybots.play.pool import call_workers, check_pool, start_workers, stop_workers
 from volleybots.policies.builtin import learned_drill
 from volleybots.policies.competitors import resolve_competitor
 from volleybots.policies.high_level import HighLevelNet, LearnedChooser
@@ -134,42 +136,62 @@ def update(net: HighLevelNet, opt, chooser, results: torch.Tensor, cfg: HighLeve
             **{f"choices_{k}": int(len(v[0])) for k, v in by_kind.items()}}
 
 
-def chunk_seed(seed: int, batch: int, chunk: int) -> int:
-    """The seed of chunk ``chunk`` of batch ``batch`` of a run seeded ``seed``: a hash of the three (numpy's
-    SeedSequence), so neighbouring runs, batches and chunks do not share games; below 2**62, so that the
-    env's seed offsets stay in a torch generator's range."""
-    a, b = np.random.SeedSequence([seed, batch, chunk]).generate_state(2)
-    return (int(a) << 30) | (int(b) >> 2)
+def chunk_seed(seed: int, chunk: int) -> int:
+    """The seed of chunk ``chunk`` (>= 1) of a run seeded ``seed``: a hash of the two (numpy's SeedSequence),
+    so neighbouring runs and chunks do not share games; below 2**61, so that the env's seed offsets stay in
+    a torch generator's range. Chunk 0 keeps the run's seed itself (one chunk: the games of before)."""
+    a, b = np.random.SeedSequence([seed, chunk]).generate_state(2)
+    return (int(a) << 29) | (int(b) >> 3)
 
 
-def play_chunk(match_cfg, drills: dict | None, opponent, state: dict, hidden, options: tuple[bool, bool], side: int, size: int,
-               seed: int) -> dict:
-    """One chunk of a batch: ``size`` games with the high level of weights ``state`` (sampling its
-    choices) on team ``side`` against ``opponent``, in a fresh env, every random number drawn from
-    ``seed``. Returns the results from its side, the frames, the team's touches per game and the
-    recorded choices (world indices within the chunk). Runs here or in a Ray worker, alike."""
-    with torch.random.fork_rng(devices=[]):  # drills and flat opponents sample from torch's global generator
-        net = HighLevelNet(hidden)
-        net.load_state_dict(state)
-        torch.manual_seed(seed)
-        gen = torch.Generator().manual_seed(seed)
-        chooser = LearnedChooser(net, greedy=False, generator=gen, record=True, receive_coming=options[0], receive_attack=options[1])
-        env = side_env(match_cfg, side, "any", size, seed)
-        team = make_hierarchical(env, {k: learned_drill(k, v, env, True) for k, v in (drills or {}).items()}, gen, chooser)
-        comp = resolve_competitor(opponent) if isinstance(opponent, str) else opponent
-        results, stats = play_batch(env, team, comp.team_policy(env, False, gen), chooser, side)
-    return {"results": results, "frames": int(stats["episode_len"].sum()), "touches": stats[f"hits_team{side}"], "memory": chooser.memory}
+class ChunkPlayer:
+    """One chunk of every batch: its worlds on each side (an env a side, built once), its generator and
+    its share of torch's global random stream (``rng``, swapped in around each call), so that its games
+    depend on its seed and the weights it is handed alone, wherever it runs (here, or in a Ray actor).
+
+    Chunk 0 is built as the whole batch was before chunks (seed, envs ``seed * 2 + side``, the global
+    stream as the net's initialisation left it, ``rng``), so one chunk trains the high levels of before."""
+
+    def __init__(self, match_cfg, drills: dict | None, opponent, hidden, options: tuple[bool, bool], size: int, seed: int, rng=None):
+        with torch.random.fork_rng(devices=[]):  # drills and flat opponents sample from torch's global generator
+            self.net = HighLevelNet(hidden)  # before the chunk's stream: its weights come with every call
+            if rng is None:
+                torch.manual_seed(seed)
+            else:
+                torch.set_rng_state(rng)
+            self.gen = torch.Generator().manual_seed(seed)
+            self.chooser = LearnedChooser(self.net, greedy=False, generator=self.gen, record=True, receive_coming=options[0],
+                                          receive_attack=options[1])
+            comp = resolve_competitor(opponent) if isinstance(opponent, str) else opponent
+            self.envs, self.teams, self.opps = [], [], []
+            for side in (0, 1):
+                env = side_env(match_cfg, side, "any", size, seed * 2 + side)
+                lows = {k: learned_drill(k, v, env, True) for k, v in (drills or {}).items()}
+                self.envs.append(env)
+                self.teams.append(make_hierarchical(env, lows, self.gen, self.chooser))
+                self.opps.append(comp.team_policy(env, False, self.gen))
+            self.rng = torch.get_rng_state()
+
+    def play(self, state: dict, side: int) -> dict:
+        """The chunk's next game a world with the high level of weights ``state`` on team ``side``: the
+        results from its side, frames, the team's touches per game and the choices (chunk world indices)."""
+        self.net.load_state_dict(state)
+        with torch.random.fork_rng(devices=[]):
+            torch.set_rng_state(self.rng)
+            results, stats = play_batch(self.envs[side], self.teams[side], self.opps[side], self.chooser, side)
+            self.rng = torch.get_rng_state()
+        return {"results": results, "frames": int(stats["episode_len"].sum()), "touches": stats[f"hits_team{side}"],
+                "memory": list(self.chooser.memory)}
+
+    def rng_state(self) -> torch.Tensor:
+        return self.rng
 
 
-def play_chunks(match_cfg, drills: dict | None, opponent, net: HighLevelNet, cfg: HighLevelConfig, index: int):
-    """Batch ``index``'s games (side ``index % 2``) in chunks, played by ``cfg.pool``; the chunks joined in
-    order: the results [batch], frames, mean touches and a holder of the choices (``update``'s ``chooser``)."""
-    side = index % 2
-    sizes = [cfg.batch // cfg.chunks + (c < cfg.batch % cfg.chunks) for c in range(cfg.chunks)]
+def play_chunks(players: list, sizes: list[int], net: HighLevelNet, side: int):
+    """A batch's games on side ``side``, every chunk at once (Ray) or in turn, joined in chunk order: the
+    results [batch], frames, mean touches and a holder of the choices (``update``'s ``chooser``)."""
     state = {k: v.detach().clone() for k, v in net.state_dict().items()}
-    calls = [(drills, opponent, state, net.hidden, (cfg.receive_coming, cfg.receive_attack), side, n, chunk_seed(cfg.seed, index, c))
-             for c, n in enumerate(sizes)]
-    parts = list(pool_map(play_chunk, match_cfg, calls, cfg.pool, "population.oracle_pool"))
+    parts = call_workers(players, "play", [(state, side)] * len(players))
     memory, offset = [], 0
     for n, part in zip(sizes, parts):  # a chunk's worlds follow the ones before it
         memory += [(kind, envs + offset, step, f, ok, pick) for kind, envs, step, f, ok, pick in part["memory"]]
@@ -196,25 +218,34 @@ def train_high_level(match_cfg, drills: dict | None, opponent, cfg: HighLevelCon
     if start is not None:
         net.load_state_dict(start.state_dict())
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
+    sizes = [cfg.batch // cfg.chunks + (c < cfg.batch % cfg.chunks) for c in range(cfg.chunks)]
+    options = (cfg.receive_coming, cfg.receive_attack)
+    inits = [(drills, opponent, net.hidden, options, n, chunk_seed(cfg.seed, c) if c else cfg.seed, None if c else torch.get_rng_state())
+             for c, n in enumerate(sizes)]
+    players = start_workers(ChunkPlayer, match_cfg, inits, cfg.pool, "population.oracle_pool")
     history, played, t0 = [], 0, time.monotonic()
-    while played < cfg.games:
-        index = played // cfg.batch
-        results, frames, touches, chosen = play_chunks(match_cfg, drills, opponent, net, cfg, index)
-        row = {"games": played + cfg.batch, "side": index % 2, "frames": frames, "won": int((results > 0).sum()),
-               "drawn": int((results == 0).sum()), "lost": int((results < 0).sum()), "touches": touches,
-               "wall_s": round(time.monotonic() - t0, 1), **update(net, opt, chosen, results, cfg)}
-        for kind, n in CHOICES.items():
-            picks = [p for k, *_, p in chosen.memory if k == kind]
-            if picks:
-                row[f"share_{kind}"] = torch.bincount(torch.cat(picks), minlength=n).tolist()
-        history.append(row)
-        if log is not None:
-            log(row)
-        played += cfg.batch
-        if cfg.time_limit and time.monotonic() - t0 > cfg.time_limit:
-            break
+    try:
+        while played < cfg.games:
+            side = (played // cfg.batch) % 2
+            results, frames, touches, chosen = play_chunks(players, sizes, net, side)
+            row = {"games": played + cfg.batch, "side": side, "frames": frames, "won": int((results > 0).sum()),
+                   "drawn": int((results == 0).sum()), "lost": int((results < 0).sum()), "touches": touches,
+                   "wall_s": round(time.monotonic() - t0, 1), **update(net, opt, chosen, results, cfg)}
+            for kind, n in CHOICES.items():
+                picks = [p for k, *_, p in chosen.memory if k == kind]
+                if picks:
+                    row[f"share_{kind}"] = torch.bincount(torch.cat(picks), minlength=n).tolist()
+            history.append(row)
+            if log is not None:
+                log(row)
+            played += cfg.batch
+            if cfg.time_limit and time.monotonic() - t0 > cfg.time_limit:
+                break
+        torch.set_rng_state(call_workers(players[:1], "rng_state", [()])[0])  # torch's stream left as one chunk's games left it
+    finally:
+        stop_workers(players)
     net.eval()
     return net, history
 
 
-__all__ = ["HighLevelConfig", "chunk_seed", "play_batch", "play_chunk", "play_chunks", "train_high_level", "update"]
+__all__ = ["ChunkPlayer", "HighLevelConfig", "chunk_seed", "play_batch", "play_chunks", "train_high_level", "update"]
