@@ -74,10 +74,9 @@ class LoopConfig:
     payoff_pool: str = "serial"
     oracle_pool: str = "serial"  # where a hierarchical oracle's games are played (volleybots.train.high_level.play_chunks)
     oracle_chunks: int = ranged(1, ge=1)  # the parts each of its batches is played in (the games depend on it, not on the pool)
-    # the run's time_limit by task where it gives none (0), seconds: conf/population/psro_nash.yaml bounds
-    # the bare 6v6 headline (five oracles take about 100 minutes on 2 cores); empty here, so that a run
-    # saved before the key reads back as it ran, unbounded
-    default_time_limit: dict[str, float] = field(default_factory=dict)
+    # the run's time_limit by task where it gives none (0), seconds: the bare 6v6 headline's five oracles
+    # take about 100 minutes on 2 cores, so it is bounded by an hour ({6v6: 0} lifts it)
+    default_time_limit: dict[str, float] = field(default_factory=lambda: {"6v6": 3600.0})
     members: str = "auto"
     drills: str = "zoo:3v3/hcsp_return"  # a hierarchical population's drills: a zoo team, a team file, or hierarchical
     high_level_games: int = ranged(1024, ge=1)  # games each hierarchical oracle trains its high level on
