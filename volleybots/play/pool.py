@@ -79,7 +79,7 @@ def payoff_row(cfg, a, opponents: list, games: int, seed: int, pool: str = "seri
         ray.init(address=os.environ.get("RAY_ADDRESS"), include_dashboard=False, log_to_driver=False)
     task = ray.remote(num_cpus=1)(_chunk)
     data = ray.put(to_dict(cfg))
-    return [w for part in ray.get([task.remote(data, *c) for c in chunks]) for w in part]
+    return [w for part in ray.get([task.remote(data, os.getcwd(), *c) for c in chunks]) for w in part]
 
 
 def pool_map(fn, cfg, calls: list[tuple], pool: str = "serial", key: str = "pool"):
@@ -98,7 +98,7 @@ def pool_map(fn, cfg, calls: list[tuple], pool: str = "serial", key: str = "pool
         ray.init(address=os.environ.get("RAY_ADDRESS"), include_dashboard=False, log_to_driver=False)
     task = ray.remote(num_cpus=1)(_call)
     data = ray.put(to_dict(cfg))
-    refs = [task.remote(fn, data, *call) for call in calls]
+    refs = [task.remote(fn, data, os.getcwd(), *call) for call in calls]
     for ref in refs:
         yield ray.get(ref)
 
@@ -119,7 +119,7 @@ def start_workers(cls, cfg, inits: list[tuple], pool: str = "serial", key: str =
     # the cluster's CPUs still all start (with num_cpus=1 the ones beyond would wait for ever)
     actor = ray.remote(_Worker).options(scheduling_strategy="SPREAD")
     data = ray.put(to_dict(cfg))
-    return [actor.remote(cls, data, *init) for init in inits]
+    return [actor.remote(cls, data, os.getcwd(), *init) for init in inits]
 
 
 def call_workers(workers: list, method: str, calls: list[tuple]) -> list:
@@ -148,27 +148,34 @@ def _is_actor(worker) -> bool:
 class _Worker:
     """A worker of ``start_workers`` inside a Ray actor: the object, built from the plain config."""
 
-    def __init__(self, cls, cfg: dict, *init):
-        import torch
-
-        torch.set_num_threads(1)
+    def __init__(self, cls, cfg: dict, cwd: str, *init):
+        _enter(cwd)
         self.obj = cls(validate(cfg), *init)
 
     def call(self, method: str, *args):
         return getattr(self.obj, method)(*args)
 
 
-def _call(fn, cfg: dict, *args):
-    """One call of ``pool_map`` in a Ray worker."""
+def _enter(cwd: str) -> None:
+    """A Ray worker's setting for one call: one torch thread (as Ray's workers run with OMP_NUM_THREADS=1),
+    and the driver's working directory where this machine has it, so that a relative path (a run dir
+    given to the Python API, and the member and drill files named under it) opens the driver's file:
+    Ray's workers start where Ray was started, not where the driver is now (or on another node, which
+    needs the run dir at the same path: a shared filesystem)."""
     import torch
 
     torch.set_num_threads(1)
+    if os.path.isdir(cwd):
+        os.chdir(cwd)
+
+
+def _call(fn, cfg: dict, cwd: str, *args):
+    """One call of ``pool_map`` in a Ray worker."""
+    _enter(cwd)
     return fn(validate(cfg), *args)
 
 
-def _chunk(cfg: dict, a, opponents: list, games: int, seed: int):
-    """One chunk in a Ray worker (one torch thread, as Ray's workers run with OMP_NUM_THREADS=1)."""
-    import torch
-
-    torch.set_num_threads(1)
+def _chunk(cfg: dict, cwd: str, a, opponents: list, games: int, seed: int):
+    """One payoff chunk in a Ray worker."""
+    _enter(cwd)
     return play_row_chunk(validate(cfg), a, opponents, games, seed)
