@@ -162,6 +162,10 @@ class ChunkPlayer:
             self.gen = torch.Generator().manual_seed(seed)
             self.chooser = LearnedChooser(self.net, greedy=False, generator=self.gen, record=True, receive_coming=options[0],
                                           receive_attack=options[1])
+            # self-play (opponent None): the same drills under a second chooser over the same net, sampling
+            # its choices and recording none
+            mirror = LearnedChooser(self.net, greedy=False, generator=self.gen, record=False, receive_coming=options[0],
+                                    receive_attack=options[1])
             comp = resolve_competitor(opponent) if isinstance(opponent, str) else opponent
             self.envs, self.teams, self.opps = [], [], []
             for side in (0, 1):
@@ -169,7 +173,7 @@ class ChunkPlayer:
                 lows = {k: learned_drill(k, v, env, True) for k, v in (drills or {}).items()}
                 self.envs.append(env)
                 self.teams.append(make_hierarchical(env, lows, self.gen, self.chooser))
-                self.opps.append(comp.team_policy(env, False, self.gen))
+                self.opps.append(make_hierarchical(env, lows, self.gen, mirror) if comp is None else comp.team_policy(env, False, self.gen))
             self.rng = torch.get_rng_state()
 
     def play(self, state: dict, side: int) -> dict:
@@ -204,8 +208,9 @@ def play_chunks(players: list, sizes: list[int], net: HighLevelNet, side: int):
 def train_high_level(match_cfg, drills: dict | None, opponent, cfg: HighLevelConfig, log=None,
                       start: HighLevelNet | None = None) -> tuple[HighLevelNet, list[dict]]:
     """A high level trained against ``opponent`` (a competitor spec, or a ``Competitor``: a population's
-    mixture draws one member per world and game) over the ``drills`` (drill -> checkpoint; the others
-    scripted) on the 3 vs 3 match config ``match_cfg``, from ``start``'s weights if given (else near
+    mixture draws one member per world and game; None: self-play, the same drills under a second
+    chooser over the learning net, which samples its choices and records none) over the ``drills``
+    (drill -> checkpoint; the others scripted) on the 3 vs 3 match config ``match_cfg``, from ``start``'s weights if given (else near
     uniform); the per-batch history (results, choices, the share of each option) goes to ``log`` as it
     is made."""
     cfg.check()
