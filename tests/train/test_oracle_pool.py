@@ -111,3 +111,13 @@ def test_a_resume_may_move_the_games_to_ray_and_change_nothing_else(tmp_path):
     assert (cfg.population.oracle_pool, cfg.population.payoff_pool, cfg.population.oracle_chunks) == ("ray", "ray", 1)
     with pytest.raises(ConfigError, match="population.oracle_chunks"):  # the chunks make the games: not a resume's to change
         resume_config(tmp_path, ["population.oracle_chunks=2"], RESUME_KEYS)
+
+
+@pytest.mark.slow  # plays 3v3 games
+def test_one_chunk_plays_the_games_of_before_chunks():
+    """The figures the code before chunks gave for this run (commit 18973be), so one
+    chunk keeps the headline's high levels: a tiny self-play high level, seed 5."""
+    cfg = load(["task=3v3", "threads=1", "task.episode_len=150"])
+    _, hist = train_high_level(cfg, None, None, HighLevelConfig(games=8, batch=4, seed=5, epochs=2))
+    assert [(r["won"], r["drawn"], r["lost"], r["frames"], r["choices"]) for r in hist] == [(1, 0, 3, 455, 6), (4, 0, 0, 416, 1)]
+    assert [r.get("share_receive") for r in hist] == [[1, 1, 2], [0, 0, 1]]
