@@ -1,5 +1,5 @@
 """The bare 6v6 headline is bounded: ``population.default_time_limit`` gives a population run on 6v6 an
-hour where it names no ``time_limit`` (its five oracles take about 100 minutes on 2 cores), and the
+hour where it names no ``time_limit`` (its five oracles take about 90 minutes on 2 cores), and the
 run's summary says when that bound ended it."""
 
 from volleybots.cli.train import _time_bound

@@ -75,7 +75,7 @@ class LoopConfig:
     oracle_pool: str = "serial"  # where a hierarchical oracle's games are played (volleybots.train.high_level.play_chunks)
     oracle_chunks: int = ranged(1, ge=1)  # the parts each of its batches is played in (the games depend on it, not on the pool)
     # the run's time_limit by task where it gives none (0), seconds: the bare 6v6 headline's five oracles
-    # take about 100 minutes on 2 cores, so it is bounded by an hour ({6v6: 0} lifts it)
+    # take about 90 minutes on 2 cores, so it is bounded by an hour ({6v6: 0} lifts it)
     default_time_limit: dict[str, float] = field(default_factory=lambda: {"6v6": 3600.0})
     members: str = "auto"
     drills: str = "zoo:3v3/hcsp_return"  # a hierarchical population's drills: a zoo team, a team file, or hierarchical
