@@ -30,7 +30,7 @@ from volleybots.config import make_env, to_dict
 from volleybots.play.episodes import collect, finished_stats, run_episodes, summarize
 from volleybots.play.seats import default_seat
 from volleybots.replay import write_curves
-from volleybots.runs import CKPT_FORMAT, MetricsLog, RunDir, load_algo_state, read_checkpoint
+from volleybots.runs import CKPT_FORMAT, MetricsLog, RunDir, load_algo_state, read_checkpoint, wall_at
 from volleybots.train.init import apply_init
 from volleybots.train.progress import Progress
 from volleybots.train.wandb import WandbLogger
@@ -87,30 +87,32 @@ class Trainer:
         return state
 
     def state(self) -> dict:
-        """Everything a checkpoint holds: a run restored from it repeats the uninterrupted one."""
+        """Everything a checkpoint holds: a run restored from it repeats the uninterrupted one. Nothing of
+        the machine's: no wall time (metrics.csv and summary.json hold it) and the paths inside the run
+        written relative to it, so two identical runs in two folders write files of equal bytes."""
         return {
             "format": CKPT_FORMAT,
             "version": __version__,
-            "config": to_dict(self.cfg),
+            "config": _inside(to_dict(self.cfg), self.run.path),
             "task": self.cfg.task.name,
             "action_space": self.cfg.env.action_space,
             "obs_dim": int(self.env.obs_dim),
             "n_agents": int(self.algo.n_agents),
             "frames": int(self.frames),
             "iteration": int(self.iteration),
-            "wall_time": float(self._wall()),
             "evals": self.evals,
             "algo": self.algo.state_dict(),
             "rng": self._rng_state(),
             "seat": self.seat.state_dict(),
-            "init": self.init_info,
+            "init": _inside(self.init_info, self.run.path),
             **self.extra_state(),
         }
 
     def _restore(self, state: dict) -> None:
         load_algo_state(self.algo, state, f"the checkpoint of run {str(self.run.path)!r}", self.cfg)
         self.frames, self.iteration = int(state["frames"]), int(state["iteration"])
-        self.wall_offset = float(state["wall_time"])
+        # older checkpoints hold their wall time; newer ones leave it to the run's metrics.csv
+        self.wall_offset = float(state["wall_time"]) if "wall_time" in state else wall_at(self.run.metrics_path, self.frames)
         self.evals = list(state.get("evals", []))
         self.init_info = state.get("init")
         rng = state["rng"]
@@ -287,6 +289,22 @@ class Trainer:
         self.metrics.write(row)
         if wandb:
             wandb.log(row)
+
+
+def _inside(data, root: Path):
+    """``data`` (plain containers) with each string that is a path inside the run directory ``root`` (the
+    clone a population's learners start from, ``init=``) written relative to it: where the run lies is no
+    part of its training."""
+    if isinstance(data, dict):
+        return {k: _inside(v, root) for k, v in data.items()}
+    if isinstance(data, list):
+        return [_inside(v, root) for v in data]
+    if isinstance(data, str) and Path(data).is_absolute():
+        try:
+            return str(Path(data).resolve().relative_to(Path(root).resolve()))
+        except ValueError:  # outside the run: another run's, named by the user
+            return data
+    return data
 
 
 def _next_multiple(frames: int, every: int) -> int:
