@@ -22,3 +22,35 @@ def test_a_crossplay_table_off_a_terminal_is_not_folded_and_json_keeps_its_progr
     assert res.exit_code == 0, res.output
     assert json.loads(res.stdout)["labels"] == ["random", "second_random_player"]
     assert res.stderr.startswith("  pair 0,1: W/D/L ")
+
+
+def test_eval_names_a_matchs_outcome_codes_and_gives_their_legend():
+    """``winner`` / ``reason`` / ``serve_team`` are codes: counted by name (the referee's faults), never averaged."""
+    import torch
+    from rich.console import Console
+
+    from volleybots.eval import format_table, outcome_counts
+
+    res = {"win": torch.tensor([1.0, 0, 0, 0, 0]), "winner": torch.tensor([0.0, 1, -1, -1, 0]),
+           "reason": torch.tensor([7.0, 5, -1, -1, 12]), "serve_team": torch.tensor([0.0, 0, 1, 1, 0])}
+    counts = outcome_counts(res)
+    assert counts == {"winner": {"team0": 2, "team1": 1, "draw": 2}, "reason": {"ball_out": 1, "landed": 1, "none": 2, "code 12": 1},
+                      "serve_team": {"team0": 3, "team1": 2}}
+    assert outcome_counts({"win": torch.tensor([1.0])}) == {}  # a drill has no codes
+    result = {"target": "scripted", "task": "1v1", "action_space": "prt", "episodes": 5, "metric": "win", "outcomes": counts,
+              "stats": {k: {"mean": float(v.mean()), "std": 0.0} for k, v in res.items()}}
+    console = Console(width=100, record=True)
+    console.print(format_table(result))
+    text = console.export_text()
+    assert "won by" in text and "team0 2, team1 1, draw 2" in text and "ball_out 1, landed 1, none 2, code 12 1" in text
+    assert "  landed: the ball landed in the team's half" in text and "  none: no fault: a draw" in text
+    assert "winner" not in text and "reason" not in text  # no mean of a code
+
+
+def test_eval_json_of_a_match_counts_its_outcomes_by_name():
+    res = runner.invoke(app, ["eval", "scripted", "task=1v1", "episodes=2", "task.episode_len=30", "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout)
+    # 30 steps: no rally is decided, every episode is a draw at the time limit
+    assert out["outcomes"]["winner"] == {"draw": 2} and out["outcomes"]["reason"] == {"none": 2}
+    assert sum(out["outcomes"]["serve_team"].values()) == 2
