@@ -234,7 +234,8 @@ def run_bench(
         repeats: timed repeats; the row reports their median.
         steps: env steps per repeat; default ``default_steps`` (scaled by env count and backend).
         action_space: "prt", "ctbr" or "discrete"; random actions from its spec.
-        progress: called with each row as soon as it is measured (for printing).
+        progress: called with each row as soon as it is measured (for printing); one with a ``begin``
+            method is first told the number of rows (``begin(total)``: its done / total and ETA).
         threads: the cores each row may use: torch's intra-op threads (``torch.set_num_threads``) for
             the torch backend, the rollout pool for MuJoCo (whose torch glue runs on one thread);
             default unchanged (torch's count). On a machine shared with other work, 1 is often much
@@ -255,30 +256,30 @@ def run_bench(
     if threads:
         torch.set_num_threads(threads)
     try:
-        rows = _run(tuple(tasks), tuple(backends), tuple(num_envs), devices, compile, repeats, steps, action_space, progress)
-        if train:
-            rows += _run_training(tuple(tasks), tuple(num_envs), devices, compile, train_batches, progress, tuple(train_overrides))
-        return rows
+        cases = _env_cases(tuple(tasks), tuple(backends), tuple(num_envs), devices, compile)
+        trained = _train_cases(tuple(tasks), tuple(num_envs), devices, compile) if train else []
+        if hasattr(progress, "begin"):  # a progress that shows done / total and an ETA is told the total first
+            progress.begin(len(cases) + len(trained))
+        rows = _run(cases, repeats, steps, action_space, progress)
+        return rows + _run_training(trained, train_batches, progress, tuple(train_overrides))
     finally:
         torch.set_num_threads(before)
 
 
-def _run(tasks, backends, num_envs, devices, compile, repeats, steps, action_space, progress) -> list[dict]:
+def _env_cases(tasks, backends, num_envs, devices, compile) -> list[tuple]:
+    """(task, backend, num_envs, device, compile) of every env row, in the order they are measured."""
     devices = tuple(devices) if devices is not None else default_devices()
-    modes = _modes(compile)
+    # MuJoCo steps on the CPU and has nothing to compile: one row whatever the devices and modes
+    return [(task, backend, n, device, comp) for task in tasks for n in num_envs for backend in backends for device in devices
+            if not (backend == "mujoco" and device != "cpu") for comp in (_modes(compile) if backend == "torch" else (False,))]
+
+
+def _run(cases, repeats, steps, action_space, progress) -> list[dict]:
     rows = []
-    for task in tasks:
-        for n in num_envs:
-            for backend in backends:
-                for device in devices:
-                    if backend == "mujoco" and device != "cpu":
-                        continue
-                    # MuJoCo has nothing to compile: one row whatever the modes
-                    for comp in modes if backend == "torch" else (False,):
-                        row = measure(task, backend, n, device, compile=comp, repeats=repeats, steps=steps, action_space=action_space)
-                        rows.append(row)
-                        if progress is not None:
-                            progress(row)
+    for task, backend, n, device, comp in cases:
+        rows.append(measure(task, backend, n, device, compile=comp, repeats=repeats, steps=steps, action_space=action_space))
+        if progress is not None:
+            progress(rows[-1])
     return rows
 
 
@@ -286,22 +287,23 @@ def _modes(compile) -> tuple[bool, ...]:
     return (bool(compile),) if isinstance(compile, bool) else tuple(bool(c) for c in compile)
 
 
-def _run_training(tasks, num_envs, devices, compile, batches, progress, overrides=()) -> list[dict]:
+def _train_cases(tasks, num_envs, devices, compile) -> list[tuple]:
+    """(task, algo, num_envs, device, compile, seat) of every training row: each competitive task's plain
+    MAPPO row (seat None) first, then its seats' rows, which are compared with it."""
     devices = tuple(devices) if devices is not None else default_devices()
+    return [(task, algo, n, device, comp, seat) for task, algo in TRAIN_CASES if task in tasks for n in num_envs for device in devices
+            for comp in _modes(compile) for seat in ((None, *SEATS) if _competitive(task) else (None,))]
+
+
+def _run_training(cases, batches, progress, overrides=()) -> list[dict]:
     rows, base = [], None  # base: the plain MAPPO row each seat's row is compared with
-    for task, algo in TRAIN_CASES:
-        if task not in tasks:
-            continue
-        for n in num_envs:
-            for device in devices:
-                for comp in _modes(compile):
-                    for seat in (None, *SEATS) if _competitive(task) else (None,):
-                        rows.append(measure_training(task, algo, n, device, compile=comp, batches=batches, seat=seat, overrides=overrides))
-                        if seat is not None:  # the seat's cost: its rate over plain MAPPO's of the same run
-                            rows[-1]["vs_mappo"] = rows[-1]["env_steps_per_s"] / base["env_steps_per_s"]
-                        base = rows[-1] if seat is None else base
-                        if progress is not None:
-                            progress(rows[-1])
+    for task, algo, n, device, comp, seat in cases:
+        rows.append(measure_training(task, algo, n, device, compile=comp, batches=batches, seat=seat, overrides=overrides))
+        if seat is not None:  # the seat's cost: its rate over plain MAPPO's of the same run
+            rows[-1]["vs_mappo"] = rows[-1]["env_steps_per_s"] / base["env_steps_per_s"]
+        base = rows[-1] if seat is None else base
+        if progress is not None:
+            progress(rows[-1])
     return rows
 
 

@@ -54,3 +54,34 @@ def test_eval_json_of_a_match_counts_its_outcomes_by_name():
     # 30 steps: no rally is decided, every episode is a draw at the time limit
     assert out["outcomes"]["winner"] == {"draw": 2} and out["outcomes"]["reason"] == {"none": 2}
     assert sum(out["outcomes"]["serve_team"].values()) == 2
+
+
+def test_crossplay_elo_and_bench_tell_done_total_and_eta_on_stderr(tmp_path):
+    import re
+
+    step = r"\[(\d)/(\d) {} \((\d+) %\), elapsed \d+:\d\d:\d\d, ETA (\d+:\d\d:\d\d|-)\]$"
+    args = ["random", "b=random", "c=random", "task=1v1", "batch=2"]
+    for verb, games in (("crossplay", "games=2"), ("elo", "rounds=2")):  # elo's rounds are its games per pair
+        res = runner.invoke(app, ["eval", verb, *args, games, "--json", "--out", str(tmp_path / verb)])
+        assert res.exit_code == 0, res.output
+        lines = res.stderr.splitlines()
+        found = [re.search(step.format("pairs"), line) for line in lines if line.startswith("  pair ")]
+        assert [(m[1], m[2], m[3]) for m in found] == [("1", "3", "33"), ("2", "3", "67"), ("3", "3", "100")], res.stderr
+        assert found[-1][4] == "0:00:00"
+    res = runner.invoke(app, ["bench", "task=hover", "backend=torch", "num_envs=[2,3]", "repeats=1", "steps=2", "--json"])
+    assert res.exit_code == 0, res.output
+    found = [re.search(step.format("rows"), line) for line in res.stderr.splitlines()]
+    assert [(m[1], m[2], m[3]) for m in found] == [("1", "2", "50"), ("2", "2", "100")], res.stderr
+
+
+def test_bench_plans_as_many_rows_as_it_measures():
+    from volleybots.bench import _env_cases, _train_cases
+
+    cases = _env_cases(("hover",), ("torch", "mujoco"), (2, 4), ("cpu", "cuda"), (False, True))
+    # per env count: torch on 2 devices x 2 compile modes, MuJoCo once (CPU, nothing to compile)
+    assert len(cases) == 10 and cases[:5] == [("hover", "torch", 2, "cpu", False), ("hover", "torch", 2, "cpu", True),
+                                              ("hover", "torch", 2, "cuda", False), ("hover", "torch", 2, "cuda", True),
+                                              ("hover", "mujoco", 2, "cpu", False)]
+    trained = _train_cases(("solo_bump", "3v3"), (8,), ("cpu",), False)
+    assert [(t[0], t[-1]) for t in trained] == [("solo_bump", None), ("3v3", None), ("3v3", "sp"), ("3v3", "psro oracle"),
+                                                ("3v3", "best response")]

@@ -79,16 +79,30 @@ def compare_cmd(
         console().print(format_table(result))
 
 
-def _pair_progress(i: int, j: int, games) -> None:
-    from volleybots.eval.reuse import Reused
+class _PairProgress:
+    """cross-play's line per pair on stderr: its W/D/L and game content, then how many pairs are done of
+    how many, the time so far and the ETA (a cross-play of many competitors runs for hours)."""
 
-    c = games.content()
-    t = c["touches"]
-    typer.echo(
-        f"  pair {i},{j}: W/D/L {'/'.join(map(str, games.total.tolist()))}, touches/game {t[0]:.2f}/{t[1]:.2f}, "
-        f"rally {c['rally_steps']:.0f} steps" + (f" (reused from {games.source})" if isinstance(games, Reused) else ""),
-        err=True,
-    )
+    def __init__(self):
+        from volleybots.train.progress import Count
+
+        self.count = Count("pairs")
+
+    def begin(self, total: int) -> None:
+        self.count.begin(total)
+
+    def __call__(self, i: int, j: int, games) -> None:
+        from volleybots.eval.reuse import Reused
+
+        reused = isinstance(games, Reused)
+        c = games.content()
+        t = c["touches"]
+        typer.echo(
+            f"  pair {i},{j}: W/D/L {'/'.join(map(str, games.total.tolist()))}, touches/game {t[0]:.2f}/{t[1]:.2f}, "
+            f"rally {c['rally_steps']:.0f} steps" + (f" (reused from {games.source})" if reused else "")
+            + f"  [{self.count.tick(timed=not reused)}]",
+            err=True,
+        )
 
 
 def _show(data: dict, table, as_json: bool, files: list[Path]) -> None:
@@ -121,7 +135,7 @@ def crossplay_cmd(
     from volleybots.eval.content import format_content
     from volleybots.eval.crossplay import format_table, run_crossplay
 
-    res, path = run_crossplay(list(args or []), out, progress=_pair_progress)  # on stderr, --json or not
+    res, path = run_crossplay(list(args or []), out, progress=_PairProgress())  # on stderr, --json or not
     tables = Group(format_table(res), format_content(res.labels, res.content))
     _show(res.to_dict(), tables, as_json, [path / "crossplay.json", path / "crossplay.png"])
 
@@ -173,7 +187,7 @@ def elo_cmd(
     check_group_args(args or [])  # a mistyped task= before the policies (and torch) load
     from volleybots.eval.ranking import format_table, run_elo
 
-    report, path = run_elo(list(args or []), out, progress=_pair_progress)  # on stderr, --json or not
+    report, path = run_elo(list(args or []), out, progress=_PairProgress())  # on stderr, --json or not
     _show(report, format_table(report), as_json, [path / "ratings.json", path / "ratings.png"])
 
 

@@ -130,18 +130,28 @@ def bench(
     kwargs.update(parse_options(options or [], allowed, "bench", aliases=BENCH_ALIASES))
     kwargs = check_bench_options(kwargs)
 
-    def measured(row: dict) -> None:
-        typer.echo(
-            f"  measured {row.get('task')} {row.get('kind', 'env')} {row.get('backend')} x{row.get('num_envs')}: "
-            f"{row.get('env_steps_per_s', 0):,.0f}/s",
-            err=True,
-        )
-
     try:
-        rows = run_bench(**kwargs, progress=measured)
+        rows = run_bench(**kwargs, progress=_RowProgress())
     except ValueError as e:
         raise ConfigError(str(e).splitlines()[0]) from None
     typer.echo(json.dumps(rows, indent=1) if as_json else format_table(rows))
+
+
+class _RowProgress:
+    """bench's line per measured row on stderr, with the rows done of how many and the ETA (train=true
+    on several env counts takes many minutes)."""
+
+    def __init__(self):
+        from volleybots.train.progress import Count
+
+        self.count = Count("rows")
+
+    def begin(self, total: int) -> None:
+        self.count.begin(total)
+
+    def __call__(self, row: dict) -> None:
+        typer.echo(f"  measured {row.get('task')} {row.get('kind', 'env')} {row.get('backend')} x{row.get('num_envs')}: "
+                   f"{row.get('env_steps_per_s', 0):,.0f}/s  [{self.count.tick()}]", err=True)
 
 
 # ------------------------------------------------------------------------------------------ report

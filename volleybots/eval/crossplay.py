@@ -226,7 +226,8 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
         scenario: "any", "serve" (the row competitor serves) or "receive".
         deterministic: competitors act with their mode instead of sampling.
         specs: the competitors as named on the command line, for the provenance.
-        progress: called as ``progress(i, j, games)`` after each pair.
+        progress: called as ``progress(i, j, games)`` after each pair; one with a ``begin`` method is first
+            told the number of pairs (``begin(total)``: its done / total and ETA).
         reuse: an earlier results file whose pairs are copied instead of played (``volleybots.eval.reuse``).
         pool: "serial" (pairs in turn) or "ray" (pairs as Ray tasks together; the same numbers: every
             pair plays on ``seed``).
@@ -253,6 +254,8 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
     pairs = list(combinations(range(n), 2))
     copied = {(i, j): earlier.pair(meta["competitors"][i], meta["competitors"][j]) for i, j in pairs} if earlier is not None else {}
     todo = [(i, j) for i, j in pairs if copied.get((i, j)) is None]
+    if hasattr(progress, "begin"):
+        progress.begin(len(pairs))
     from volleybots.play.pool import pool_map
 
     played = pool_map(_play_pair, cfg, [(competitors[i], competitors[j], games, seed, batch, scenario, deterministic) for i, j in todo],
