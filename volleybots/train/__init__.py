@@ -49,15 +49,15 @@ def check_payoff_games(cfg) -> None:
         raise ConfigError(f"population.payoff_games={m.payoff_games}: {e} (population.payoff_games)") from None
 
 
-def train(cfg, run_dir, checked: bool = False, stop=None) -> dict:
+def train(cfg, run_dir, checked: bool = False, stop=None, label: str = "train") -> dict:
     """Start a new run of the validated config ``cfg`` in ``run_dir``, holding its lock while it trains
     (``checked``: the caller ran ``preflight`` already); ``stop(row)`` may end it early after a batch
-    (``Trainer.train_loop``)."""
+    (``Trainer.train_loop``); ``label`` starts its progress lines."""
     if not checked:
         preflight(cfg)
     run = RunDir(run_dir)
     with run.new_run(cfg), memory_errors_as(_counts(cfg)):
-        return Trainer(cfg, run).fit(stop)
+        return Trainer(cfg, run, label=label).fit(stop)
 
 
 def resume_config(run_dir, overrides=(), keys=RESUME_KEYS):
@@ -66,7 +66,7 @@ def resume_config(run_dir, overrides=(), keys=RESUME_KEYS):
     return apply_overrides(to_dict(base), overrides, keys, f"run {str(run_dir)!r} (resume)")
 
 
-def resume(run_dir, overrides=()) -> dict:
+def resume(run_dir, overrides=(), label: str = "train") -> dict:
     """Continue the run in ``run_dir`` from its latest checkpoint (``train resume=DIR``); a run killed
     before its first checkpoint starts afresh, saying so.
 
@@ -93,7 +93,7 @@ def resume(run_dir, overrides=()) -> dict:
     check_memory(cfg)
     check_references(cfg)
     with memory_errors_as(_counts(cfg)):
-        trainer = Trainer(cfg, run, checkpoint=ckpt)  # a checkpoint that does not fit the run fails here
+        trainer = Trainer(cfg, run, checkpoint=ckpt, label=label)  # a checkpoint that does not fit the run fails here
         with locked(run.path):
             if run.checkpoint_stamp() != stamp:
                 raise ConfigError(f"run {str(run_dir)!r} was trained by another process while this one checked it; run the command again")

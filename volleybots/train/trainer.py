@@ -46,12 +46,15 @@ class Trainer:
     """The run loop over one learner. ``seat`` says whom it plays for (default: every drone);
     ``learner_cls`` overrides the registry's class (a population method's learner); ``extra_state``
     adds the caller's own counters to every checkpoint (the population loop's oracle); ``logger`` is
-    the caller's W&B run (which the caller ends), else the trainer opens its own with ``logger=wandb``."""
+    the caller's W&B run (which the caller ends), else the trainer opens its own with ``logger=wandb``;
+    ``label`` starts its progress lines."""
 
-    def __init__(self, cfg, run: RunDir, checkpoint: Path | None = None, seat=None, learner_cls=None, extra_state=None, logger=None):
+    def __init__(self, cfg, run: RunDir, checkpoint: Path | None = None, seat=None, learner_cls=None, extra_state=None, logger=None,
+                 label: str = "train"):
         from volleybots.algos import ALGOS
 
         self.cfg, self.run = cfg, run
+        self.label = label  # what its progress lines start with (a population's clone says "clone")
         self.wandb, self._owns_wandb = logger, logger is None
         torch.manual_seed(cfg.seed)
         self.seat = seat or default_seat(cfg)
@@ -184,7 +187,9 @@ class Trainer:
         next_ev = _next_multiple(self.frames, ev_every)
         last: dict = {}
         last_dt = 0.0
-        with Progress(cfg.progress, cfg.total_frames, self.frames, cfg.time_limit) as bar:
+        # the loop trains whole batches: the frames it reaches, so that the counter ends at 100 %, not past it
+        planned = self.frames + -(-(cfg.total_frames - self.frames) // self.frames_per_batch) * self.frames_per_batch
+        with Progress(cfg.progress, max(planned, self.frames), self.frames, cfg.time_limit, label=self.label) as bar:
             while self.frames < cfg.total_frames and not (cfg.time_limit and self._wall() + last_dt > cfg.time_limit):
                 t_batch = time.perf_counter()
                 batch, td = collect(self.env, policy, td, self.algo.steps_per_batch)
