@@ -85,3 +85,53 @@ def test_bench_plans_as_many_rows_as_it_measures():
     trained = _train_cases(("solo_bump", "3v3"), (8,), ("cpu",), False)
     assert [(t[0], t[-1]) for t in trained] == [("solo_bump", None), ("3v3", None), ("3v3", "sp"), ("3v3", "psro oracle"),
                                                 ("3v3", "best response")]
+
+
+def test_tables_fit_a_terminal_of_80_columns_as_records_with_every_label_whole(tmp_path, monkeypatch):
+    """On a terminal narrower than a table, each row becomes a record (its cells under their columns' names),
+    not rich's folding into cells of a few letters (``zoo:1v1/fsp_…``, ``touch…``)."""
+    import importlib
+    import io
+
+    from rich.console import Console
+
+    cli_app = importlib.import_module("volleybots.cli.app")  # the module: the package's attribute ``app`` is the Typer app
+    screens = []
+
+    def terminal():
+        screens.append(io.StringIO())
+        return Console(file=screens[-1], width=80, force_terminal=False)
+
+    monkeypatch.setattr(cli_app, "console", terminal)
+    labels = ["a_long_label_for_the_first_player=random", "another_long_label_for_the_second=random"]
+    res = runner.invoke(app, ["eval", "crossplay", *labels, "task=1v1", "games=2", "batch=2", "--out", str(tmp_path / "cp")])
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(app, ["eval", "elo", f"from={tmp_path / 'cp' / 'crossplay.json'}", "rounds=10", "--out", str(tmp_path / "elo")])
+    assert res.exit_code == 0, res.output
+    crossplay, elo = (s.getvalue() for s in screens)
+    for text in (crossplay, elo):
+        assert max(len(line) for line in text.splitlines()) <= 80 and "…" not in text, text
+        for name in ("a_long_label_for_the_first_player", "another_long_label_for_the_second"):
+            assert name in text
+    # the matrix as records: a row's heading, then each column's cell after the column's name
+    lines = crossplay.splitlines()
+    assert lines[1] == "a_long_label_for_the_first_player"
+    assert lines[2].split() == ["a_long_label_for_the_first_player", "-"] and lines[3].split()[0] == "another_long_label_for_the_second"
+    assert any(line.split()[:3] == ["rally", "touches", "(max)"] for line in lines)  # a header of three lines on one
+
+
+def test_a_table_that_fits_keeps_its_shape():
+    import io
+
+    from rich.console import Console
+    from rich.table import Table
+
+    from volleybots.cli.app import show
+
+    table = Table(title="t")
+    table.add_column("name")
+    table.add_column("value")
+    table.add_row("a", "1")
+    out = io.StringIO()
+    show(table, Console(file=out, width=80))
+    assert "┃ name ┃ value ┃" in out.getvalue()

@@ -9,7 +9,7 @@ from typing import List, Optional
 import typer
 from typer.core import TyperGroup
 
-from volleybots.cli.app import _PASS_THROUGH, _refuse_flags, _user_errors, app, console, say
+from volleybots.cli.app import _PASS_THROUGH, _refuse_flags, _user_errors, app, say, show
 from volleybots.config.compose import check_group_args
 
 
@@ -52,7 +52,7 @@ def eval_cmd(
     if as_json:
         typer.echo(json.dumps(result, indent=2))
     else:
-        console().print(format_table(result))
+        show(format_table(result))
 
 
 @eval_app.command("compare", context_settings=_PASS_THROUGH)
@@ -76,7 +76,7 @@ def compare_cmd(
     if as_json:
         typer.echo(json.dumps(result, indent=1))
     else:
-        console().print(format_table(result))
+        show(format_table(result))
 
 
 class _PairProgress:
@@ -110,7 +110,7 @@ def _show(data: dict, table, as_json: bool, files: list[Path]) -> None:
     if as_json:
         typer.echo(json.dumps(data, indent=1))
         return
-    console().print(table)
+    show(table)
     say(f"wrote {' and '.join(map(str, files))}")
 
 
