@@ -10,7 +10,7 @@ import typer
 from typer.core import TyperGroup
 
 from volleybots.cli.app import _PASS_THROUGH, _refuse_flags, _user_errors, app, say, show
-from volleybots.config.compose import check_group_args
+from volleybots.config.compose import check_fixed_values, check_group_args
 
 
 class _EvalGroup(TyperGroup):
@@ -45,6 +45,7 @@ def eval_cmd(
 ) -> None:
     """Play N episodes (episodes=100) and report the task metric's mean / std and every per-term return."""
     check_group_args(overrides or [])  # a mistyped task= before the policies (and torch) load
+    check_fixed_values(overrides or [])  # and episodes=0
     from volleybots.eval import evaluate, format_table
 
     _refuse_flags([target, *(overrides or [])], "--json, --help")

@@ -7,6 +7,8 @@ same way everywhere.
 
 from __future__ import annotations
 
+import dataclasses
+
 from omegaconf import DictConfig, OmegaConf
 
 from volleybots.config.schema import GROUPS, group_options, to_dict
@@ -52,6 +54,50 @@ def check_group_args(args) -> None:
             check_group_value(key, value)
 
 
+def check_fixed_values(args) -> None:
+    """The numbers that ``key=value`` words give the run's fixed keys (``schema.Config``: ``env.num_envs``,
+    ``seed``, ``total_frames``, ``evaluation.*``, ...) against their ranges. ``validate`` checks them too, but
+    only once the task and algorithm registries have loaded torch (8 s and more); from the words alone a bad
+    value is one line at once. A value of another type, a sweep, a task's or an algorithm's key is left to ``validate``.
+    For the words of a run's config only (``train``, ``eval TARGET``): the match verbs' own ``seed=`` has another range."""
+    import typing
+
+    from volleybots.config.schema import Config, Range, check_magnitude, check_range, field_range
+
+    for arg in args:
+        key, value = split_arg(str(arg))
+        if value is None or key.startswith(("+", "~")):
+            continue
+        found = _fixed_field(Config, key)
+        kind = typing.get_type_hints(found[0]).get(found[1]) if found else None
+        if kind not in (int, float):
+            continue
+        schema, name = found
+        try:
+            v = parse_value(value)
+        except ConfigError:
+            continue  # Hydra's grammar reports it
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or (kind is int and not isinstance(v, int)):
+            continue
+        rng = field_range(schema, name)
+        check_range(key, v, rng or (Range() if isinstance(v, float) else None))
+        check_magnitude(key, v, rng)
+
+
+def _fixed_field(schema, key: str):
+    """(dataclass, field name) of the dotted ``key`` under ``schema`` (``env.num_envs``: ``EnvConfig``,
+    ``num_envs``); None where a part is no field or no section (``task.*`` and ``algo.*`` are typed ``Any``)."""
+    import typing
+
+    *sections, name = key.split(".")
+    for part in sections:
+        sub = typing.get_type_hints(schema).get(part)
+        if not dataclasses.is_dataclass(sub):
+            return None
+        schema = sub
+    return (schema, name) if name in typing.get_type_hints(schema) else None
+
+
 def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = False) -> DictConfig:
     """Compose ``conf/config.yaml`` with Hydra overrides (no sweeps), in today's spelling and with the
     task's default method where none is named (``volleybots.config.spelling``). Raises ``ConfigError``.
@@ -63,6 +109,7 @@ def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = Fals
 
     overrides = respell(overrides)[0]
     _check_overrides(overrides)
+    check_fixed_values(overrides)  # before the registries (and torch) load
     with initialize_config_dir(config_dir=str(conf_dir()), version_base="1.3"):
         try:
             cfg = hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node)
