@@ -140,7 +140,7 @@ class HighLevelResponse:
                  show: Presentation = Presentation(), final: bool = False) -> Member:
         from volleybots.population.hierarchical import train_member
 
-        left = cfg.time_limit - start.wall if cfg.time_limit else float("inf")
+        left = cfg.time_limit - start.wall if self.run_cfg.time_limit else float("inf")  # the loop's limit, less the payoff games' reserve
         state = train_member(self.run_cfg, run.path, run.metrics_path, start.iteration, len(start.members), opponent.opponent,
                              start.frames, left, cfg.seed)
         return Member(state)

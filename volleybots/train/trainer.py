@@ -9,10 +9,11 @@ cut episodes count as truncated, hence bootstrapped). The run's state is then ex
 optimiser, normalisers, counters and random generators, and a run resumed from a checkpoint repeats
 the uninterrupted one bit for bit on a CPU.
 
-Seats (``volleybots.play.seats``) say whom the learner plays for. Callers that drive the loop
-themselves (the population loop's oracle) use its public surface: ``start_at`` (the counters a new
-iteration continues from), ``train_loop(stop=..., row_extra=...)``, ``state()`` (what a checkpoint
-holds) and ``checkpoint_state`` (what it was restored from).
+Seats (``volleybots.play.seats``) say whom the learner plays for. The one caller that drives the loop
+itself, the best response (``population/oracle.py``, for population oracles and exploitability's
+responses), uses its public surface: ``start_at`` (the counters a new iteration continues from),
+``train_loop(stop=..., row_extra=...)``, ``state()`` (what a checkpoint holds), ``checkpoint_state``
+(what it was restored from) and ``finish``. ``write_summary`` is the one writer of summary.json.
 
 ``init=RUN_OR_CHECKPOINT`` starts a new run from another run's networks (``volleybots.train.init``).
 """
