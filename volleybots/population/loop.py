@@ -73,8 +73,12 @@ class PopulationLoop:
         self.payoffs_path = self.dir / "payoffs.json"
         self.wandb = None
         self.dropped: dict | None = None  # the oracle the budget cut before min_updates, if one was
-        self.hierarchical = self.m.get("members", "flat") == "hierarchical"  # saved configs before population.members: flat
         self.oracle = oracle or (HighLevelResponse(cfg) if self.hierarchical else BestResponse.of(cfg))
+
+    @property
+    def hierarchical(self) -> bool:
+        """Whether the members are hierarchical teams (saved configs before population.members: flat)."""
+        return self.m.get("members", "flat") == "hierarchical"
 
     # ---------------------------------------------------------------------------- disk state
     def metas(self) -> list[dict]:
