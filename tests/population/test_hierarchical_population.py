@@ -123,3 +123,26 @@ def test_a_fall_is_its_teams_fault_under_the_volleyball_rule_and_a_draw_under_th
     (w1, d1, l1), fell1 = outcomes[True]
     assert fell0 == 0 and d0 > 0  # the paper's rule: random's falls end its games drawn
     assert fell1 >= d0 and d1 < d0 and w1 == w0 + (d0 - d1)  # the same games: each fall now loses random the rally
+
+
+@pytest.mark.slow  # trains a high level in 3v3 games
+def test_self_play_with_hierarchical_members_trains_one_high_level_against_itself(tmp_path, monkeypatch):
+    """population=sp with population.members=hierarchical: one oracle, its opponent the learning high level
+    itself (None: the same net under a second chooser that records nothing); the final mixture is it alone."""
+    seen = []
+    real = hierarchical.train_high_level
+
+    def spy(match, drills, opponent, hc, log=None, start=None):
+        seen.append((opponent, start is not None))
+        return real(match, drills, opponent, hc, log, start=start)
+
+    monkeypatch.setattr(hierarchical, "train_high_level", spy)
+    cfg = tiny("algo.members=hierarchical", "algo.high_level_games=16", "algo.high_level_batch=8", algo="sp")
+    assert cfg.population.self_play and cfg.population.members == "hierarchical"
+    start(cfg, tmp_path / "run")
+    assert seen == [(None, True)]  # self-play, continued from the drills' team's high level (start=clone)
+    assert _members(tmp_path / "run") == ["zoo:3v3/hcsp_return", "sp"]
+    meta = json.loads((tmp_path / "run" / "population" / "meta.jsonl").read_text().splitlines()[-1])
+    assert meta["mixture"] == [0.0, 1.0]
+    high = torch.load(tmp_path / "run" / "population" / "high_level_001.pt", weights_only=True)
+    assert high["info"]["opponent"] == "self"

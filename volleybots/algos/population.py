@@ -235,9 +235,6 @@ class Preset:
         if learner != self.learner:
             raise ConfigError(f"algo={learner} trains flat members; a hierarchical member's oracle trains its high level "
                               "(population.high_level_*): give population.members=flat with it")
-        if pop.self_play:
-            raise ConfigError(f"population={self.name} has no hierarchical members (one learner plays both teams); use population=fsp, "
-                              "psro_uniform or psro_nash with population.members=hierarchical, or population.members=flat")
         for value, allowed, key in ((pop.solver, SOLVERS, "population.solver"),
                                     (pop.learner_init, ("scratch", "last"), "population.learner_init"),
                                     (pop.payoff_pool, POOLS, "population.payoff_pool")):

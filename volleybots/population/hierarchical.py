@@ -115,7 +115,7 @@ def newest_high_level(run_path, paths: list[Path]):
 
 def train_member(cfg, run_path, metrics_path, i: int, k: int, opponent, frames: int, time_left: float, seed: int) -> dict:
     """Iteration ``i``'s oracle: a high level over the run's drills trained on ``seed`` against
-    ``opponent`` (a ``Competitor``, the loop's choice), to be written as member ``k``; ``frames`` were
+    ``opponent`` (a ``Competitor``, the loop's choice; None: self-play, population=sp), to be written as member ``k``; ``frames`` were
     spent before it, ``time_left`` seconds remain to it (inf: no limit). Returns the member's record."""
     m = population_of(cfg)  # the loop's keys
     drills = run_drills(run_path, m.drills)
@@ -142,14 +142,14 @@ def train_member(cfg, run_path, metrics_path, i: int, k: int, opponent, frames: 
         match.task.fall_fault = True
     net, history = train_high_level(match, drills, opponent, hc, log, start=start)
     info = {"games": history[-1]["games"], "seed": seed, "iteration": i, "receive_coming": coming, "receive_attack": attack,
-            "opponent": opponent.label}
+            "opponent": "self" if opponent is None else opponent.label}
     save_high_level(net, high_level_path(run_path, k), info)
     root = Path(run_path) / POPULATION_DIR
     files = {**{name: str(Path(p).relative_to(root)) for name, p in drills.items()}, HIGH_LEVEL: high_level_path(run_path, k).name}
     last = history[-4:]  # the oracle's last batches: its win rate against the opponent at the end
     won = sum(r["won"] for r in last) / max(sum(r["won"] + r["drawn"] + r["lost"] for r in last), 1)
     oracle = {"updates": len(history), "games": history[-1]["games"], "converged": None, "win_rate": round(won, 4)}
-    return team_record(f"br{i}", files, frames=frames + spent[0], iteration=len(history), oracle=oracle)
+    return team_record("sp" if opponent is None else f"br{i}", files, frames=frames + spent[0], iteration=len(history), oracle=oracle)
 
 
 __all__ = ["copy_team", "high_level_path", "run_drills", "seed_member", "team_files",
