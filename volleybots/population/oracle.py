@@ -18,7 +18,7 @@ from pathlib import Path
 
 from volleybots.policies.store import learner_class
 from volleybots.runs import read_checkpoint
-from volleybots.train import Trainer, default_seat, new_run
+from volleybots.train import SelfPlay, Trainer, default_seat, new_run
 
 
 @dataclass(frozen=True)
@@ -131,7 +131,7 @@ def fits(algo, state: dict) -> bool:
 class HighLevelResponse:
     """A hierarchical population's oracle behind the best response's call: a high level over the run's
     drills (``population/hierarchical.train_member``) trained for ``population.high_level_games`` games
-    against the seat's competitor (no stop rule: its budget is games). ``run_cfg`` is the run's config
+    against the seat's competitor, or itself from a ``SelfPlay`` seat (no stop rule: its budget is games). ``run_cfg`` is the run's config
     (the match the high level plays); the iteration config handed in gives its seed and time limit."""
 
     run_cfg: object
@@ -141,8 +141,9 @@ class HighLevelResponse:
         from volleybots.population.hierarchical import train_member
 
         left = cfg.time_limit - start.wall if self.run_cfg.time_limit else float("inf")  # the loop's limit, less the payoff games' reserve
-        state = train_member(self.run_cfg, run.path, run.metrics_path, start.iteration, len(start.members), opponent.opponent,
-                             start.frames, left, cfg.seed)
+        against = None if isinstance(opponent, SelfPlay) else opponent.opponent  # None: the high level plays itself (population=sp)
+        state = train_member(self.run_cfg, run.path, run.metrics_path, start.iteration, len(start.members), against, start.frames, left,
+                             cfg.seed)
         return Member(state)
 
 
