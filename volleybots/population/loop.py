@@ -62,6 +62,11 @@ GAMES_SEED = 500_000  # payoff games of member k against j use seed + GAMES_SEED
 SPLIT = ("clone", "oracle_training", "payoff_games", "evaluations")  # the parts of a run's wall time it reports
 
 
+def hierarchical(m) -> bool:
+    """Whether the population node ``m`` has hierarchical members (saved configs before population.members: flat)."""
+    return m.get("members", "flat") == "hierarchical"
+
+
 class PopulationLoop:
     """Grows the population of ``cfg`` in ``run``; ``oracle`` trains each best response (default: the
     learner ``algo=`` names, ``BestResponse.of(cfg)``; hierarchical members: ``HighLevelResponse``)."""
@@ -73,12 +78,8 @@ class PopulationLoop:
         self.payoffs_path = self.dir / "payoffs.json"
         self.wandb = None
         self.dropped: dict | None = None  # the oracle the budget cut before min_updates, if one was
+        self.hierarchical = hierarchical(self.m)
         self.oracle = oracle or (HighLevelResponse(cfg) if self.hierarchical else BestResponse.of(cfg))
-
-    @property
-    def hierarchical(self) -> bool:
-        """Whether the members are hierarchical teams (saved configs before population.members: flat)."""
-        return self.m.get("members", "flat") == "hierarchical"
 
     # ---------------------------------------------------------------------------- disk state
     def metas(self) -> list[dict]:
@@ -201,7 +202,7 @@ class PopulationLoop:
         data["seed"] = self.cfg.seed + i * ITERATION_SEED
         if self.cfg.time_limit and reserve:
             data["time_limit"] = self.cfg.time_limit - reserve
-        if self.hierarchical:  # a high level's oracle takes its seed and time limit alone (HighLevelResponse)
+        if hierarchical(self.m):  # a high level's oracle takes its seed and time limit alone (HighLevelResponse)
             return validate(data)
         if self.m.learner_init == CLONE:
             data["init"] = str(self.clone)
