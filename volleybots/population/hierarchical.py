@@ -11,8 +11,9 @@ those drills against the opponent the loop hands it (the meta-solver's mixture o
     population/high_level_<k>.pt   the member's high level (``save_high_level``: weights only)
 
 Stage I of HCSP (the drills) is reused from the zoo by default (its frames stated on the zoo card);
-stage II (high levels as best responses to the population) is the oracle here; stage III (drills
-fine-tuned inside matches) is not done by this loop (docs/competitive.md says what was tried).
+stage II (high levels as best responses to the population) is the oracle here; stage III (the
+receiving drills fine-tuned on the serves recorded against the oracle's opponent) runs before the
+oracles of ``population.tune_at`` where ``population.tune_drills`` names drills (population/tune_drills.py).
 
 Determinism: an oracle is seeded by the run's seed and its iteration alone, and starts from a member
 file, so an oracle killed before its member was written is trained again from the start by a resume
@@ -35,6 +36,7 @@ from volleybots.policies import single_policy
 from volleybots.policies.builtin import HIGH_LEVEL
 from volleybots.policies.high_level import read_high_level, save_high_level
 from volleybots.policies.store import policy_checkpoint
+from volleybots.population.tune_drills import current_drills, tune
 from volleybots.runs import CKPT_FORMAT, POPULATION_DIR, MetricsLog, population_members, read_checkpoint
 from volleybots.train.high_level import HighLevelConfig, train_high_level
 
@@ -118,7 +120,11 @@ def train_member(cfg, run_path, metrics_path, i: int, k: int, opponent, frames: 
     ``opponent`` (a ``Competitor``, the loop's choice; None: self-play, population=sp), to be written as member ``k``; ``frames`` were
     spent before it, ``time_left`` seconds remain to it (inf: no limit). Returns the member's record."""
     m = population_of(cfg)  # the loop's keys
-    drills = run_drills(run_path, m.drills)
+    drills = current_drills(run_path, i - 1, run_drills(run_path, m.drills))
+    if m.tune_drills:  # stage III: the receiving drills fine-tuned on the serves the newest member meets
+        receiver = str(population_members(run_path)[k - 1])
+        note = (lambda line: print(line, file=sys.stderr, flush=True)) if cfg.progress else None
+        drills = tune(cfg, run_path, i, receiver, opponent, drills, seed, note)
     coming, attack = team_options(m.drills)
     start = newest_high_level(run_path, population_members(run_path)[:k]) if m.learner_init == "last" else None
     limit = 0.0 if time_left == float("inf") else max(time_left, 1e-3)
