@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import typing
+from pathlib import Path
 
 from volleybots.config.compose import parse_value
 from volleybots.errors import ConfigError, Range
@@ -23,14 +24,15 @@ OVERRIDE_PREFIXES = ("task.", "env.")
 
 
 def option(default=None, help: str = "", *, ge=None, gt=None, le=None, lt=None, choices=(), key: str | None = None,
-           factory=dataclasses.MISSING):
+           factory=dataclasses.MISSING, positional: bool = False):
     """A verb option: a dataclass field with its ``help``, its range (``ge``/``gt``/``le``/``lt``, as
     ``volleybots.errors.ranged``: ``check_values`` reads it too), its allowed ``choices`` and the ``key``
-    it is spelt with where that is no Python name (``from=``). ``factory`` for a list default."""
+    it is spelt with where that is no Python name (``from=``). ``factory`` for a list default;
+    ``positional``: a script's bare words fill it (``table3.py A B C``; ``parse``)."""
     bounds = (ge, gt, le, lt)
     rng = None if all(b is None for b in bounds) else Range(
         low=gt if gt is not None else ge, high=lt if lt is not None else le, low_open=gt is not None, high_open=lt is not None)
-    meta = {"help": help, "range": rng, "choices": tuple(choices), "key": key}
+    meta = {"help": help, "range": rng, "choices": tuple(choices), "key": key, "positional": positional}
     if factory is not dataclasses.MISSING:
         return dataclasses.field(default_factory=factory, metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
@@ -46,12 +48,14 @@ class VerbOptions:
 
 
 def _kind(hint) -> tuple[type, bool]:
-    """(the type one value is read as, whether the option repeats) of a field's type hint:
-    ``int``, ``Optional[str]``, ``list[str]`` (``response=A response=B``)."""
+    """(the type one value is read as, whether the option takes several) of a field's type hint:
+    ``int``, ``Optional[str]``, ``list[str]`` (``response=A response=B``, ``tasks=[hover,1v1]``)."""
+    args = [a for a in typing.get_args(hint) if a is not type(None)]
+    if typing.get_origin(hint) is not list and len(args) == 1 and type(None) in typing.get_args(hint):
+        hint = args[0]  # Optional[X] is X
     if typing.get_origin(hint) is list:
         return typing.get_args(hint)[0], True
-    args = [a for a in typing.get_args(hint) if a is not type(None)]
-    return (args[0] if args else hint), False
+    return hint, False
 
 
 def fields_of(options: type) -> dict[str, tuple[dataclasses.Field, type, bool]]:
@@ -66,13 +70,17 @@ def typed_option(key: str, value: str, kind: type, rng: Range | None = None, cho
     then checked against ``rng`` and ``choices``. A bad one raises one line naming it and what is allowed."""
     # a text option (a path: reuse=, from=) is taken as written, unless quoted: Hydra's grammar would refuse
     # the ',', '=' and non-ASCII letters that folder names may hold (run dirs with them already work)
-    v = value if kind is str and value[:1] not in ("'", '"') else parse_value(value)
+    v = value if kind in (str, Path) and value[:1] not in ("'", '"') else parse_value(value)
+    if kind is typing.Any:  # (bench's compile=: a bool or a list of them, its schema checks which)
+        return v
+    if kind is Path and isinstance(v, str):
+        v = Path(v)
     if kind is float and isinstance(v, int) and not isinstance(v, bool):
         v = float(v)
     if kind is int and isinstance(v, float) and v.is_integer():
         v = int(v)
     if not isinstance(v, kind) or (kind is int and isinstance(v, bool)):
-        what = "an integer" if kind is int else "true or false" if kind is bool else "a " + kind.__name__
+        what = {int: "an integer", bool: "true or false", Path: "a path"}.get(kind, "a " + kind.__name__)
         raise ConfigError(f"{key}={value!r} must be {what}")
     why = f" ({help})" if help else ""
     if rng is not None and kind in (int, float) and v not in rng:
@@ -87,35 +95,68 @@ def _what(kind: type) -> str:
     return "an integer" if kind is int else "a finite number"
 
 
-def fill(options: type, pairs) -> VerbOptions:
+def fill(options: type, pairs, names=()) -> VerbOptions:
     """The ``options`` dataclass filled from ``(key, text)`` pairs, each read by ``typed_option``; a
-    repeated key is a list where its field is one (``response=``), else the last one counts."""
+    list field takes a repeated key (``response=A response=B``) or a list (``tasks=[hover,1v1]``), any
+    other field the last value given. ``names``: the bare words, for the field marked ``positional``."""
     known = fields_of(options)
     values = {}
     for key, text in pairs:
         f, kind, repeats = known[key]
         m = f.metadata
-        v = typed_option(key, text, kind, m.get("range"), m.get("choices", ()), m.get("help", ""))
-        if repeats:
-            values.setdefault(f.name, []).append(v)
-        else:
-            values[f.name] = v
+        read = [t.strip() for t in text[1:-1].split(",") if t.strip()] if repeats and text[:1] == "[" and text[-1:] == "]" else [text]
+        for t in read:
+            v = typed_option(key, t, kind, m.get("range"), m.get("choices", ()), m.get("help", ""))
+            if repeats:
+                values.setdefault(f.name, []).append(v)
+            else:
+                values[f.name] = v
+    given = frozenset(k for k, (f, *_) in known.items() if f.name in values)
+    for f, kind, repeats in known.values():
+        if f.metadata.get("positional") and names:
+            values[f.name] = [kind(n) for n in names] if repeats else kind(names[0])
     out = options(**values)
-    out.given = frozenset(k for k, (f, *_) in known.items() if f.name in values)
+    out.given = given
     return out
 
 
 def parse(options: type, args, what: str) -> VerbOptions:
-    """Only ``key=value`` options (a script of ``benchmarks/``): each key one of the fields of ``options``;
-    anything else is refused in one line naming it and the keys allowed."""
+    """Only ``key=value`` options (a script of ``benchmarks/``): each key one of the fields of ``options``,
+    and bare words only where a field is ``positional`` (``table3.py A B C``); anything else is refused
+    in one line naming it and the keys allowed."""
     known = fields_of(options)
-    pairs = []
+    takes_names = any(f.metadata.get("positional") for f, *_ in known.values())
+    pairs, names = [], []
     for arg in args:
         key, value = split_arg(arg)
-        if value is None or key not in known:
+        if arg.startswith("--"):  # the argparse spelling these scripts had
+            key = arg[2:].partition("=")[0].replace("-", "_")
+            raise ConfigError(f"unknown {what} option {arg!r}: options are key=value ({key}=...); allowed: "
+                              f"{', '.join(f'{k}=' for k in known)}")
+        if value is not None and key in known:
+            pairs.append((key, value))
+        elif takes_names:
+            names.append(arg)
+        else:
             raise ConfigError(f"unknown {what} option {arg!r}; allowed: {', '.join(f'{k}=' for k in known)}")
-        pairs.append((key, value))
-    return fill(options, pairs)
+    return fill(options, pairs, names)
+
+
+def script_options(options: type, argv=None, doc: str | None = None) -> VerbOptions:
+    """A script's options (``benchmarks/``) from its command line, ``key=value`` as the verbs take them:
+    ``help`` prints ``doc`` and every option; a bad one prints one line and exits with code 2."""
+    import sys
+
+    argv = sys.argv[1:] if argv is None else list(argv)
+    what = Path(sys.argv[0]).name
+    if any(a in ("help", "-h", "--help") for a in argv):
+        print(f"{(doc or '').strip()}\n\nusage: {what} [key=value ...]\n{help_epilog(options)}")
+        raise SystemExit(0)
+    try:
+        return parse(options, argv, what)
+    except ConfigError as e:
+        print(f"error: {e}", file=sys.stderr)
+        raise SystemExit(2) from None
 
 
 def parse_options(args, allowed, what: str, aliases: dict | None = None) -> dict:
@@ -165,7 +206,7 @@ def allowed(f: dataclasses.Field, kind) -> str:
     if kind in (int, float):
         rng = m.get("range")
         return f"{_what(kind)} {rng}" if rng is not None else _what(kind)
-    return "text" if kind is str else "true, false or a list of them"
+    return {str: "text", Path: "a path"}.get(kind, "true, false or a list of them")
 
 
 def _shown(value) -> str:
@@ -181,8 +222,9 @@ def describe(options: type) -> list[str]:
     lines = []
     for key, (f, kind, repeats) in fields_of(options).items():
         default = f.default_factory() if f.default is dataclasses.MISSING else f.default
-        again = ", repeatable" if repeats else ""
-        lines.append(f"{key}={_shown(default)} ({allowed(f, kind)}{again}): {f.metadata.get('help', '')}")
+        again = ", or a list [a,b]" if repeats else ""
+        spelt = "NAME ..." if f.metadata.get("positional") else f"{key}={_shown(default)}"
+        lines.append(f"{spelt} ({allowed(f, kind)}{again}): {f.metadata.get('help', '')}")
     return lines
 
 
@@ -192,5 +234,5 @@ def help_epilog(options: type, title: str = "key=value options") -> str:
 
 
 __all__ = ["OVERRIDE_KEYS", "VerbOptions", "describe", "fields_of", "fill", "help_epilog", "option", "parse", "parse_options",
-           "split_args",
+           "script_options", "split_args",
            "typed_option"]

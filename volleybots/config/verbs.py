@@ -78,7 +78,7 @@ class ExploitabilityOptions(VerbOptions):
     members: bool = option(True, "a mixture's own members are candidates too")
     pool: str = option("serial", "train the seeds' responses in turn, or as Ray tasks together", choices=POOLS)
     progress: bool = option(True, "print each stage and the training's progress on stderr")
-    response: list[str] = option(help="SPEC: a fixed candidate response (scripted, hierarchical, a run, zoo:...)", factory=list)
+    response: list[str] = option(help="SPEC: a fixed candidate response (scripted, hierarchical, a run, zoo:...); repeatable", factory=list)
 
 
 @dataclass
