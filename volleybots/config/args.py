@@ -24,11 +24,11 @@ OVERRIDE_PREFIXES = ("task.", "env.")
 
 
 def option(default=None, help: str = "", *, ge=None, gt=None, le=None, lt=None, choices=(), key: str | None = None,
-           factory=dataclasses.MISSING, positional: bool = False):
+           factory=dataclasses.MISSING, positional: bool | str = False):
     """A verb option: a dataclass field with its ``help``, its range (``ge``/``gt``/``le``/``lt``, as
     ``volleybots.errors.ranged``: ``check_values`` reads it too), its allowed ``choices`` and the ``key``
     it is spelt with where that is no Python name (``from=``). ``factory`` for a list default;
-    ``positional``: a script's bare words fill it (``table3.py A B C``; ``parse``)."""
+    ``positional``: a script's bare words fill it (``table3.py A B C``; ``parse``), ``"+"``: at least one."""
     bounds = (ge, gt, le, lt)
     rng = None if all(b is None for b in bounds) else Range(
         low=gt if gt is not None else ge, high=lt if lt is not None else le, low_open=gt is not None, high_open=lt is not None)
@@ -112,9 +112,20 @@ def fill(options: type, pairs, names=()) -> VerbOptions:
             else:
                 values[f.name] = v
     given = frozenset(k for k, (f, *_) in known.items() if f.name in values)
-    for f, kind, repeats in known.values():
-        if f.metadata.get("positional") and names:
-            values[f.name] = [kind(n) for n in names] if repeats else kind(names[0])
+    names = list(names)
+    for f, kind, repeats in known.values():  # in order: a single one takes one word, a list the rest
+        if not f.metadata.get("positional"):
+            continue
+        if repeats:
+            if not names and f.metadata["positional"] == "+":
+                raise ConfigError(f"name at least one of the {f.name} ({f.metadata.get('help') or 'bare words'})")
+            values[f.name], names = [kind(n) for n in names], []
+        elif names:
+            values[f.name] = kind(names.pop(0))
+        elif f.default is None:
+            raise ConfigError(f"name the {f.name} ({f.metadata.get('help') or 'a bare word'}) before the key=value options")
+    if names:
+        raise ConfigError(f"{names[0]!r} is neither a key=value option nor a name this takes")
     out = options(**values)
     out.given = given
     return out
