@@ -94,11 +94,11 @@ def match(task: str, episodes: int, envs: int, device, seed: int, action_space: 
 
 @dataclass
 class Args:
-    episodes: int = option(100, "")
-    envs: int = option(50, "")
-    tasks: str = option(",".join(COOP + MATCHES), "")
-    device: str = option("cpu", "")
-    seed: int = option(0, "")
+    episodes: int = option(100, "episodes played")
+    envs: int = option(50, "worlds stepped together")
+    tasks: str = option(",".join(COOP + MATCHES), "the tasks")
+    device: str = option("cpu", "torch device")
+    seed: int = option(0, "the seed")
     action_space: str = option("prt", "the players' (and the random teams') action space", choices=("prt", "ctbr"))
 
 

@@ -71,9 +71,9 @@ def play(task: str, mode: str, num_envs: int, steps: int, seed: int) -> dict:
 @dataclass
 class Args:
     tasks: str = option(",".join(TASKS), "comma-separated tasks (default: all)")
-    num_envs: int = option(16, "")
+    num_envs: int = option(16, "worlds stepped together")
     steps: int = option(300, "control steps of the batched env per task and play")
-    seed: int = option(0, "")
+    seed: int = option(0, "the seed")
     json: Optional[str] = option(None, "also write the rows here")
 
 

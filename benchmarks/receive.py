@@ -52,10 +52,10 @@ def measure(receiver, server: str, games: int, seed: int, task: str = "1v1") -> 
 
 @dataclass
 class Args:
-    receivers: list[str] = option(help="", factory=lambda: [], positional="+")
-    servers: list[str] = option(help="", factory=lambda: ["zoo:1v1/sp_noanchor", "scripted"])
-    games: int = option(100, "")
-    seed: int = option(9600, "")
+    receivers: list[str] = option(help="the receiving competitors (one row each)", factory=lambda: [], positional="+")
+    servers: list[str] = option(help="the serving competitors", factory=lambda: ["zoo:1v1/sp_noanchor", "scripted"])
+    games: int = option(100, "games played")
+    seed: int = option(9600, "the seed")
     json: Optional[Path] = option(None, "also write the results here")
 
 

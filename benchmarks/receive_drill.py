@@ -41,11 +41,11 @@ def drill_record(policy: str, episodes: int, seed: int, opening: bool = False) -
 
 @dataclass
 class Args:
-    policies: list[str] = option(help="", factory=lambda: [], positional="+")
-    episodes: int = option(256, "")
-    seed: int = option(9800, "")
-    opening: bool = option(False, "")
-    json: Optional[Path] = option(None, "")
+    policies: list[str] = option(help="the policies played in the drill", factory=lambda: [], positional="+")
+    episodes: int = option(256, "episodes played")
+    seed: int = option(9800, "the seed")
+    opening: bool = option(False, "start each episode at the rally's opening")
+    json: Optional[Path] = option(None, "FILE: also write the results here")
 
 
 def main() -> None:

@@ -54,11 +54,11 @@ def run(batch_size: int, seed: int, steps: int, num_envs: int) -> dict:
 
 @dataclass
 class Args:
-    batch_sizes: str = option("256,2048", "")
-    steps: int = option(400_000, "")
-    num_envs: int = option(64, "")
-    seed: int = option(0, "")
-    json: Optional[str] = option(None, "")
+    batch_sizes: str = option("256,2048", "PPO minibatch sizes compared, comma-separated")
+    steps: int = option(400_000, "env steps of each run")
+    num_envs: int = option(64, "worlds stepped together")
+    seed: int = option(0, "the seed")
+    json: Optional[str] = option(None, "FILE: also write the results here")
 
 
 def main(argv=None) -> list[dict]:

@@ -104,11 +104,11 @@ def summary(records: list[dict]) -> dict:
 
 @dataclass
 class Args:
-    server: Optional[str] = option(None, "", positional=True)
-    receiver: Optional[str] = option(None, "", positional=True)
-    games: int = option(100, "")
-    seed: int = option(9500, "")
-    task: str = option("1v1", "")
+    server: Optional[str] = option(None, "the serving competitor", positional=True)
+    receiver: Optional[str] = option(None, "the receiving competitor", positional=True)
+    games: int = option(100, "games played")
+    seed: int = option(9500, "the seed")
+    task: str = option("1v1", "the task")
     json: Optional[Path] = option(None, "also write the summary here")
 
 

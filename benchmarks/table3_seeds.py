@@ -37,7 +37,7 @@ def vs(report: dict, name: str, other: str):
 @dataclass
 class Args:
     reports: list[Path] = option(help="the two seeds' table3.json reports", factory=list, positional="+")
-    out: Path = option(ROOT / "results" / "table3" / "two_seeds.md", "")
+    out: Path = option(ROOT / "results" / "table3" / "two_seeds.md", "where the results go")
 
 
 def main(argv=None) -> int:

@@ -186,10 +186,10 @@ def start_fields(init: str | None, frames: int) -> dict:
 
 @dataclass
 class Args:
-    run: Optional[Path] = option(None, "", positional=True)
-    method: Optional[str] = option(None, "", positional=True)
-    games: int = option(400, "")
-    seed: int = option(9000, "")
+    run: Optional[Path] = option(None, "the run dir (or a hierarchical team's .yaml)", positional=True)
+    method: Optional[str] = option(None, "the zoo entry's method name", positional=True)
+    games: int = option(400, "games played")
+    seed: int = option(9000, "the seed")
     command: str = option("", "the command that trained the run, for the card")
     init: str = option("", "the zoo name of the policy the run started from, when the run was "
                    "trained from that policy's file before it shipped (its config names the file)")
