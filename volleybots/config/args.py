@@ -234,7 +234,7 @@ def describe(options: type) -> list[str]:
     for key, (f, kind, repeats) in fields_of(options).items():
         default = f.default_factory() if f.default is dataclasses.MISSING else f.default
         again = ", or a list [a,b]" if repeats else ""
-        spelt = "NAME ..." if f.metadata.get("positional") else f"{key}={_shown(default)}"
+        spelt = f"{f.name.upper()}{' ...' if repeats else ''}" if f.metadata.get("positional") else f"{key}={_shown(default)}"
         lines.append(f"{spelt} ({allowed(f, kind)}{again}): {f.metadata.get('help', '')}")
     return lines
 
