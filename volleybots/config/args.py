@@ -241,7 +241,8 @@ def describe(options: type) -> list[str]:
 
 def help_epilog(options: type, title: str = "key=value options") -> str:
     """The block a verb's ``--help`` ends with: every option of ``options`` with its default, help and range."""
-    return "\n".join([f"{title}:", *("- " + line for line in describe(options))])
+    # (a blank line before the list: the site renders the help as Markdown, where a list must start a block)
+    return "\n".join([f"{title}:", "", *("- " + line for line in describe(options))])
 
 
 __all__ = ["OVERRIDE_KEYS", "VerbOptions", "describe", "fields_of", "fill", "help_epilog", "option", "parse", "parse_options",
