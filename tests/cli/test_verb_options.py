@@ -87,6 +87,9 @@ def test_a_scripts_parser_fills_lists_positionals_and_refuses_the_old_flags():
     a = parse(Args, ["x", "n=PATH", "tasks=[solo_bump,3v3]", "games=8"], "t.py")
     assert (a.names, a.tasks, a.games, a.given) == (["x", "n=PATH"], ["solo_bump", "3v3"], 8, {"tasks", "games"})
     assert parse(Args, ["x"], "t.py").tasks == ["hover"]
+    # an item keeps its own list: a config override in a list of them
+    assert parse(BenchOptions, ["train_overrides=[algo.hidden=[64,64],algo.epochs=2]"], "b").train_overrides == [
+        "algo.hidden=[64,64]", "algo.epochs=2"]
     with pytest.raises(ConfigError, match=r"'--games': options are key=value \(games=...\)"):
         parse(Args, ["x", "--games", "8"], "t.py")
     with pytest.raises(ConfigError, match="name at least one of the names"):

@@ -95,6 +95,18 @@ def _what(kind: type) -> str:
     return "an integer" if kind is int else "a finite number"
 
 
+def _items(text: str) -> list[str]:
+    """The items of a list's text ``a,b=[1,2],c``: split at the commas outside brackets, so that an
+    override item keeps its own list (``train_overrides=[algo.hidden=[64,64],algo.epochs=2]``)."""
+    items, depth, start = [], 0, 0
+    for i, ch in enumerate(text + ","):
+        depth += {"[": 1, "]": -1}.get(ch, 0)
+        if ch == "," and depth == 0:
+            items.append(text[start:i].strip())
+            start = i + 1
+    return [t for t in items if t]
+
+
 def fill(options: type, pairs, names=()) -> VerbOptions:
     """The ``options`` dataclass filled from ``(key, text)`` pairs, each read by ``typed_option``; a
     list field takes a repeated key (``response=A response=B``) or a list (``tasks=[hover,1v1]``), any
@@ -104,7 +116,7 @@ def fill(options: type, pairs, names=()) -> VerbOptions:
     for key, text in pairs:
         f, kind, repeats = known[key]
         m = f.metadata
-        read = [t.strip() for t in text[1:-1].split(",") if t.strip()] if repeats and text[:1] == "[" and text[-1:] == "]" else [text]
+        read = _items(text[1:-1]) if repeats and text[:1] == "[" and text[-1:] == "]" else [text]
         for t in read:
             v = typed_option(key, t, kind, m.get("range"), m.get("choices", ()), m.get("help", ""))
             if repeats:
