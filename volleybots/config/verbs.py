@@ -55,7 +55,8 @@ class EloOptions(PlayOptions):
     orders: int = option(100, "seeded game orders over which Elo's spread is reported", ge=1, le=10_000)
     source: Optional[str] = option(None, "CROSSPLAY_JSON: rate the games of an earlier cross-play instead of playing", key="from")
     # cross-play's spelling of the games per pair: a command line copied from eval crossplay keeps working
-    games: Optional[int] = option(None, "another name of rounds=, as eval crossplay spells the games per pair", ge=2)
+    games: Optional[int] = option(None, "another name of rounds=, as eval crossplay spells the games per pair (rounds= "
+                                  "counts where both are given)", ge=2)
 
 
 @dataclass

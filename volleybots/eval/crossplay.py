@@ -289,11 +289,11 @@ def default_out(task: str, verb: str) -> Path:
 
 def setup(args, options: type[PlayOptions] = CrossplayOptions, min_competitors: int = 2, games: int | None = None):
     """(competitors, specs, options, config) of a cross-play command line, all validated; ``games``: the
-    games per pair where ``options`` has no ``games`` (``eval elo`` plays its rounds), None: none played."""
+    games per pair when given (``eval elo`` plays its rounds), else ``options``' own (None: none played)."""
     specs, opts, overrides = split_args(args, options)
     if len(specs) < min_competitors:
         raise ConfigError(f"cross-play needs at least {min_competitors} competitors; got {len(specs)} ({' '.join(specs) or 'none'})")
-    games = games if getattr(opts, "games", None) is None else opts.games
+    games = games if games is not None else getattr(opts, "games", None)
     if games is not None and games % 2:  # (>= 2: the option's range)
         raise ConfigError(f"games={games} must be an even number >= 2 (each side plays half of them)")
     if getattr(opts, "reuse", None) is not None:
@@ -332,10 +332,10 @@ def run_crossplay(args, out: Path | None = None, progress=None, verb: str = "cro
 
 
 def play_and_save(comps, specs, opts: PlayOptions, cfg, path: Path, progress=None, games: int | None = None) -> CrossPlay:
-    """Play the cross-play ``setup`` validated (``games`` per pair unless ``opts`` has them) and write
-    its results and heatmap into ``path``."""
+    """Play the cross-play ``setup`` validated (``games`` per pair when given, else ``opts.games``) and
+    write its results and heatmap into ``path``."""
     res = crossplay(
-        cfg, comps, games if getattr(opts, "games", None) is None else opts.games, seed=opts.seed, batch=opts.batch, scenario=opts.scenario,
+        cfg, comps, games if games is not None else opts.games, seed=opts.seed, batch=opts.batch, scenario=opts.scenario,
         deterministic=opts.deterministic, specs=specs, progress=progress, reuse=opts.reuse, pool=opts.pool,
     )
     res.save(path / RESULTS)

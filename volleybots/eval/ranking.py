@@ -138,10 +138,10 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
             "which draw no resamples; leave it out"
         )
     specs, opts, _ = split_args(args, EloOptions)  # (each option's type and range checked as it is read)
-    if opts.games is not None:  # games= is rounds= spelt as eval crossplay spells it
-        if "rounds" in opts.given and opts.rounds != opts.games:
-            raise ConfigError(f"games={opts.games} and rounds={opts.rounds} both give the games per pair; give one")
+    if opts.games is not None and "rounds" not in opts.given:  # games= is rounds= as eval crossplay spells it
         opts.rounds = opts.games
+    # (with both, rounds= counts, as it always did: a command line copied from eval crossplay and given its own
+    # rounds= keeps playing what it played)
     rounds, k, orders, source = opts.rounds, opts.k, opts.orders, opts.source
     if source is not None:
         playing = [key for key in ("reuse", "batch", "scenario", "deterministic", "pool", "games") if key in opts.given]
