@@ -124,6 +124,19 @@ def _refuse_flags(args: list[str], allowed: str) -> None:
         raise ConfigError(f"unknown option {flags[0]!r}; allowed: {allowed}")
 
 
+def options_help(options: type, title: str = "key=value options") -> str:
+    """The end of a verb's ``--help``: its options dataclass described (``volleybots.config.args.help_epilog``),
+    escaped for rich's markup, which would take ``[solo_bump]`` or ``[0, 10]`` for a style and drop it."""
+    from volleybots.config.args import help_epilog
+
+    text = help_epilog(options, title)
+    try:
+        from rich.markup import escape
+    except ImportError:  # typer without rich prints the text as it is
+        return text
+    return escape(text)
+
+
 WIDE = 400  # columns a table may take when stdout is a file or a pipe (rich would cut it to 80)
 
 
