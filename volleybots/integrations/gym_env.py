@@ -154,6 +154,8 @@ class VolleyVectorEnv(_BatchedVectorEnv):
         self.metadata = {**type(self).metadata, "autoreset_mode": mode}
         self.next_step = mode == AutoresetMode.NEXT_STEP
         self.task, self.num_envs = task, int(num_envs)
+        # the task's headline statistic, a key of info["final_stats"], and its direction (a script plots it by name)
+        self.metric, self.metric_higher_is_better = self.env.metric, bool(self.env.metric_higher_is_better)
         self.single_observation_space = self._observe.space
         self.single_action_space = sp.action_space(self.env)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
