@@ -41,9 +41,13 @@ def _entries(words) -> list[str]:
     value = override_value([str(w) for w in words], SEARCHPATH)
     if value is None or value == "null":
         return []
-    from volleybots.config.compose import parse_value
+    from hydra.core.override_parser.overrides_parser import OverridesParser  # Hydra's reading of the value (not compose's: a cycle)
+    from hydra.errors import HydraException
 
-    entries = parse_value(value)
+    try:
+        entries = OverridesParser.create().parse_override(f"k={value}").value()
+    except HydraException:
+        raise ConfigError(f"bad {SEARCHPATH} value {value!r}: expected a list of folders, e.g. [file:///home/me/conf]") from None
     if isinstance(entries, str):  # hydra.searchpath=file://DIR: Hydra wants a list; one entry is meant
         entries = [entries]
     if not isinstance(entries, list) or not all(isinstance(e, str) for e in entries):

@@ -93,7 +93,8 @@ def draw_frame(view: View, pos: np.ndarray, ball: np.ndarray, teams, hits=(), fa
         pos: drone positions [T, D, 3] over the steps so far (the last row is now).
         ball: ball positions [T, 3] (NaN rows: no ball in the task; nothing drawn).
         teams: each drone's team.
-        hits, faults: the steps of touches and faults (markers on the ball's path).
+        hits: the steps of touches (green markers on the ball's path).
+        faults: the steps of faults (red markers).
         header: the text of the header line (task, step, score).
     """
     from PIL import ImageDraw
