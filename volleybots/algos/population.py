@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from volleybots.algos.base import class_attr
 from volleybots.algos.happo import HAPPO
@@ -83,6 +83,13 @@ class LoopConfig:
     fixed_opponents: list[str] | None = None
     fixed_share: float | None = ranged(None, ge=0, le=1)
     oracle_fall_fault: bool = True  # hierarchical oracles train with task.fall_fault on (payoffs and evaluations: the task's rule)
+    # stage III of HCSP (population/tune_drills.py): before a hierarchical oracle trains its high level, the
+    # drills named here are fine-tuned by PPO on the serves recorded against its opponent ([]: off)
+    tune_drills: list[str] = field(default_factory=list)
+    tune_at: list[int] = field(default_factory=lambda: [1])  # the iterations whose oracle first tunes the drills
+    tune_games: int = ranged(256, ge=1)  # games recorded (the team receiving) for the ball bank
+    tune_frames: int = ranged(1_000_000, ge=1)  # PPO frames per tuned drill
+    tune_share: float = ranged(0.5, ge=0, le=1)  # share of a tuned drill's balls drawn from the bank (the rest: its own)
 
 
 @dataclass
@@ -95,6 +102,7 @@ class SelfPlayLoop(LoopConfig):
 # docs/imitation.md (critic warm-up, KL anchor at 0.3), set under algo by conf/population/psro_nash.yaml;
 # they act on learners that start from a policy (the clone, or init=); the loop sets both to 0 for a
 # learner from scratch
+TUNABLE = ("pass", "attack")  # the drills that receive a serve: the ones a ball bank can feed (tasks/drills.py serve_bank)
 FINE_TUNING = {"actor_freeze_updates": 10, "anchor_coeff": 0.3}
 
 
@@ -194,6 +202,9 @@ class Preset:
             raise ConfigError(f"population={self.name} trains for matches, not task {task_cls.name!r}; allowed tasks: {', '.join(matches)}")
         if pop.fixed_share and not pop.fixed_opponents:
             raise ConfigError(f"population.fixed_share={pop.fixed_share} needs population.fixed_opponents (e.g. [scripted, hierarchical])")
+        if pop.tune_drills and pop.members != "hierarchical":
+            raise ConfigError(f"population.tune_drills={list(pop.tune_drills)} tunes a hierarchical team's drills; "
+                              "give population.members=hierarchical (3v3) or population.tune_drills=[]")
         if pop.members == "hierarchical":
             self.check_hierarchical(pop, algo.name, task_cls)
             return
@@ -235,9 +246,6 @@ class Preset:
         if learner != self.learner:
             raise ConfigError(f"algo={learner} trains flat members; a hierarchical member's oracle trains its high level "
                               "(population.high_level_*): give population.members=flat with it")
-        if pop.self_play:
-            raise ConfigError(f"population={self.name} has no hierarchical members (one learner plays both teams); use population=fsp, "
-                              "psro_uniform or psro_nash with population.members=hierarchical, or population.members=flat")
         for value, allowed, key in ((pop.solver, SOLVERS, "population.solver"),
                                     (pop.learner_init, ("scratch", "last"), "population.learner_init"),
                                     (pop.payoff_pool, POOLS, "population.payoff_pool")):
@@ -245,6 +253,11 @@ class Preset:
                 raise ConfigError(f"unknown {key} {value!r} for population.members=hierarchical; allowed: {', '.join(allowed)}")
         if self.learner_inits and pop.learner_init not in self.learner_inits:
             raise ConfigError(f"population={self.name} {self.otherwise.format(init=pop.learner_init)}")
+        bad = [d for d in pop.tune_drills if d not in TUNABLE]
+        if bad:
+            raise ConfigError(f"population.tune_drills: {bad[0]!r} cannot be tuned on recorded serves; allowed: {', '.join(TUNABLE)}")
+        if any(not isinstance(i, int) or i < 1 for i in pop.tune_at):
+            raise ConfigError(f"population.tune_at={list(pop.tune_at)!r} must list iterations >= 1")
         if not pop.seed_members:
             raise ConfigError(f"population={self.name} needs a first opponent: population.seed_members=[{pop.drills}] "
                               "(or scripted, hierarchical)")

@@ -20,10 +20,11 @@ def stat_keys(env) -> list[str]:
     return list(env.observation_spec[STATS].keys())
 
 
-def run_episodes(env, policy, on_step=None) -> dict[str, torch.Tensor]:
+def run_episodes(env, policy, on_step=None, until=None) -> dict[str, torch.Tensor]:
     """Play until every env of the batch has finished one episode; return the statistics of those
     first episodes ([num_envs] per statistic). ``on_step(env, td, next_td)`` sees every step before
-    the finished envs are reset (the recorder uses it)."""
+    the finished envs are reset (the recorder uses it); ``until()`` true after a step ends the play
+    there (a caller that has seen what it needs; the unfinished envs' statistics stay 0)."""
     keys = stat_keys(env)
     n = env.num_envs
     finished = torch.zeros(n, dtype=torch.bool, device=env.device)
@@ -40,7 +41,7 @@ def run_episodes(env, policy, on_step=None) -> dict[str, torch.Tensor]:
         for k in keys:
             out[k] = torch.where(new, nxt[stat(k)].reshape(n), out[k])
         finished |= new
-        if bool(finished.all()):
+        if bool(finished.all()) or (until is not None and until()):
             break
         td = env.maybe_reset(step_mdp(td, keep_other=True, exclude_action=True))
     return out

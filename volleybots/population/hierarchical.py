@@ -11,8 +11,9 @@ those drills against the opponent the loop hands it (the meta-solver's mixture o
     population/high_level_<k>.pt   the member's high level (``save_high_level``: weights only)
 
 Stage I of HCSP (the drills) is reused from the zoo by default (its frames stated on the zoo card);
-stage II (high levels as best responses to the population) is the oracle here; stage III (drills
-fine-tuned inside matches) is not done by this loop (docs/competitive.md says what was tried).
+stage II (high levels as best responses to the population) is the oracle here; stage III (the
+receiving drills fine-tuned on the serves recorded against the oracle's opponent) runs before the
+oracles of ``population.tune_at`` where ``population.tune_drills`` names drills (population/tune_drills.py).
 
 Determinism: an oracle is seeded by the run's seed and its iteration alone, and starts from a member
 file, so an oracle killed before its member was written is trained again from the start by a resume
@@ -35,6 +36,7 @@ from volleybots.policies import resolve_competitor, single_policy
 from volleybots.policies.builtin import HIGH_LEVEL
 from volleybots.policies.high_level import read_high_level, save_high_level
 from volleybots.policies.store import policy_checkpoint
+from volleybots.population.tune_drills import current_drills, tune
 from volleybots.runs import CKPT_FORMAT, POPULATION_DIR, MetricsLog, population_members, read_checkpoint
 from volleybots.train.high_level import HighLevelConfig, train_high_level
 
@@ -115,10 +117,14 @@ def newest_high_level(run_path, paths: list[Path]):
 
 def train_member(cfg, run_path, metrics_path, i: int, k: int, opponent, frames: int, time_left: float, seed: int) -> dict:
     """Iteration ``i``'s oracle: a high level over the run's drills trained on ``seed`` against
-    ``opponent`` (a ``Competitor``, the loop's choice), to be written as member ``k``; ``frames`` were
+    ``opponent`` (a ``Competitor``, the loop's choice; None: self-play, population=sp), to be written as member ``k``; ``frames`` were
     spent before it, ``time_left`` seconds remain to it (inf: no limit). Returns the member's record."""
     m = population_of(cfg)  # the loop's keys
-    drills = run_drills(run_path, m.drills)
+    drills = current_drills(run_path, i - 1, run_drills(run_path, m.drills))
+    if m.tune_drills:  # stage III: the receiving drills fine-tuned on the serves the newest member meets
+        receiver = str(population_members(run_path)[k - 1])
+        note = (lambda line: print(line, file=sys.stderr, flush=True)) if cfg.progress else None
+        drills = tune(cfg, run_path, i, receiver, opponent, drills, seed, note)
     coming, attack = team_options(m.drills)
     start = newest_high_level(run_path, population_members(run_path)[:k]) if m.learner_init == "last" else None
     limit = 0.0 if time_left == float("inf") else max(time_left, 1e-3)
@@ -142,14 +148,14 @@ def train_member(cfg, run_path, metrics_path, i: int, k: int, opponent, frames: 
         match.task.fall_fault = True
     net, history = train_high_level(match, drills, opponent, hc, log, start=start)
     info = {"games": history[-1]["games"], "seed": seed, "iteration": i, "receive_coming": coming, "receive_attack": attack,
-            "opponent": opponent.label}
+            "opponent": "self" if opponent is None else opponent.label}
     save_high_level(net, high_level_path(run_path, k), info)
     root = Path(run_path) / POPULATION_DIR
     files = {**{name: str(Path(p).relative_to(root)) for name, p in drills.items()}, HIGH_LEVEL: high_level_path(run_path, k).name}
     last = history[-4:]  # the oracle's last batches: its win rate against the opponent at the end
     won = sum(r["won"] for r in last) / max(sum(r["won"] + r["drawn"] + r["lost"] for r in last), 1)
     oracle = {"updates": len(history), "games": history[-1]["games"], "converged": None, "win_rate": round(won, 4)}
-    return team_record(f"br{i}", files, frames=frames + spent[0], iteration=len(history), oracle=oracle)
+    return team_record("sp" if opponent is None else f"br{i}", files, frames=frames + spent[0], iteration=len(history), oracle=oracle)
 
 
 def fixed_mixture(population, fixed: list[str], share: float):

@@ -86,6 +86,27 @@ def serve_share_arg(serves) -> float:
     return float(serves)
 
 
+BANK_FORMAT = "volleybots-ball-bank/1"  # a file of recorded incoming balls (``read_ball_bank``)
+
+
+def read_ball_bank(path) -> torch.Tensor:
+    """[K, 6] the balls (position, velocity; the receiving team on +x) of a ball bank file, as
+    ``volleybots.play.serves.record_serves`` writes it: the balls a team met, which the Pass and Attack
+    drills draw their serves from (``serve_bank``; HCSP's stage III, drills fine-tuned on what they meet)."""
+    try:
+        data = torch.load(str(path), map_location="cpu", weights_only=True)
+    except (OSError, RuntimeError, EOFError, ValueError) as e:
+        raise ValueError(f"serve_bank={str(path)!r} is no readable ball bank ({type(e).__name__}); allowed: a file "
+                         "written by volleybots.play.serves.record_serves") from None
+    balls = data.get("balls") if isinstance(data, dict) and data.get("format") == BANK_FORMAT else None
+    if not isinstance(balls, torch.Tensor) or balls.ndim != 2 or balls.shape[1] != 6 or balls.shape[0] < 1:
+        raise ValueError(f"serve_bank={str(path)!r} is no ball bank (format {BANK_FORMAT!r}, 'balls' [K >= 1, 6])")
+    balls = balls.float()
+    if not bool(torch.isfinite(balls).all()) or bool((balls[:, 0] >= 0).any()):
+        raise ValueError(f"serve_bank={str(path)!r} holds balls that are not finite or not in the opponents' half (x < 0)")
+    return balls
+
+
 def velocity_through(start: torch.Tensor, end: torch.Tensor, flight: torch.Tensor, g: float) -> torch.Tensor:
     """[N, 3] the launch velocity that carries a ball from ``start`` to ``end`` [N, 3] in ``flight`` [N]
     seconds (no drag): how a drill's reset sends the ball in as a teammate or an opponent would."""
@@ -109,6 +130,7 @@ class _Drill(VolleyEnv):
     init_noise = 0.1  # m around the anchor, as in the match
     comes_over = False  # the ball starts in the opponents' half: the drone may touch it only once it crosses
     serves = 0.0  # the share of balls that are the scripted team's serve (``serve_share``; Pass and Attack take it)
+    bank = None  # [K, 6] recorded balls the serves are drawn from instead (``serve_bank``), or None
 
     def __init__(self, *args, **kw):
         super().__init__(*args, **kw)
@@ -167,11 +189,16 @@ class _Drill(VolleyEnv):
 
     def serve_share(self, pos: torch.Tensor, vel: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``pos``, ``vel`` with the share ``serves`` of the balls replaced by the scripted team's serve
-        (``SERVE_BALL``); ``self.served`` [N] says which. Drawn always when on, so a seed's balls do not
-        depend on the share's draws."""
+        (``SERVE_BALL``), or by balls drawn from the bank (``serve_bank``); ``self.served`` [N] says
+        which. Drawn always when on, so a seed's balls do not depend on the share's draws."""
         if self.serves <= 0.0:
             return pos, vel
-        spos, svel = self.incoming(*SERVE_BALL)
+        if self.bank is None:
+            spos, svel = self.incoming(*SERVE_BALL)
+        else:
+            pick = (self.uniform(0.0, 1.0, (self.num_envs,)) * len(self.bank)).long().clamp_max(len(self.bank) - 1)
+            balls = self.bank.to(pos.device)[pick]
+            spos, svel = balls[:, :3], balls[:, 3:]
         self.served = self.uniform(0.0, 1.0, (self.num_envs,)) < self.serves
         take = self.served.unsqueeze(-1)
         return torch.where(take, spos, pos), torch.where(take, svel, vel)
@@ -279,8 +306,9 @@ class Pass(_PassDrill):
     target_role = FRONT_LEFT
     comes_over = True
 
-    def __init__(self, *args, serves: float = 0.0, **kw):
+    def __init__(self, *args, serves: float = 0.0, serve_bank: str | None = None, **kw):
         self.serves = serve_share_arg(serves)
+        self.bank = None if serve_bank is None else read_ball_bank(serve_bank)  # before the first reset
         super().__init__(*args, **kw)
 
     def ball_start(self):
@@ -304,10 +332,11 @@ class Attack(_Drill):
     obs_parts = DRILL_PARTS + (("side", 2),)  # (left, right): y < 0 or y > 0 of the opponent's court, facing -x
     quarter = (-3.0, 1.5)  # the middle of a quarter of the opponent's court: (x, |y|)
 
-    def __init__(self, *args, side: int | None = None, serves: float = 0.0, **kw):
+    def __init__(self, *args, side: int | None = None, serves: float = 0.0, serve_bank: str | None = None, **kw):
         if side not in (None, 0, 1):
             raise ValueError(f"side must be None (random), 0 (left) or 1 (right); got {side!r}")
         self.fixed_side, self.serves = side, serve_share_arg(serves)
+        self.bank = None if serve_bank is None else read_ball_bank(serve_bank)  # before the first reset
         super().__init__(*args, **kw)
         self.side = torch.zeros(self.num_envs, dtype=torch.long, device=self.device)
 

@@ -121,7 +121,8 @@ def update(net: HighLevelNet, opt, chooser: LearnedChooser, results: torch.Tenso
 def train_high_level(match_cfg, drills: dict | None, opponent, cfg: HighLevelConfig, log=None,
                       start: HighLevelNet | None = None) -> tuple[HighLevelNet, list[dict]]:
     """A high level trained against ``opponent`` (a competitor spec, or a ``Competitor``: a population's
-    mixture draws one member per world and game) over the ``drills`` (drill -> checkpoint; the others
+    mixture draws one member per world and game; None: self-play, the same drills under a second
+    chooser over the learning net, which samples its choices and records none) over the ``drills`` (drill -> checkpoint; the others
     scripted) on the 3 vs 3 match config ``match_cfg``, from ``start``'s weights if given (else near
     uniform); the per-batch history (results, choices, the share of each option) goes to ``log`` as it
     is made."""
@@ -135,6 +136,8 @@ def train_high_level(match_cfg, drills: dict | None, opponent, cfg: HighLevelCon
         net.load_state_dict(start.state_dict())
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     comp = resolve_competitor(opponent) if isinstance(opponent, str) else opponent
+    mirror = LearnedChooser(net, greedy=False, generator=gen, record=False, receive_coming=cfg.receive_coming,
+                            receive_attack=cfg.receive_attack)
     envs, teams, opps = [], [], []
     chooser = LearnedChooser(net, greedy=False, generator=gen, record=True, receive_coming=cfg.receive_coming,
                              receive_attack=cfg.receive_attack)
@@ -143,7 +146,7 @@ def train_high_level(match_cfg, drills: dict | None, opponent, cfg: HighLevelCon
         lows = {k: learned_drill(k, v, env, True) for k, v in (drills or {}).items()}
         envs.append(env)
         teams.append(make_hierarchical(env, lows, gen, chooser))
-        opps.append(comp.team_policy(env, False, gen))
+        opps.append(make_hierarchical(env, lows, gen, mirror) if comp is None else comp.team_policy(env, False, gen))
     history, played, start = [], 0, time.monotonic()
     while played < cfg.games:
         side = (played // cfg.batch) % 2
