@@ -4,6 +4,7 @@ figure for docs/integrations.md.
 
     python benchmarks/curves_rise.py                       # runs the four trainings (two at a time), then plots
     python benchmarks/curves_rise.py --plot-only           # the figure again from the CSVs
+    cp results/integrations/curves/curves_rise.png docs/img/  # the copy docs/integrations.md shows
 
 Each training is the example's own command (``examples/sb3_ppo_hover.py``,
 ``examples/cleanrl_ppo_solo_bump.py --env-id volleybots/Hover-v0``), run as a child process with one
@@ -23,7 +24,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "results" / "integrations" / "curves"
-FIGURE = ROOT / "docs" / "img" / "curves_rise.png"
+FIGURE = OUT / "curves_rise.png"  # docs/img/curves_rise.png is a copy (no benchmark writes into docs/)
 STEPS = 1_000_000  # env-steps per training: minutes on one core, and Hover's distance has fallen by then
 SEEDS = (0, 1)
 
