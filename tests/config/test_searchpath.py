@@ -29,7 +29,14 @@ def user_conf(tmp_path):
         "defaults:\n  - ppo  # the packaged PPO\n  - _self_\nactor_lr: 1.0e-4  # slower actor\nepochs: 2  # fewer passes\n")
     (tmp_path / "task").mkdir()
     (tmp_path / "task" / "myhover.yaml").write_text("defaults:\n  - hover\n  - _self_\ntarget: [0.5, -0.5, 2.0]  # a fixed target\n")
+    (tmp_path / "task" / "my1v1.yaml").write_text("defaults:\n  - 1v1\n  - _self_\nserve: 0  # team 0 always serves\n")
     return tmp_path
+
+
+def test_a_user_task_preset_trains_with_its_tasks_default_method(user_conf):
+    cfg = validate(compose([f"hydra.searchpath=[file://{user_conf}]", "task=my1v1"]))
+    assert cfg.task.name == "1v1" and cfg.task.serve == 0
+    assert cfg.population.name == "sp" and cfg.algo.name == "mappo"  # as task=1v1 itself: self-play with MAPPO
 
 
 def test_searchpath_composes_a_user_preset_that_inherits_the_packaged_one(user_conf):
@@ -91,3 +98,17 @@ def test_a_bad_key_of_a_user_preset_comes_before_torch_loads(user_conf):
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=CLI_ENV, timeout=120)
     assert res.stdout.strip().splitlines()[-1] == "exit 2 torch not loaded", res.stdout + res.stderr
     assert res.stderr.strip().startswith("error: unknown config key 'algo.nonsense'"), res.stderr
+
+
+def test_a_sweep_with_config_dir_gives_every_job_the_user_preset(user_conf, tmp_path):
+    """``-m`` goes through ``hydra.main``: the search path reaches it as the override ``--config-dir`` became."""
+    sweep = tmp_path / "sweep"
+    res = runner.invoke(app, [
+        "train", "-m", "--config-dir", str(user_conf), "algo=myppo", "task=myhover", "seed=0,1", "env.num_envs=4", "algo.steps_per_batch=8",
+        "algo.minibatches=2", "algo.hidden=[16]", "task.episode_len=40", "threads=1", "progress=false", "evaluation.episodes=1",
+        "evaluation.record=false", "evaluation.every=0", "total_frames=32", f"hydra.sweep.dir={sweep}",
+    ])
+    assert res.exit_code == 0, res.output
+    for job in ("0", "1"):
+        saved = (sweep / job / ".hydra" / "config.yaml").read_text()
+        assert "actor_lr: 0.0001" in saved and "- 0.5" in saved, job

@@ -75,7 +75,8 @@ def _compose(overrides: list[str], hydra_node: bool) -> DictConfig:
         try:
             cfg = hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node)
             # then the task's default method where none is named (a bad word is reported above, before torch loads)
-            default = [] if names_key(overrides, "algo", "population") else task_default(overrides)
+            # by the composed task's registered name: a user's preset (task=my1v1, defaults: [1v1]) trains as its task does
+            default = [] if names_key(overrides, "algo", "population") else task_default([*overrides, f"task={cfg.task.name}"])
             if default:
                 overrides = respell([*overrides, *default], population=names_key(default, "population"))[0]
                 cfg = hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node)
