@@ -32,7 +32,7 @@ from volleybots.algos.population import population_of
 from volleybots.config import to_dict
 from volleybots.errors import ConfigError
 from volleybots.files import sha256, write_atomic
-from volleybots.policies import resolve_competitor, single_policy
+from volleybots.policies import single_policy
 from volleybots.policies.builtin import HIGH_LEVEL
 from volleybots.policies.high_level import read_high_level, save_high_level
 from volleybots.policies.store import policy_checkpoint
@@ -158,19 +158,5 @@ def train_member(cfg, run_path, metrics_path, i: int, k: int, opponent, frames: 
     return team_record("sp" if opponent is None else f"br{i}", files, frames=frames + spent[0], iteration=len(history), oracle=oracle)
 
 
-def fixed_mixture(population, fixed: list[str], share: float):
-    """The oracle's opponent: the population's mixture with weight 1 - ``share`` and the ``fixed``
-    competitors, equally, with ``share`` (a league's anchors; none: the mixture alone)."""
-    from volleybots.policies import Competitor
-
-    if not fixed or share <= 0:
-        return population
-    comps = [resolve_competitor(s) for s in fixed]
-    members = list(population.members) + [mm for c in comps for mm in c.members]
-    weights = [(1 - share) * float(w) for w in population.mixture]
-    weights += [share / len(comps) * float(w) for c in comps for w in c.mixture]
-    return Competitor(population.label, members, weights)
-
-
-__all__ = ["copy_team", "fixed_mixture", "high_level_path", "run_drills", "seed_member", "team_files",
+__all__ = ["copy_team", "high_level_path", "run_drills", "seed_member", "team_files",
            "team_record", "train_member"]

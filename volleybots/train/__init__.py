@@ -7,6 +7,8 @@ run the population loop over this trainer: ``volleybots.population.start`` dispa
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 from volleybots.algos import population_of
 from volleybots.config import apply_overrides, check_memory, to_dict
 from volleybots.errors import ConfigError
@@ -15,7 +17,7 @@ from volleybots.play.seats import AllAgents, SelfPlay, Versus, default_seat
 from volleybots.policies.targets import check_references
 from volleybots.runs import RunDir, check_writable, locked, memory_errors_as, read_checkpoint
 from volleybots.train.init import apply_init, check_init, init_checkpoint, learner_spec
-from volleybots.train.trainer import EVAL_SEED_OFFSET, RESUME_KEYS, Trainer
+from volleybots.train.trainer import EVAL_SEED_OFFSET, RESUME_KEYS, Trainer, write_summary
 
 
 def preflight(cfg) -> None:
@@ -53,11 +55,20 @@ def train(cfg, run_dir, checked: bool = False, stop=None) -> dict:
     """Start a new run of the validated config ``cfg`` in ``run_dir``, holding its lock while it trains
     (``checked``: the caller ran ``preflight`` already); ``stop(row)`` may end it early after a batch
     (``Trainer.train_loop``)."""
+    with new_run(cfg, run_dir, checked) as run:
+        return Trainer(cfg, run).fit(stop)
+
+
+@contextmanager
+def new_run(cfg, run_dir, checked: bool = False):
+    """What every new learner run trains inside (``train``, and ``eval exploitability``'s best responses):
+    ``preflight`` unless ``checked``, the run dir's config written and its lock held, an out-of-memory
+    error as one line naming the counts. Yields the ``RunDir``."""
     if not checked:
         preflight(cfg)
     run = RunDir(run_dir)
     with run.new_run(cfg), memory_errors_as(_counts(cfg)):
-        return Trainer(cfg, run).fit(stop)
+        yield run
 
 
 def resume_config(run_dir, overrides=(), keys=RESUME_KEYS):
@@ -113,5 +124,6 @@ def _counts(cfg) -> str:
 
 __all__ = [
     "AllAgents", "EVAL_SEED_OFFSET", "RESUME_KEYS", "SelfPlay", "Trainer", "Versus", "apply_init", "check_init", "collect", "default_seat",
-    "check_payoff_games", "finished_stats", "init_checkpoint", "learner_spec", "preflight", "resume", "resume_config", "train",
+    "check_payoff_games", "finished_stats", "init_checkpoint", "learner_spec", "new_run", "preflight", "resume", "resume_config", "train",
+    "write_summary",
 ]

@@ -9,10 +9,11 @@ cut episodes count as truncated, hence bootstrapped). The run's state is then ex
 optimiser, normalisers, counters and random generators, and a run resumed from a checkpoint repeats
 the uninterrupted one bit for bit on a CPU.
 
-Seats (``volleybots.play.seats``) say whom the learner plays for. Callers that drive the loop
-themselves (the population loop's oracle) use its public surface: ``start_at`` (the counters a new
-iteration continues from), ``train_loop(stop=..., row_extra=...)``, ``state()`` (what a checkpoint
-holds) and ``checkpoint_state`` (what it was restored from).
+Seats (``volleybots.play.seats``) say whom the learner plays for. The one caller that drives the loop
+itself, the best response (``population/oracle.py``, for population oracles and exploitability's
+responses), uses its public surface: ``start_at`` (the counters a new iteration continues from),
+``train_loop(stop=..., row_extra=...)``, ``state()`` (what a checkpoint holds), ``checkpoint_state``
+(what it was restored from) and ``finish``. ``write_summary`` is the one writer of summary.json.
 
 ``init=RUN_OR_CHECKPOINT`` starts a new run from another run's networks (``volleybots.train.init``).
 """
@@ -227,29 +228,16 @@ class Trainer:
         final_eval = self._evaluate_and_log(wandb)
         final = run.save_checkpoint(self.state(), final=True)
         write_curves(run.metrics_path, run.curves_path)
-        summary = {
-            "task": cfg.task.name,
-            "algo": cfg.algo.name,
-            "action_space": cfg.env.action_space,
-            "num_envs": cfg.env.num_envs,
-            "seed": cfg.seed,
-            "frames": self.frames,
-            "iterations": self.iteration,
-            "wall_time_s": self._wall(),
-            "frames_per_s": self.frames / max(self._wall(), 1e-9),
-            "metric": self.metric,
-            "final_eval": final_eval,
+        extra = {
             "last_train_episodes": last,
             "checkpoints": [str(p.relative_to(run.path)) for p in [*run.periodic_checkpoints(), final]],
             **({"best_eval": self._best_eval()} if run.best_path.is_file() else {}),
-            "version": __version__,
             **({"init": self.init_info} if self.init_info else {}),
             **(summary_extra or {}),
         }
-        run.write_summary(summary)
-        if wandb and self._owns_wandb:
-            wandb.finish(summary, run)
-        return summary
+        wall = self._wall()
+        return write_summary(run, cfg, cfg.algo.name, (self.frames, self.iteration, wall), self.metric, final_eval, extra,
+                             wandb if self._owns_wandb else None)
 
     def _evaluate_and_log(self, wandb) -> dict:
         t = time.perf_counter()
@@ -287,6 +275,33 @@ class Trainer:
         self.metrics.write(row)
         if wandb:
             wandb.log(row)
+
+
+def write_summary(run, cfg, algo: str, counts: tuple, metric: str, final_eval: dict | None, extra: dict, wandb=None) -> dict:
+    """The one writer of a run's summary.json, a learner's (``Trainer.finish``) and a population's
+    (``population/loop.py``): the keys every run has (``counts``: its frames, iterations and wall
+    seconds), ``final_eval`` where there is one, then the caller's ``extra``; ``wandb`` (the caller's
+    own W&B run, None: none or not the caller's to end) is ended with it."""
+    frames, iterations, wall = counts
+    summary = {
+        "task": cfg.task.name,
+        "algo": algo,
+        "action_space": cfg.env.action_space,
+        "num_envs": cfg.env.num_envs,
+        "seed": cfg.seed,
+        "frames": int(frames),
+        "iterations": int(iterations),
+        "wall_time_s": wall,
+        "frames_per_s": frames / max(wall, 1e-9),
+        "metric": metric,
+        **({"final_eval": final_eval} if final_eval is not None else {}),
+        **extra,
+        "version": __version__,
+    }
+    run.write_summary(summary)
+    if wandb:
+        wandb.finish(summary, run)
+    return summary
 
 
 def _next_multiple(frames: int, every: int) -> int:
