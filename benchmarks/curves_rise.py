@@ -14,13 +14,15 @@ each command, its seed, its wall time and the load average (``os.getloadavg``) b
 
 from __future__ import annotations
 
-import argparse
 import csv
 import os
 import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
+
+from volleybots.config.args import option, script_options
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "results" / "integrations" / "curves"
@@ -101,12 +103,15 @@ def plot(runs: list[dict] | None = None) -> Path:
     return FIGURE
 
 
+@dataclass
+class Args:
+    steps: int = option(STEPS, "environment steps of each training")
+    parallel: int = option(2, "trainings at once")
+    plot_only: bool = option(False, "redraw the figure from the summary already written")
+
+
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--steps", type=int, default=STEPS)
-    ap.add_argument("--parallel", type=int, default=2, help="trainings at once")
-    ap.add_argument("--plot-only", action="store_true")
-    args = ap.parse_args(argv)
+    args = script_options(Args, argv, __doc__)
     from volleybots.files import read_json, write_json
 
     summary = OUT / "curves_rise.json"

@@ -13,14 +13,16 @@ Quote the machine load (``uptime``, printed with the figures) beside them.
 
 from __future__ import annotations
 
-import argparse
 import os
 import statistics
 import time
+from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 import torch
 
+from volleybots.config.args import option, script_options
 from volleybots.files import write_json
 from volleybots.integrations import VolleyParallelEnv
 from volleybots.integrations.gym_env import VolleyGymEnv
@@ -53,15 +55,18 @@ def _ms(fn, n: int) -> float:
     return (time.perf_counter() - start) / n * 1e3
 
 
+@dataclass
+class Args:
+    task: str = option("solo_bump", "the task whose frames are drawn")
+    steps: int = option(200, "random steps before the frames (the paths drawn)")
+    frames: int = option(20, "frames of each kind per repeat")
+    repeats: int = option(3, "repeats (the figure is their median)")
+    seed: int = option(0, "the seed")
+    json: Optional[str] = option(None, "write the figures here")
+
+
 def main(argv=None) -> dict:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--task", default="solo_bump")
-    ap.add_argument("--steps", type=int, default=200, help="random steps before the frames (the paths drawn)")
-    ap.add_argument("--frames", type=int, default=20, help="frames of each kind per repeat")
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--json", default=None, help="write the figures here")
-    args = ap.parse_args(argv)
+    args = script_options(Args, argv, __doc__)
     torch.set_num_threads(1)
     env = _episode(args.task, args.steps, args.seed)
     trail = env._trail
