@@ -86,7 +86,7 @@ class LoopConfig:
     # stage III of HCSP (population/tune_drills.py): before a hierarchical oracle trains its high level, the
     # drills named here are fine-tuned by PPO on the serves recorded against its opponent ([]: off)
     tune_drills: list[str] = field(default_factory=list)
-    tune_at: list[int] = field(default_factory=lambda: [1])  # the iterations whose oracle first tunes the drills
+    tune_at: list[int] = ranged(factory=lambda: [1], ge=1)  # the iterations whose oracle first tunes the drills
     tune_games: int = ranged(256, ge=1)  # games recorded (the team receiving) for the ball bank
     tune_frames: int = ranged(1_000_000, ge=1)  # PPO frames per tuned drill
     tune_share: float = ranged(0.5, ge=0, le=1)  # share of a tuned drill's balls drawn from the bank (the rest: its own)

@@ -11,6 +11,7 @@ import dataclasses
 
 from omegaconf import DictConfig, OmegaConf
 
+from volleybots.config import searchpath
 from volleybots.config.schema import GROUPS, group_options, to_dict
 from volleybots.config.spelling import respell, task_default
 from volleybots.config.validate import validate
@@ -47,11 +48,13 @@ def check_group_value(group: str, value) -> None:
 
 def check_group_args(args) -> None:
     """The group choices (``task=``, ``algo=``, ``env=``) among a verb's words checked against ``conf/``
-    alone: a verb calls this first, so a mistyped task is reported before torch and the policies load."""
-    for arg in args:
-        key, value = split_arg(str(arg))
-        if value is not None and key in GROUPS:
-            check_group_value(key, value)
+    alone (and a user's config folders, ``hydra.searchpath``): a verb calls this first, so a mistyped
+    task is reported before torch and the policies load."""
+    with searchpath.active(args):
+        for arg in args:
+            key, value = split_arg(str(arg))
+            if value is not None and key in GROUPS:
+                check_group_value(key, value)
 
 
 def check_fixed_values(args) -> None:
@@ -103,6 +106,11 @@ def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = Fals
     task's default method where none is named (``volleybots.config.spelling``). Raises ``ConfigError``.
 
     A misspelt key is reported with the keys allowed beside it."""
+    with searchpath.active(overrides):  # a user's presets (hydra.searchpath) are options of their groups
+        return _compose(list(overrides), hydra_node)
+
+
+def _compose(overrides: list[str], hydra_node: bool) -> DictConfig:
     from hydra import compose as hydra_compose
     from hydra import initialize_config_dir
     from hydra.errors import HydraException
@@ -114,7 +122,8 @@ def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = Fals
         try:
             cfg = hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node)
             # then the task's default method where none is named (a bad word is reported above, before torch loads)
-            default = [] if names_key(overrides, "algo", "population") else task_default(overrides)
+            # by the composed task's registered name: a user's preset (task=my1v1, defaults: [1v1]) trains as its task does
+            default = [] if names_key(overrides, "algo", "population") else task_default([*overrides, f"task={cfg.task.name}"])
             if default:
                 overrides = respell([*overrides, *default], population=names_key(default, "population"))[0]
                 cfg = hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node)
@@ -130,7 +139,8 @@ def _explain_unknown_key(overrides: list[str], hydra_compose) -> None:
     from hydra.errors import HydraException
 
     try:
-        base = hydra_compose("config", overrides=[o for o in overrides if override_key(o) in GROUPS])
+        # the groups and the search path that finds a user's presets: the keys a user preset declares are known
+        base = hydra_compose("config", overrides=[o for o in overrides if override_key(o) in GROUPS or searchpath.is_searchpath(o)])
     except HydraException:
         return
     for o in overrides:
