@@ -1,21 +1,23 @@
 """1v1 self-play, fictitious self-play, PSRO-uniform and PSRO-Nash on one budget (issue 14's benchmark).
 
-Each method trains with the same env count, batch and frame budget (``--frames``) on seed ``--seed``;
+Each method trains with the same env count, batch and frame budget (``frames=``) on seed ``seed=``;
 the script records the population size, the oracles' updates and convergence, the final meta-strategy,
-the end-to-end frames per second, and copies each run's payoff PNG into ``--out``. The run dirs feed
+the end-to-end frames per second, and copies each run's payoff PNG into ``out=``. The run dirs feed
 the evaluation's table-3 layout (``volleybots eval crossplay`` over them).
 
     python benchmarks/competitive.py                                  # the default budget
-    python benchmarks/competitive.py --frames 2e6 --num-envs 256      # longer
+    python benchmarks/competitive.py frames=2e6 num_envs=256      # longer
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import shutil
 import time
+from dataclasses import dataclass
 from pathlib import Path
+
+from volleybots.config.args import option, script_options
 
 METHODS = ("sp", "fsp", "psro_uniform", "psro_nash")
 
@@ -45,21 +47,24 @@ def run(method: str, args, root: Path) -> dict:
     }
 
 
+@dataclass
+class Args:
+    methods: str = option(",".join(METHODS), "")
+    frames: float = option(1.5e6, "env frames per method (all iterations together)")
+    num_envs: int = option(128, "worlds stepped together")
+    iterations: int = option(4, "population iterations")
+    max_updates: int = option(40, "most updates of a best response per iteration")
+    min_updates: int = option(10, "fewest updates of a best response per iteration")
+    games: int = option(200, "games per payoff entry")
+    seed: int = option(0, "the seed")
+    threads: int = option(1, "torch threads")
+    root: str = option("outputs/benchmarks/competitive", "where the runs go")
+    out: str = option("results/competitive", "folder of competitive.json and the payoff heatmaps")
+    overrides: list[str] = option(help="further config overrides", factory=lambda: [], positional=True)
+
+
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--methods", default=",".join(METHODS))
-    p.add_argument("--frames", type=float, default=1.5e6, help="env frames per method (all iterations together)")
-    p.add_argument("--num-envs", type=int, default=128)
-    p.add_argument("--iterations", type=int, default=4)
-    p.add_argument("--max-updates", type=int, default=40)
-    p.add_argument("--min-updates", type=int, default=10)
-    p.add_argument("--games", type=int, default=200, help="games per payoff entry")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--threads", type=int, default=1)
-    p.add_argument("--root", default="outputs/benchmarks/competitive")
-    p.add_argument("--out", default="results/competitive", help="folder of competitive.json and the payoff heatmaps")
-    p.add_argument("overrides", nargs="*", help="further config overrides")
-    args = p.parse_args()
+    args = script_options(Args, None, __doc__)
     root = Path(args.root)
     root.mkdir(parents=True, exist_ok=True)
     rows = [run(m, args, root) for m in args.methods.split(",")]

@@ -1,37 +1,38 @@
 """A learned 3 vs 3 team (the HCSP route): a high level trained by RL over drills, then played.
 
-    python benchmarks/hcsp.py --drills-dir RUNS --out DIR [--games 4096] [--batch 256] [--seed 1]
-                              [--opponent scripted] [--eval-games 400] [--eval-seeds 9100,9101]
-                              [--vs scripted,hierarchical]
+    python benchmarks/hcsp.py drills_dir=RUNS out=DIR [games=4096] [batch=256] [seed=1]
+                              [opponent=scripted] [eval_games=400] [eval_seeds=9100,9101]
+                              [vs=scripted,hierarchical]
 
-1. ``--drills-dir``: the folder of a ``benchmarks/hierarchical.py --learn`` invocation (its
-   ``<drill>_ppo`` runs, else ``<drill>_bc``; the drills it lacks stay scripted); ``--drills
+1. ``drills_dir=``: the folder of a ``benchmarks/hierarchical.py learn=`` invocation (its
+   ``<drill>_ppo`` runs, else ``<drill>_bc``; the drills it lacks stay scripted); ``drills=
    serve=CKPT,...`` names them one by one; neither: scripted drills.
-2. The high level (``volleybots.train.high_level``) is trained against ``--opponent`` for
-   ``--games`` games (``--time-limit`` seconds at most), seed ``--seed``; it is saved as
+2. The high level (``volleybots.train.high_level``) is trained against ``opponent=`` for
+   ``games=`` games (``time_limit=`` seconds at most), seed ``seed=``; it is saved as
    ``DIR/high_level.pt``, the team as ``DIR/team.yaml`` (``hierarchical: {drill: run, high_level: file}``,
    a competitor like any other: ``volleybots eval crossplay hcsp=DIR/team.yaml scripted task=3v3``),
    the per-batch history as ``DIR/history.jsonl``.
 3. The learned team and, as the baseline, the rules over the same drills (``DIR/rules.yaml``) play
-   ``--eval-games`` games against each of ``--vs`` on each of ``--eval-seeds`` (seeds no setting was
+   ``eval_games=`` games against each of ``vs=`` on each of ``eval_seeds=`` (seeds no setting was
    chosen on): W/D/L, the win rate of decisive games with its Wilson interval, touches and serve /
    receive W/D/L. Written to ``DIR/figures.json``.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import platform
 import sys
 import time
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Optional
 
 import yaml
 
 from volleybots.config import load
+from volleybots.config.args import option, script_options
 from volleybots.errors import ConfigError
 from volleybots.play.games import play_games
 from volleybots.policies import resolve_competitor
@@ -69,25 +70,28 @@ def figures(team: str, vs: str, games: int, seed: int, cfg) -> dict:
             "faults": c["faults"]}
 
 
+@dataclass
+class Args:
+    drills_dir: str = option("", "")
+    drills: str = option("", "drill=checkpoint,... (the others scripted)")
+    out: Optional[str] = option(None, "")
+    opponent: str = option("scripted", "")
+    games: int = option(4096, "")
+    batch: int = option(256, "")
+    lr: float = option(1e-3, "")
+    entropy: float = option(0.01, "")
+    seed: int = option(1, "")
+    receive_coming: bool = option(False, "call a receiver only for balls coming down in the own half")
+    receive_attack: bool = option(False, "a front drone called to receive returns the ball at once (attack drill)")
+    time_limit: float = option(0.0, "")
+    eval_games: int = option(400, "")
+    eval_seeds: str = option("9100,9101", "")
+    vs: str = option("scripted,hierarchical", "")
+    skip_train: bool = option(False, "play the DIR's high level again (no training)")
+
+
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--drills-dir", default="")
-    ap.add_argument("--drills", default="", help="drill=checkpoint,... (the others scripted)")
-    ap.add_argument("--out", required=True)
-    ap.add_argument("--opponent", default="scripted")
-    ap.add_argument("--games", type=int, default=4096)
-    ap.add_argument("--batch", type=int, default=256)
-    ap.add_argument("--lr", type=float, default=1e-3)
-    ap.add_argument("--entropy", type=float, default=0.01)
-    ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--receive-coming", action="store_true", help="call a receiver only for balls coming down in the own half")
-    ap.add_argument("--receive-attack", action="store_true", help="a front drone called to receive returns the ball at once (attack drill)")
-    ap.add_argument("--time-limit", type=float, default=0.0)
-    ap.add_argument("--eval-games", type=int, default=400)
-    ap.add_argument("--eval-seeds", default="9100,9101")
-    ap.add_argument("--vs", default="scripted,hierarchical")
-    ap.add_argument("--skip-train", action="store_true", help="play the DIR's high level again (no training)")
-    args = ap.parse_args(argv)
+    args = script_options(Args, argv, __doc__)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     cfg = load(["task=3v3"])
@@ -101,7 +105,7 @@ def main(argv=None) -> int:
     start = time.monotonic()
     if not args.skip_train:
         if (out / "high_level.pt").exists():
-            raise SystemExit(f"{out / 'high_level.pt'} exists: choose another --out (or --skip-train to play it)")
+            raise SystemExit(f"{out / 'high_level.pt'} exists: choose another out=(or skip_train=true to play it)")
         with open(out / "history.jsonl", "w") as log:
             def write(row):
                 log.write(json.dumps(row) + "\n")

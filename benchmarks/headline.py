@@ -2,24 +2,26 @@
 on held-out seeds, under the paper's rule (a fall ends the match drawn) and the volleyball rule (a fall
 is its team's fault, ``task.fall_fault=true``).
 
-    python benchmarks/headline.py COMPETITOR --task 3v3 --seeds 9200,9201 --games 200 \\
-        --vs scripted,hierarchical,zoo:3v3/hcsp_return,zoo:3v3/sp_noanchor --out results/headline/3v3.json
+    python benchmarks/headline.py COMPETITOR task=3v3 seeds=9200,9201 games=200 \\
+        vs=scripted,hierarchical,zoo:3v3/hcsp_return,zoo:3v3/sp_noanchor out=results/headline/3v3.json
 
 Per seed, rule and opponent: W/D/L, the win rate of decisive games with its Wilson interval, serving
 and receiving W/D/L (the receiving win rate of decisive games too), touches and faults; then the
-average win rate over the opponents. Written to ``--out`` with the machine's load before and after.
+average win rate over the opponents. Written to ``out=`` with the machine's load before and after.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import platform
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 from volleybots.config import load
+from volleybots.config.args import option, script_options
 from volleybots.play.games import play_games
 from volleybots.policies import resolve_competitor
 from volleybots.ratings.intervals import wilson_interval
@@ -45,19 +47,22 @@ def row(team, opponent: str, cfg, games: int, seed: int) -> dict:
             "touches": c["touches"], "faults": c["faults"]}
 
 
+@dataclass
+class Args:
+    competitor: Optional[str] = option(None, "", positional=True)
+    task: str = option("3v3", "")
+    seeds: str = option("9200,9201", "")
+    games: int = option(200, "")
+    vs: str = option("scripted,hierarchical,zoo:3v3/hcsp_return,zoo:3v3/sp_noanchor", "")
+    rules: str = option("paper,volleyball", "")
+    out: Optional[str] = option(None, "")
+
+
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("competitor")
-    ap.add_argument("--task", default="3v3")
-    ap.add_argument("--seeds", default="9200,9201")
-    ap.add_argument("--games", type=int, default=200)
-    ap.add_argument("--vs", default="scripted,hierarchical,zoo:3v3/hcsp_return,zoo:3v3/sp_noanchor")
-    ap.add_argument("--rules", default="paper,volleyball")
-    ap.add_argument("--out", required=True)
-    args = ap.parse_args(argv)
+    args = script_options(Args, argv, __doc__)
     out = Path(args.out)
     if out.exists():
-        raise SystemExit(f"{out} exists: choose another --out")
+        raise SystemExit(f"{out} exists: choose another out=")
     team = resolve_competitor(args.competitor)
     load0, t0 = os.getloadavg(), time.monotonic()
     rows = []

@@ -1,40 +1,40 @@
 """The hierarchical 3v3 policy's figures (not a test: it takes minutes). docs/hierarchical.md.
 
-    python benchmarks/hierarchical.py [--episodes 100] [--seeds 0,1] [--games 200] [--vs random,scripted,sp=RUN]
-                                      [--drills serve=CKPT,...] [--out results/hierarchical/hierarchical.json]
-    python benchmarks/hierarchical.py --learn serve,pass,set,attack --bc-minutes 4 [--ft-minutes 0]
-                                      --seeds 1000,1001 [--sp-frames 300000] --vs random,scripted,hierarchical
+    python benchmarks/hierarchical.py [episodes=100] [seeds=0,1] [games=200] [vs=random,scripted,sp=RUN]
+                                      [drills=serve=CKPT,...] [out=results/hierarchical/hierarchical.json]
+    python benchmarks/hierarchical.py learn=serve,pass,set,attack bc_minutes=4 [ft_minutes=0]
+                                      seeds=1000,1001 [sp_frames=300000] vs=random,scripted,hierarchical
 
 1. Each drill (serve, pass, set, attack) played by its scripted player (or the checkpoint given in
-   ``--drills``): ``--episodes`` episodes per seed (one per env), the success rate (the metric) with
+   ``drills=``): ``episodes=`` episodes per seed (one per env), the success rate (the metric) with
    its Wilson 95 % interval, the mean error and the touches.
-2. The hierarchical team (scripted drills, or ``--drills``) against each competitor of ``--vs``:
-   ``--games`` games (``volleybots.play.games.play_games``: each side half of the games, serves
+2. The hierarchical team (scripted drills, or ``drills=``) against each competitor of ``vs=``:
+   ``games=`` games (``volleybots.play.games.play_games``: each side half of the games, serves
    drawn at random), W/D/L from the hierarchical side and the win rate of decisive games with its
    Wilson 95 % interval (spec: win rate = wins / (wins + losses)).
-Writes the results (with the seeds, budget and machine) as JSON to ``--out`` (keys ``drills``, ``matches``;
+Writes the results (with the seeds, budget and machine) as JSON to ``out=`` (keys ``drills``, ``matches``;
 the others of that file are kept).
 
-``--learn`` first makes the learned drills: per drill, ``algo=bc`` (imitation of the scripted drill,
-docs/imitation.md) for ``--bc-minutes`` of wall time, then, with ``--ft-minutes``, PPO from the clone
-with benchmarks/imitation.py's fine-tuning recipe; training uses ``--train-seed`` (its periodic
-evaluations that seed + 10000), so ``--seeds`` should be held out. Step 1 then plays each drill both
+``learn=`` first makes the learned drills: per drill, ``algo=bc`` (imitation of the scripted drill,
+docs/imitation.md) for ``bc_minutes=`` of wall time, then, with ``ft_minutes=``, PPO from the clone
+with benchmarks/imitation.py's fine-tuning recipe; training uses ``train_seed=`` (its periodic
+evaluations that seed + 10000), so ``seeds=`` should be held out. Step 1 then plays each drill both
 scripted and learned (bc, and fine-tuned) on the same seeds, and step 2's team uses the learned drills
 (the fine-tuned one unless its final evaluation on the training's evaluation seed is below the
-clone's); ``--baseline`` also plays the all-scripted hierarchical team. ``--sp-frames`` first trains
-the SP run (``task=3v3 algo=sp``, ``--sp-envs`` envs) and adds it to ``--vs`` as ``sp``. ``--reuse
+clone's); ``baseline=true`` also plays the all-scripted hierarchical team. ``sp_frames=`` first trains
+the SP run (``task=3v3 algo=sp``, ``sp_envs=`` envs) and adds it to ``vs=`` as ``sp``. ``reuse=
 DIR`` takes the finished runs of an earlier invocation's folder instead of training them. These
-results go under the key ``learned`` of ``--out``; its other keys are kept.
+results go under the key ``learned`` of ``out=``; its other keys are kept.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import platform
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -42,6 +42,7 @@ import torch
 
 import volleybots
 from volleybots.config import load
+from volleybots.config.args import option, script_options
 from volleybots.play import run_episodes
 from volleybots.play.games import play_games
 from volleybots.policies import Competitor, hierarchical_member, resolve_competitor
@@ -97,7 +98,7 @@ def run_summary(run: Path, summary: dict, metric: str = "success") -> dict:
 
 
 def trained(run: Path) -> dict | None:
-    """The summary of a finished run at ``run`` (``--root`` of an earlier invocation), else None."""
+    """The summary of a finished run at ``run`` (``root=`` of an earlier invocation), else None."""
     path = run / "summary.json"
     return json.loads(path.read_text()) if path.is_file() else None
 
@@ -143,7 +144,7 @@ def train_sp(a, root: Path) -> dict:
 
 
 def learned(a, seeds: list[int], save) -> dict:
-    """The ``--learn`` path: train the drills (and the SP run), play them, play the team with them;
+    """The ``learn=`` path: train the drills (and the SP run), play them, play the team with them;
     ``save(out)`` after every step, so that a partial result survives."""
     root = Path(a.reuse) if a.reuse else Path(a.root) / time.strftime("%Y%m%d-%H%M%S")
     t0 = time.time()
@@ -196,32 +197,35 @@ def learned(a, seeds: list[int], save) -> dict:
     return out
 
 
+@dataclass
+class Args:
+    episodes: int = option(100, "")
+    seeds: str = option("0,1", "")
+    games: int = option(200, "")
+    vs: str = option("random,scripted", "")
+    drills: str = option("", "drill=checkpoint,... (trained drills; the others scripted)")
+    skip_drills: bool = option(False, "")
+    out: str = option("results/hierarchical/hierarchical.json", "")
+    learn: str = option("", "drills to train (bc, then PPO with ft_minutes=) and play, e.g. serve,pass,set,attack")
+    bc_minutes: float = option(4.0, "wall-clock minutes of each drill's bc run")
+    ft_minutes: float = option(0.0, "wall-clock minutes of each drill's PPO fine-tuning (0: none)")
+    bc_overrides: list[str] = option(help="extra overrides of the bc runs", factory=lambda: [])
+    ft_overrides: list[str] = option(help="extra overrides of the fine-tuning runs", factory=lambda: [])
+    train_seed: int = option(0, "seed of the training runs (periodic evaluations: + 10000)")
+    action_space: str = option("prt", "")
+    num_envs: int = option(256, "envs of the drills' training runs")
+    threads: int = option(1, "")
+    eval_every: int = option(200_000, "frames between the training runs' periodic evaluations")
+    eval_episodes: int = option(32, "episodes of each periodic evaluation")
+    sp_frames: int = option(0, "train an SP run of this many frames first and play it (0: none)")
+    sp_envs: int = option(128, "")
+    root: str = option("outputs/hierarchical", "where the training runs go (a new folder per invocation)")
+    reuse: str = option("", "a folder of an earlier learn=invocation: its finished runs are used, not trained again")
+    baseline: bool = option(False, "also play the all-scripted hierarchical team against vs=")
+
+
 def main() -> None:
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--episodes", type=int, default=100)
-    ap.add_argument("--seeds", default="0,1")
-    ap.add_argument("--games", type=int, default=200)
-    ap.add_argument("--vs", default="random,scripted")
-    ap.add_argument("--drills", default="", help="drill=checkpoint,... (trained drills; the others scripted)")
-    ap.add_argument("--skip-drills", action="store_true")
-    ap.add_argument("--out", default="results/hierarchical/hierarchical.json")
-    ap.add_argument("--learn", default="", help="drills to train (bc, then PPO with --ft-minutes) and play, e.g. serve,pass,set,attack")
-    ap.add_argument("--bc-minutes", type=float, default=4.0, help="wall-clock minutes of each drill's bc run")
-    ap.add_argument("--ft-minutes", type=float, default=0.0, help="wall-clock minutes of each drill's PPO fine-tuning (0: none)")
-    ap.add_argument("--bc-overrides", nargs="*", default=[], help="extra overrides of the bc runs")
-    ap.add_argument("--ft-overrides", nargs="*", default=[], help="extra overrides of the fine-tuning runs")
-    ap.add_argument("--train-seed", type=int, default=0, help="seed of the training runs (periodic evaluations: + 10000)")
-    ap.add_argument("--action-space", default="prt")
-    ap.add_argument("--num-envs", type=int, default=256, help="envs of the drills' training runs")
-    ap.add_argument("--threads", type=int, default=1)
-    ap.add_argument("--eval-every", type=int, default=200_000, help="frames between the training runs' periodic evaluations")
-    ap.add_argument("--eval-episodes", type=int, default=32, help="episodes of each periodic evaluation")
-    ap.add_argument("--sp-frames", type=int, default=0, help="train an SP run of this many frames first and play it (0: none)")
-    ap.add_argument("--sp-envs", type=int, default=128)
-    ap.add_argument("--root", default="outputs/hierarchical", help="where the training runs go (a new folder per invocation)")
-    ap.add_argument("--reuse", default="", help="a folder of an earlier --learn invocation: its finished runs are used, not trained again")
-    ap.add_argument("--baseline", action="store_true", help="also play the all-scripted hierarchical team against --vs")
-    a = ap.parse_args()
+    a = script_options(Args, None, __doc__)
     torch.set_num_threads(a.threads)
     a.seed = a.train_seed  # imitation.common's name
     drills = dict(kv.split("=", 1) for kv in a.drills.split(",") if kv)
@@ -229,15 +233,15 @@ def main() -> None:
     bad = sorted(set(n for n in a.learn.split(",") if n) - set(DRILLS))
     if bad or (a.reuse and not Path(a.reuse).is_dir()):
         print(
-            f"error: --learn {','.join(bad)}: not a drill; allowed: {', '.join(DRILLS)}"
+            f"error: learn={','.join(bad)}: not a drill; allowed: {', '.join(DRILLS)}"
             if bad
-            else f"error: --reuse {a.reuse!r} is no folder of an earlier --learn invocation",
+            else f"error: reuse={a.reuse!r} is no folder of an earlier learn=invocation",
             file=sys.stderr,
         )
         sys.exit(2)
     doc = json.loads(Path(a.out).read_text()) if Path(a.out).is_file() else {}
 
-    def save(key: str, part) -> None:  # the other keys of --out (the other path's figures) are kept
+    def save(key: str, part) -> None:  # the other keys of out=(the other path's figures) are kept
         doc[key] = part
         Path(a.out).write_text(json.dumps(doc, indent=1) + "\n")
 

@@ -1,31 +1,34 @@
 """Imitation then RL fine-tuning, per task, on a wall-clock budget (issue 18; docs/imitation.md).
 
-For each task: ``algo=bc`` clones the scripted player for ``--bc-minutes``, then PPO (MAPPO on the
+For each task: ``algo=bc`` clones the scripted player for ``bc_minutes=``, then PPO (MAPPO on the
 cooperative tasks) starts from the bc run (``init=``) with the fine-tuning recipe of docs/imitation.md
-for ``--ft-minutes``. The teacher, the clone and the fine-tuned policy then play the same
-``--episodes`` episodes on a held-out seed (``--eval-seed``, never used by training, whose own
+for ``ft_minutes=``. The teacher, the clone and the fine-tuned policy then play the same
+``episodes=`` episodes on a held-out seed (``eval_seed=``, never used by training, whose own
 periodic evaluations use seed + 10000). Writes a JSON of the figures and curves, a PNG of the
 fine-tuning curves, and prints a Markdown table:
 
-    python benchmarks/imitation.py --tasks solo_bump --bc-minutes 6 --ft-minutes 15
-    python benchmarks/imitation.py --tasks solo_bump hit_the_ball bump_and_pass set_and_spike_easy \\
-        --bc-minutes 20 --ft-minutes 40                        # the issue's 60 minutes per task
-    python benchmarks/imitation.py --tasks 1v1 --opponent scripted   # a match: both runs seated against it
+    python benchmarks/imitation.py tasks=solo_bump bc_minutes=6 ft_minutes=15
+    python benchmarks/imitation.py tasks=[solo_bump,hit_the_ball,bump_and_pass,set_and_spike_easy] \\
+        bc_minutes=20 ft_minutes=40                        # the issue's 60 minutes per task
+    python benchmarks/imitation.py tasks=1v1 opponent=scripted   # a match: both runs seated against it
 
 Each run keeps ``best.pt``, the policy of its best periodic evaluation (seed + 10000, never the
 held-out seed): the fine-tuning starts from the clone's, and both the final and the best policy of
 the fine-tuning are scored on the held-out seed. On a match the held-out score is the decisive-game
-win rate against ``--opponent`` over ``--games`` games (cross-play, each side serving half).
+win rate against ``opponent=`` over ``games=`` games (cross-play, each side serving half).
 
 Needs matplotlib (``pip install 'volleybots[plot]'``).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
+
+from volleybots.config.args import option, script_options
 
 # the fine-tuning recipes (docs/imitation.md). PPO / MAPPO: a critic warm-up, then a slow, tightly
 # clipped actor. SAC (a residual on the clone, critic warm-up by default): a slow actor, held near the
@@ -92,7 +95,7 @@ def held_out(target: str, args, task: str, metric: str) -> dict:
 
 def held_out_overrides(args, task: str) -> list[str]:
     """The held-out seed and the task's own episodes, whatever a run trained on (a shorter episode
-    limit or Solo Bump's far starts in --ft-overrides)."""
+    limit or Solo Bump's far starts in ft_overrides=)."""
     import dataclasses
 
     from volleybots.config import task_schema
@@ -124,8 +127,8 @@ def paired_held_out(targets: dict[str, str], args, task: str) -> dict:
 
 
 def scripted_held_out(args, task: str, metric: str) -> dict:
-    """The teacher on the held-out episodes, or its figures from ``--scripted-from`` (a JSON of
-    ``benchmarks/scripted.py --seed EVAL_SEED``: the same 100 episodes; the cooperative teachers'
+    """The teacher on the held-out episodes, or its figures from ``scripted_from=`` (a JSON of
+    ``benchmarks/scripted.py seed=EVAL_SEED``: the same 100 episodes; the cooperative teachers'
     lookahead makes playing them again cost ~20 minutes of a core)."""
     if args.scripted_from and not competitive(task):
         rows = [
@@ -139,7 +142,7 @@ def scripted_held_out(args, task: str, metric: str) -> dict:
 
 
 def held_out_games(target: str, args, task: str) -> dict:
-    """Decisive-game win rate of ``target`` (mean actions) against ``--opponent`` on the held-out seed."""
+    """Decisive-game win rate of ``target`` (mean actions) against ``opponent=`` on the held-out seed."""
     from volleybots.eval.crossplay import crossplay, match_config, resolve_all
 
     comps = resolve_all([f"learner={target}" if target not in ("scripted", "random") else target, f"opponent={args.opponent}"])
@@ -245,39 +248,36 @@ def table(results: list[dict]) -> str:
     return "\n".join(lines)
 
 
+@dataclass
+class Args:
+    tasks: list[str] = option(help="the tasks", factory=lambda: ["solo_bump"])
+    action_space: str = option("prt", "the action space")
+    bc_minutes: float = option(20.0, "wall-clock minutes of each bc run")
+    ft_minutes: float = option(40.0, "wall-clock minutes of each fine-tuning run")
+    num_envs: int = option(256, "worlds stepped together")
+    seed: int = option(0, "the seed")
+    threads: int = option(1, "torch threads")
+    eval_every: int = option(200_000, "frames between periodic evaluations")
+    eval_episodes: int = option(32, "episodes of each evaluation")
+    eval_seed: int = option(1000, "held-out seed of the final 100-episode comparison")
+    episodes: int = option(100, "episodes played")
+    paired: bool = option(False, "play the teacher too and compare every policy with it episode by episode (eval compare)")
+    scripted_from: Optional[str] = option(None, "the teacher's held-out figures from this benchmarks/scripted.py JSON (run on eval_seed=)")
+    opponent: str = option("scripted", "matches: whom both runs and the held-out games play against")
+    games: int = option(1000, "matches: held-out games against opponent=")
+    bc_overrides: list[str] = option(help="extra overrides of the bc runs (algo.replay_ratio=8 ...)", factory=lambda: [])
+    bc_dir: Optional[str] = option(None, "a finished bc run of the (one) task to fine-tune instead of a new one")
+    ft_dir: Optional[str] = option(None, "a finished fine-tuning run of the (one) task to evaluate instead of a new one")
+    learner: str = option("auto", "the fine-tuning algorithm (auto: PPO, MAPPO with several drones)", choices=["auto", *FINE_TUNE])
+    ft_overrides: list[str] = option(help="extra overrides of the fine-tuning runs", factory=lambda: [])
+    root: str = option("outputs/imitation", "where the runs go")
+    out: str = option("results/imitation/imitation.json", "where the results go")
+    png: str = option("results/imitation/imitation.png", "the figure's file")
+    combine: list[str] = option(help="JSONs of earlier invocations: write their results together to out=/ png=", factory=lambda: [])
+
+
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--tasks", nargs="+", default=["solo_bump"])
-    p.add_argument("--action-space", default="prt")
-    p.add_argument("--bc-minutes", type=float, default=20.0)
-    p.add_argument("--ft-minutes", type=float, default=40.0)
-    p.add_argument("--num-envs", type=int, default=256)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--threads", type=int, default=1)
-    p.add_argument("--eval-every", type=int, default=200_000)
-    p.add_argument("--eval-episodes", type=int, default=32)
-    p.add_argument("--eval-seed", type=int, default=1000, help="held-out seed of the final 100-episode comparison")
-    p.add_argument("--episodes", type=int, default=100)
-    p.add_argument(
-        "--paired", action="store_true", help="play the teacher too and compare every policy with it episode by episode (eval compare)"
-    )
-    p.add_argument(
-        "--scripted-from", default=None, help="the teacher's held-out figures from this benchmarks/scripted.py JSON (run on --eval-seed)"
-    )
-    p.add_argument("--opponent", default="scripted", help="matches: whom both runs and the held-out games play against")
-    p.add_argument("--games", type=int, default=1000, help="matches: held-out games against --opponent")
-    p.add_argument("--bc-overrides", nargs="*", default=[], help="extra overrides of the bc runs (algo.replay_ratio=8 ...)")
-    p.add_argument("--bc-dir", default=None, help="a finished bc run of the (one) task to fine-tune instead of a new one")
-    p.add_argument("--ft-dir", default=None, help="a finished fine-tuning run of the (one) task to evaluate instead of a new one")
-    p.add_argument(
-        "--learner", choices=["auto", *FINE_TUNE], default="auto", help="the fine-tuning algorithm (auto: PPO, MAPPO with several drones)"
-    )
-    p.add_argument("--ft-overrides", nargs="*", default=[], help="extra overrides of the fine-tuning runs")
-    p.add_argument("--root", default="outputs/imitation")
-    p.add_argument("--out", default="results/imitation/imitation.json")
-    p.add_argument("--png", default="results/imitation/imitation.png")
-    p.add_argument("--combine", nargs="+", default=None, help="JSONs of earlier invocations: write their results together to --out / --png")
-    args = p.parse_args()
+    args = script_options(Args, None, __doc__)
     if args.combine:
         parts = [json.loads(Path(f).read_text()) for f in args.combine]
         results = [r for part in parts for r in part["results"]]

@@ -1,17 +1,17 @@
 """PPO on Solo Bump with CTBR and PRT actions: the task metric over wall time, and end-to-end speed.
 
 Targets (issue 3): with CTBR, >= 8.58 bumps (paper table 1) within 60 minutes, and >= 50k env-steps/s
-end to end (collection + update). Each action space trains for ``--minutes`` of wall time (the run
-loop's ``time_limit``), evaluating every ``--eval-every`` frames. The script writes a PNG of the
+end to end (collection + update). Each action space trains for ``minutes=`` of wall time (the run
+loop's ``time_limit``), evaluating every ``eval_every=`` frames. The script writes a PNG of the
 curves and a JSON of the figures, and prints a Markdown table:
 
     python benchmarks/learn_ppo.py                                 # the full benchmark, 2 x 60 min
-    python benchmarks/learn_ppo.py --minutes 5 --num-envs 1024     # a short version
-    python benchmarks/learn_ppo.py --device cuda --num-envs 4096   # on a GPU
+    python benchmarks/learn_ppo.py minutes=5 num_envs=1024     # a short version
+    python benchmarks/learn_ppo.py device=cuda num_envs=4096   # on a GPU
 
-    python benchmarks/learn_ppo.py --diagnose RUN_OR_CHECKPOINT [...]   # what a policy does instead of bumping
+    python benchmarks/learn_ppo.py diagnose=[RUN_OR_CHECKPOINT,...]   # what a policy does instead of bumping
 
-``--diagnose`` plays 64 episodes (held-out seed 1000) with each given policy and reports where its
+``diagnose=`` plays 64 episodes (held-out seed 1000) with each given policy and reports where its
 return comes from (per reward term), how it ends its episodes, its hits, the share of them struck
 farther than 1 m from the anchor (which the metric does not count and the reward does not punish),
 the apexes of at least 3.5 m, and how long it carries the ball (resting on the racket: within the
@@ -22,11 +22,13 @@ Needs matplotlib (``pip install 'volleybots[plot]'``).
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import time
+from dataclasses import dataclass
 from pathlib import Path
+
+from volleybots.config.args import option, script_options
 
 TARGET_BUMPS = 8.58
 TARGET_FPS = 50_000
@@ -169,23 +171,26 @@ def plot(results: list[dict], path: Path, title: str) -> None:
     fig.savefig(path, dpi=110)
 
 
+@dataclass
+class Args:
+    minutes: float = option(60.0, "wall-clock budget per action space")
+    spaces: list[str] = option(help="action spaces to train", factory=lambda: ["ctbr", "prt"])
+    num_envs: int = option(4096, "worlds stepped together")
+    device: str = option("cpu", "torch device")
+    compile: bool = option(False, "torch.compile the physics")
+    threads: int = option(0, "torch CPU threads (0: default)")
+    seed: int = option(0, "the seed")
+    eval_every: int = option(2_000_000, "frames between evaluations")
+    eval_episodes: int = option(64, "episodes of each evaluation")
+    progress: bool = option(False, "print the runs' progress")
+    runs: Path = option(Path("outputs/bench_learn_ppo"), "where the run directories go")
+    out: Path = option(Path("results/training/learn_ppo.png"), "PNG of the curves (a .json goes beside it)")
+    overrides: list[str] = option(help="further config overrides, e.g. algo.obs_norm=true", factory=lambda: [], positional=True)
+    diagnose: list[str] = option(help="runs or checkpoints to diagnose instead of training", factory=lambda: [])
+
+
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--minutes", type=float, default=60.0, help="wall-clock budget per action space")
-    p.add_argument("--spaces", nargs="+", default=["ctbr", "prt"], help="action spaces to train")
-    p.add_argument("--num-envs", type=int, default=4096)
-    p.add_argument("--device", default="cpu")
-    p.add_argument("--compile", action="store_true", help="torch.compile the physics")
-    p.add_argument("--threads", type=int, default=0, help="torch CPU threads (0: default)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--eval-every", type=int, default=2_000_000, help="frames between evaluations")
-    p.add_argument("--eval-episodes", type=int, default=64)
-    p.add_argument("--progress", action="store_true")
-    p.add_argument("--runs", type=Path, default=Path("outputs/bench_learn_ppo"), help="where the run directories go")
-    p.add_argument("--out", type=Path, default=Path("results/training/learn_ppo.png"), help="PNG of the curves (a .json goes beside it)")
-    p.add_argument("overrides", nargs="*", help="further config overrides, e.g. algo.obs_norm=true")
-    p.add_argument("--diagnose", nargs="+", default=None, help="runs or checkpoints to diagnose instead of training")
-    args = p.parse_args()
+    args = script_options(Args, None, __doc__)
     if args.diagnose:
         import torch
 

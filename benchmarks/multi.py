@@ -1,9 +1,9 @@
 """Scripted players on the multi-drone tasks (not a test: it takes minutes).
 
-    python benchmarks/multi.py [--episodes 100] [--envs 50] [--tasks bump_and_pass,1v1,...] [--device cpu] [--action-space prt|ctbr]
+    python benchmarks/multi.py [episodes=100] [envs=50] [tasks=bump_and_pass,1v1,...] [device=cpu] [action_space=prt|ctbr]
 
-For each cooperative task it runs the scripted pair for ``--episodes`` finished episodes and reports
-the task metric (mean, std). For 1 vs 1 and 3 vs 3 (6 vs 6 with ``--tasks``) it plays the scripted
+For each cooperative task it runs the scripted pair for ``episodes=`` finished episodes and reports
+the task metric (mean, std). For 1 vs 1 and 3 vs 3 (6 vs 6 with ``tasks=``) it plays the scripted
 team against uniformly random actions, on both sides and with both servers, and reports wins, losses,
 draws and the win rate of decisive games; then scripted against itself, reporting the share of
 games with a rally of at least 3 touches and how the rallies ended. Targets (spec): Bump and Pass
@@ -13,12 +13,13 @@ of decisive games against random and rally (>= 3 touches) in most games against 
 
 from __future__ import annotations
 
-import argparse
 import time
+from dataclasses import dataclass
 
 import torch
 
 import volleybots
+from volleybots.config.args import option, script_options
 from volleybots.rules import Referee
 from volleybots.scripted import make_scripted_policy
 from volleybots.tasks.coop import ANCHOR_COEF
@@ -91,15 +92,18 @@ def match(task: str, episodes: int, envs: int, device, seed: int, action_space: 
     return rows
 
 
+@dataclass
+class Args:
+    episodes: int = option(100, "episodes played")
+    envs: int = option(50, "worlds stepped together")
+    tasks: str = option(",".join(COOP + MATCHES), "the tasks")
+    device: str = option("cpu", "torch device")
+    seed: int = option(0, "the seed")
+    action_space: str = option("prt", "the players' (and the random teams') action space", choices=("prt", "ctbr"))
+
+
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--episodes", type=int, default=100)
-    ap.add_argument("--envs", type=int, default=50)
-    ap.add_argument("--tasks", default=",".join(COOP + MATCHES))
-    ap.add_argument("--device", default="cpu")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--action-space", default="prt", choices=("prt", "ctbr"), help="the players' (and the random teams') action space")
-    args = ap.parse_args()
+    args = script_options(Args, None, __doc__)
     torch.manual_seed(args.seed)  # the random team draws from the global generator: one seed, one table
     tasks = args.tasks.split(",")
     t0 = time.time()

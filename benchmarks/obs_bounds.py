@@ -1,23 +1,25 @@
 """How often the adapters' declared observation bounds (``clip_obs=True``) bind.
 
 For each task, scripted play (every drone driven by the task's scripted policy, where it has one) and
-random play (uniform actions): ``--num-envs`` worlds for ``--steps`` control steps of the batched env
+random play (uniform actions): ``num_envs=`` worlds for ``steps=`` control steps of the batched env
 (worlds reset as they finish), every agent's observation checked against the bounds the adapters
 declare with ``clip_obs=True`` (``volleybots.integrations.spaces.observation_bounds``). Reported per
 task and play: the share of observation values the clip would change, the parts where it did, and the
 largest |value| / bound of the declared parts (the headroom left).
 
-    OMP_NUM_THREADS=1 python benchmarks/obs_bounds.py --json results/integrations/obs_bounds.json
+    OMP_NUM_THREADS=1 python benchmarks/obs_bounds.py json=results/integrations/obs_bounds.json
 """
 
 from __future__ import annotations
 
-import argparse
+from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 import torch
 
 from volleybots.config import build_env
+from volleybots.config.args import option, script_options
 from volleybots.files import write_json
 from volleybots.integrations.bounds import ObsClip
 from volleybots.integrations.spaces import observation_bounds
@@ -66,14 +68,17 @@ def play(task: str, mode: str, num_envs: int, steps: int, seed: int) -> dict:
     }
 
 
+@dataclass
+class Args:
+    tasks: str = option(",".join(TASKS), "comma-separated tasks (default: all)")
+    num_envs: int = option(16, "worlds stepped together")
+    steps: int = option(300, "control steps of the batched env per task and play")
+    seed: int = option(0, "the seed")
+    json: Optional[str] = option(None, "also write the rows here")
+
+
 def main(argv=None) -> list[dict]:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--tasks", default=",".join(TASKS), help="comma-separated tasks (default: all)")
-    ap.add_argument("--num-envs", type=int, default=16)
-    ap.add_argument("--steps", type=int, default=300, help="control steps of the batched env per task and play")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--json", default=None, help="also write the rows here")
-    args = ap.parse_args(argv)
+    args = script_options(Args, argv, __doc__)
     torch.set_num_threads(1)
     rows = []
     print("| task | play | agent-steps | values clipped | parts clipped | largest |value| / bound |\n|---|---|---:|---:|---|---:|")

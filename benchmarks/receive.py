@@ -1,6 +1,6 @@
 """How well a 1v1 player receives: serves returned, against the ace serve and the scripted serve.
 
-    python benchmarks/receive.py RECEIVER [RECEIVER ...] --servers zoo:1v1/sp_noanchor scripted --games 100 --seed 9600 [--json OUT]
+    python benchmarks/receive.py RECEIVER [RECEIVER ...] servers=[zoo:1v1/sp_noanchor,scripted] games=100 seed=9600 [json=OUT]
 
 Each RECEIVER (a competitor: ``receiver``, ``scripted``, a run dir, a zoo entry, ...) receives
 ``games`` serves of each server (``volleybots eval crossplay``'s ``scenario=receive``: the server
@@ -13,15 +13,17 @@ docs/receive.md quotes these figures.
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 import torch
 
 from volleybots.config import load
+from volleybots.config.args import option, script_options
 from volleybots.play.games import play_games
 from volleybots.policies import resolve_competitor
 from volleybots.rules import Referee
@@ -48,14 +50,17 @@ def measure(receiver, server: str, games: int, seed: int, task: str = "1v1") -> 
     return receive_record(g)
 
 
+@dataclass
+class Args:
+    receivers: list[str] = option(help="the receiving competitors (one row each)", factory=lambda: [], positional="+")
+    servers: list[str] = option(help="the serving competitors", factory=lambda: ["zoo:1v1/sp_noanchor", "scripted"])
+    games: int = option(100, "games played")
+    seed: int = option(9600, "the seed")
+    json: Optional[Path] = option(None, "also write the results here")
+
+
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("receivers", nargs="+")
-    ap.add_argument("--servers", nargs="+", default=["zoo:1v1/sp_noanchor", "scripted"])
-    ap.add_argument("--games", type=int, default=100)
-    ap.add_argument("--seed", type=int, default=9600)
-    ap.add_argument("--json", type=Path, default=None, help="also write the results here")
-    a = ap.parse_args()
+    a = script_options(Args, None, __doc__)
     torch.set_num_threads(1)
     rows = []
     for r in a.receivers:

@@ -1,21 +1,23 @@
 """What SB3 PPO's minibatch size costs in learning on Solo Bump through ``VolleySB3VecEnv``.
 
-One PPO run per ``--batch-sizes`` entry (64 worlds, ``n_steps=128``, 10 epochs, Adam with the foreach
-update and SB3's eps, as ``ppo_kwargs`` gives, so that only the minibatch differs), ``--steps`` env-steps
+One PPO run per ``batch_sizes=`` entry (64 worlds, ``n_steps=128``, 10 epochs, Adam with the foreach
+update and SB3's eps, as ``ppo_kwargs`` gives, so that only the minibatch differs), ``steps=`` env-steps
 each. Printed per run and quarter of training: the episodes that ended, their mean return and mean
 bumps (from ``infos[i]["final_stats"]``), and the run's wall and CPU seconds.
 
-    OMP_NUM_THREADS=1 python benchmarks/sb3_minibatches.py --batch-sizes 256,2048 --seed 0
+    OMP_NUM_THREADS=1 python benchmarks/sb3_minibatches.py batch_sizes=256,2048 seed=0
 """
 
 from __future__ import annotations
 
-import argparse
 import time
+from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 import torch
 
+from volleybots.config.args import option, script_options
 from volleybots.files import write_json
 
 
@@ -50,14 +52,17 @@ def run(batch_size: int, seed: int, steps: int, num_envs: int) -> dict:
     return row
 
 
+@dataclass
+class Args:
+    batch_sizes: str = option("256,2048", "PPO minibatch sizes compared, comma-separated")
+    steps: int = option(400_000, "env steps of each run")
+    num_envs: int = option(64, "worlds stepped together")
+    seed: int = option(0, "the seed")
+    json: Optional[str] = option(None, "FILE: also write the results here")
+
+
 def main(argv=None) -> list[dict]:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--batch-sizes", default="256,2048")
-    ap.add_argument("--steps", type=int, default=400_000)
-    ap.add_argument("--num-envs", type=int, default=64)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--json", default=None)
-    args = ap.parse_args(argv)
+    args = script_options(Args, argv, __doc__)
     torch.set_num_threads(1)
     rows = []
     for bs in (int(b) for b in args.batch_sizes.split(",")):

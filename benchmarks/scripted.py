@@ -1,29 +1,31 @@
 """Scripted model-based policies on the single-drone tasks, and the env's raw throughput.
 
-For every task and action space it plays ``--episodes`` episodes (one per env of a batch) with
+For every task and action space it plays ``episodes=`` episodes (one per env of a batch) with
 ``volleybots.scripted.make_scripted_policy`` and reports the task metric's mean and standard
-deviation; then it measures env-steps/s of Solo Bump with random actions at ``--bench-envs`` envs
-(warm-up excluded, median of ``--repeats``). Targets (issue 2, item 7; paper table 1, PPO with PRT):
+deviation; then it measures env-steps/s of Solo Bump with random actions at ``bench_envs=`` envs
+(warm-up excluded, median of ``repeats=``). Targets (issue 2, item 7; paper table 1, PPO with PRT):
 Solo Bump >= 10.83 bumps, Back and Forth >= 10.04 targets, Hit the Ball >= 11.40 m.
 
     python benchmarks/scripted.py                               # 100 episodes per task and space
-    python benchmarks/scripted.py --episodes 20 --tasks solo_bump --spaces prt --json out.json
+    python benchmarks/scripted.py episodes=20 tasks=solo_bump spaces=prt json=out.json
 
 Prints a Markdown table (docs/scripted.md holds the measured one).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import sys
 import time
+from dataclasses import dataclass
+from typing import Optional
 
 import torch
 
 import volleybots
 from volleybots.bench import run_bench
+from volleybots.config.args import option, script_options
 from volleybots.play import run_episodes, summarize
 from volleybots.scripted import make_scripted_policy
 
@@ -65,18 +67,21 @@ def format_table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+@dataclass
+class Args:
+    tasks: list[str] = option(help="comma-separated task names", factory=lambda: list(TASKS))
+    spaces: list[str] = option(help="comma-separated action spaces (prt, ctbr)", factory=lambda: ["prt", "ctbr"])
+    episodes: int = option(100, "episodes per task and action space")
+    seed: int = option(0, "the seed")
+    device: str = option("cpu", "torch device")
+    bench_envs: int = option(4096, "env count of the throughput row (0: skip it)")
+    repeats: int = option(5, "timed repeats of the throughput row (median reported)")
+    threads: Optional[int] = option(None, "torch intra-op threads (default: torch's)")
+    json: Optional[str] = option(None, "also write the rows to this JSON file")
+
+
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--tasks", type=_csv, default=list(TASKS), help="comma-separated task names")
-    ap.add_argument("--spaces", type=_csv, default=["prt", "ctbr"], help="comma-separated action spaces (prt, ctbr)")
-    ap.add_argument("--episodes", type=int, default=100, help="episodes per task and action space")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--device", default="cpu")
-    ap.add_argument("--bench-envs", type=int, default=4096, help="env count of the throughput row (0: skip it)")
-    ap.add_argument("--repeats", type=int, default=5, help="timed repeats of the throughput row (median reported)")
-    ap.add_argument("--threads", type=int, default=None, help="torch intra-op threads (default: torch's)")
-    ap.add_argument("--json", default=None, help="also write the rows to this JSON file")
-    args = ap.parse_args(argv)
+    args = script_options(Args, argv, __doc__)
 
     if args.threads:
         torch.set_num_threads(args.threads)

@@ -1,6 +1,6 @@
 """What a serve does to the receiver: the ball's flight after the serve touch against the receiver's reach.
 
-    python benchmarks/serve_flight.py SERVER RECEIVER --games 100 --seed 9500 [--task 1v1] [--json OUT]
+    python benchmarks/serve_flight.py SERVER RECEIVER games=100 seed=9500 [task=1v1] [json=OUT]
 
 SERVER serves every game (team 0), RECEIVER receives (team 1); both are competitors
 (``zoo:1v1/sp_noanchor``, ``scripted``, a run dir, ...). Each game is followed from the serve touch
@@ -22,15 +22,17 @@ returned serves. ``docs/results/table3-1v1.md`` ("Longer self-play: the ace serv
 
 from __future__ import annotations
 
-import argparse
 import json
 import statistics
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 import torch
 from omegaconf import OmegaConf
 
 from volleybots.config import load, make_env, to_dict
+from volleybots.config.args import option, script_options
 from volleybots.policies import resolve_competitor
 from volleybots.tasks.multi import TeamPolicies
 
@@ -100,15 +102,18 @@ def summary(records: list[dict]) -> dict:
             **{k: {"ace": stat(aces, k), "returned": stat(returned, k)} for k in KEYS}}
 
 
+@dataclass
+class Args:
+    server: Optional[str] = option(None, "the serving competitor", positional=True)
+    receiver: Optional[str] = option(None, "the receiving competitor", positional=True)
+    games: int = option(100, "games played")
+    seed: int = option(9500, "the seed")
+    task: str = option("1v1", "the task")
+    json: Optional[Path] = option(None, "also write the summary here")
+
+
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("server")
-    ap.add_argument("receiver")
-    ap.add_argument("--games", type=int, default=100)
-    ap.add_argument("--seed", type=int, default=9500)
-    ap.add_argument("--task", default="1v1")
-    ap.add_argument("--json", type=Path, default=None, help="also write the summary here")
-    a = ap.parse_args()
+    a = script_options(Args, None, __doc__)
     torch.set_num_threads(1)
     res = {"server": a.server, "receiver": a.receiver, "seed": a.seed, "task": a.task,
            **summary(flights(a.server, a.receiver, a.games, a.seed, a.task))}

@@ -11,8 +11,8 @@ DQN acts in the discrete space (each rotor -1 or +1) whatever the column, so it 
 and its value fills both columns.
 
     python benchmarks/table1.py                               # the reduced version of docs/benchmarks.md
-    python benchmarks/table1.py --frames 2e6 --seeds 0,1,2,3,4 --num-envs 1024 --device cuda
-    python benchmarks/table1.py --tasks solo_bump --algos td3,ppo --jobs 2
+    python benchmarks/table1.py frames=2e6 seeds=[0,1,2,3,4] num_envs=1024 device=cuda
+    python benchmarks/table1.py tasks=solo_bump algos=[td3,ppo] jobs=2
 
 Runs live under ``--out`` as ``<task>_<space>_<algo>_s<seed>/`` (ordinary run directories: metrics.csv,
 checkpoints, summary.json); a run that has its summary.json is not repeated, so an interrupted
@@ -25,7 +25,7 @@ Needs matplotlib for the figure (``pip install 'volleybots[plot]'``).
 
 from __future__ import annotations
 
-import argparse
+import dataclasses
 import json
 import math
 import statistics
@@ -33,6 +33,8 @@ import sys
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 from pathlib import Path
+
+from volleybots.config.args import option, script_options
 
 TASKS = ("back_and_forth", "hit_the_ball", "solo_bump")
 SPACES = ("ctbr", "prt")
@@ -45,10 +47,6 @@ PAPER = {
     "solo_bump": {"dqn": (0.00, 0.00), "ddpg": (0.44, 0.67), "td3": (3.68, 5.29), "sac": (0.54, 1.36), "ppo": (8.58, 10.83)},
 }
 TITLES = {"back_and_forth": "Back and Forth", "hit_the_ball": "Hit the Ball", "solo_bump": "Solo Bump"}
-
-
-def _csv(s: str) -> list[str]:
-    return [x.strip() for x in s.split(",") if x.strip()]
 
 
 def jobs(args) -> list[tuple[str, str, str, int]]:
@@ -232,26 +230,21 @@ def plot(args, path: Path, stat: str | None = None) -> None:
                                  f"over seeds, last 5 batches)")
 
 
-def add_run_args(ap, seeds, frames: float, eval_episodes: int, out: str) -> None:
-    """The options of a benchmark's runs (budget, seeds, off-policy scaling, device, parallelism)."""
-    ap.add_argument("--seeds", type=lambda s: [int(x) for x in _csv(s)], default=seeds, help="comma-separated seeds")
-    ap.add_argument("--frames", type=float, default=frames, help="env steps per run")
-    ap.add_argument("--num-envs", type=int, default=64, help="parallel envs per run")
-    ap.add_argument("--batch-size", type=int, default=1024, help="off-policy sampling batch (paper: 4096)")
-    ap.add_argument("--tau", type=float, default=0.05, help="off-policy target Polyak factor (paper: 0.005, see the docstring)")
-    ap.add_argument("--eval-episodes", type=int, default=eval_episodes, help="final deterministic evaluation episodes per run")
-    ap.add_argument("--device", default="cpu", help="torch device of env and networks")
-    ap.add_argument("--threads", type=int, default=1, help="torch threads per run")
-    ap.add_argument("--jobs", type=int, default=1, help="runs trained at the same time (processes)")
-    ap.add_argument("--out", default=out, help="folder of the runs and the results")
+@dataclasses.dataclass
+class RunArgs:
+    """The options of a benchmark's runs (budget, seeds, off-policy scaling, device, parallelism); table 2
+    takes them too, with its own defaults."""
 
-
-def check_choices(ap, choices) -> None:
-    """Stop with the argument parser's error on the first ``(name, given, allowed)`` not allowed."""
-    for name, given, allowed in choices:
-        bad = [g for g in given if g not in allowed]
-        if bad:
-            ap.error(f"unknown {name} {bad[0]!r}; allowed: {', '.join(allowed)}")
+    seeds: list[int] = option(help="seeds of every run", factory=lambda: [0, 1])
+    frames: float = option(1e5, "env steps per run", gt=0)
+    num_envs: int = option(64, "parallel envs per run", ge=1)
+    batch_size: int = option(1024, "off-policy sampling batch (paper: 4096)", ge=1)
+    tau: float = option(0.05, "off-policy target Polyak factor (paper: 0.005, see the docstring)", gt=0, le=1)
+    eval_episodes: int = option(32, "final deterministic evaluation episodes per run", ge=1)
+    device: str = option("cpu", "torch device of env and networks")
+    threads: int = option(1, "torch threads per run", ge=1)
+    jobs: int = option(1, "runs trained at the same time (processes)", ge=1)
+    out: str = option("outputs/table1", "folder of the runs and the results")
 
 
 def run_all(run_one, todo, args) -> None:
@@ -276,21 +269,22 @@ def _skip_in_use(run_one, job, args) -> dict | None:
         return None
 
 
+@dataclasses.dataclass
+class Args(RunArgs):
+    tasks: list[str] = option(help="tasks", factory=lambda: list(TASKS), choices=TASKS)
+    algos: list[str] = option(help="algorithms", factory=lambda: list(ALGOS), choices=ALGOS)
+    spaces: list[str] = option(help="continuous action spaces", factory=lambda: list(SPACES), choices=SPACES)
+    target_update_interval: int = option(1, "off-policy gradient steps between target updates (paper: 4)", ge=1)
+
+
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--tasks", type=_csv, default=list(TASKS), help="comma-separated tasks")
-    ap.add_argument("--algos", type=_csv, default=list(ALGOS), help="comma-separated algorithms")
-    ap.add_argument("--spaces", type=_csv, default=list(SPACES), help="comma-separated continuous action spaces")
-    add_run_args(ap, seeds=[0, 1], frames=1e5, eval_episodes=32, out="outputs/table1")
-    ap.add_argument("--target-update-interval", type=int, default=1, help="off-policy gradient steps between target updates (paper: 4)")
-    args = ap.parse_args(argv)
-    check_choices(ap, (("task", args.tasks, TASKS), ("algo", args.algos, ALGOS), ("space", args.spaces, SPACES)))
+    args = script_options(Args, argv, __doc__)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     run_all(run_one, jobs(args), args)
     res, returns = collect_results(args), collect_results(args, "return")
     table, table_returns = format_table(res, args), format_table(returns, args)
-    (out / "table1.json").write_text(json.dumps({"args": vars(args), "metric": res, "return": returns}, indent=1) + "\n")
+    (out / "table1.json").write_text(json.dumps({"args": dataclasses.asdict(args), "metric": res, "return": returns}, indent=1) + "\n")
     (out / "table1.md").write_text(f"Task metric:\n\n{table}\n\nEpisode return:\n\n{table_returns}\n")
     print(f"task metric:\n{table}\n\nepisode return:\n{table_returns}")
     try:

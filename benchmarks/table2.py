@@ -9,8 +9,8 @@ the budget (``--batch-size``, ``--tau`` every step: the paper's pace assumes ~1e
 QMIX keeps its own (128 chunks of 64 steps, tau 0.005 every 4 steps) and acts in the discrete space.
 
     python benchmarks/table2.py                                   # the reduced version of docs/marl.md
-    python benchmarks/table2.py --frames 5e6 --seeds 0,1,2 --num-envs 1024 --device cuda
-    python benchmarks/table2.py --tasks bump_and_pass --algos mappo,happo --shaping on --jobs 2
+    python benchmarks/table2.py frames=5e6 seeds=[0,1,2] num_envs=1024 device=cuda
+    python benchmarks/table2.py tasks=bump_and_pass algos=[mappo,happo] shaping=on jobs=2
 
 Runs live under ``--out`` as ``<task>_<shaping>_<algo>_s<seed>/`` (ordinary run directories); a run
 that has its summary.json is not repeated, so an interrupted benchmark continues where it stopped.
@@ -21,14 +21,16 @@ over seeds) into ``--out``.
 
 from __future__ import annotations
 
-import argparse
+import dataclasses
 import json
 import math
 import statistics
 import sys
 from pathlib import Path
 
-from table1 import _cell, _csv, _smooth, add_run_args, check_choices, draw_panel, finished_summary, mean_over_seeds, run_all, save_figure
+from table1 import RunArgs, _cell, _smooth, draw_panel, finished_summary, mean_over_seeds, run_all, save_figure
+
+from volleybots.config.args import option, script_options
 
 TASKS = ("bump_and_pass", "set_and_spike_easy", "set_and_spike_hard")
 SHAPING = ("off", "on")
@@ -157,20 +159,26 @@ def plot(args, path: Path, key: str | None = None) -> None:
     save_figure(fig, axes, path, f"{int(args.frames):,} env steps x seeds {seeds}, {args.num_envs} envs (mean over seeds, last 5 batches)")
 
 
+@dataclasses.dataclass
+class Args(RunArgs):
+    # table 2's budget; batch_size=, tau=: MADDPG's
+    seeds: list[int] = option(help="seeds of every run", factory=lambda: [0])
+    frames: float = option(2e4, "env steps per run", gt=0)
+    eval_episodes: int = option(8, "final deterministic evaluation episodes per run", ge=1)
+    out: str = option("outputs/table2", "folder of the runs and the results")
+    tasks: list[str] = option(help="tasks", factory=lambda: list(TASKS), choices=TASKS)
+    algos: list[str] = option(help="algorithms", factory=lambda: list(ALGOS), choices=ALGOS)
+    shaping: list[str] = option(help="reward shaping off, on", factory=lambda: list(SHAPING), choices=SHAPING)
+
+
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--tasks", type=_csv, default=list(TASKS), help="comma-separated tasks")
-    ap.add_argument("--algos", type=_csv, default=list(ALGOS), help="comma-separated algorithms")
-    ap.add_argument("--shaping", type=_csv, default=list(SHAPING), help="comma-separated: off, on")
-    add_run_args(ap, seeds=[0], frames=2e4, eval_episodes=8, out="outputs/table2")  # --batch-size, --tau: MADDPG's
-    args = ap.parse_args(argv)
-    check_choices(ap, (("task", args.tasks, TASKS), ("algo", args.algos, ALGOS), ("shaping", args.shaping, SHAPING)))
+    args = script_options(Args, argv, __doc__)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     run_all(run_one, jobs(args), args)
     res = collect_results(args)
     tables = {what: format_table(res, args, what) for what in ("metric", "return", "fps")}
-    (out / "table2.json").write_text(json.dumps({"args": vars(args), "results": res}, indent=1) + "\n")
+    (out / "table2.json").write_text(json.dumps({"args": dataclasses.asdict(args), "results": res}, indent=1) + "\n")
     (out / "table2.md").write_text(
         f"Task metric:\n\n{tables['metric']}\n\nEpisode return:\n\n{tables['return']}\n\nFrames per second (end to "
         f"end):\n\n{tables['fps']}\n\n"

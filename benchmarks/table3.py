@@ -3,67 +3,71 @@ rating (with its 95 % profile-likelihood interval), its Nash weight in the cross
 exploitability within that population, plus the heatmap and the ratings plot.
 
     python benchmarks/table3.py scripted random                                    # what exists without training
-    python benchmarks/table3.py sp=runs/sp fsp=runs/fsp psro_u=runs/psro_uniform psro_n=runs/psro_nash scripted random --games 1000
+    python benchmarks/table3.py sp=runs/sp fsp=runs/fsp psro_u=runs/psro_uniform psro_n=runs/psro_nash scripted random games=1000
 
-Cross-play plays ``--games`` per pair (both sides equally), Elo runs ``--rounds`` rounds sampled from
-the cross-play counts with ``--k`` (the paper: 2000 rounds, K = 168 for 4 policies). The paper's
+Cross-play plays ``games=`` per pair (both sides equally), Elo runs ``rounds=`` rounds sampled from
+the cross-play counts with ``k=`` (the paper: 2000 rounds, K = 168 for 4 policies). The paper's
 exploitability column trains a best response against each competitor (``volleybots eval
-exploitability``) for ``--br-budget`` frames and plays ``--br-games`` games (0: the column reads "n/a"),
-from ``--br-init`` if given, stopping at the convergence criterion or, with ``--br-until budget``, training
-the whole budget (equal budgets for every competitor, as the paper compares them); ``--br-response SPEC``
+exploitability``) for ``br_budget=`` frames and plays ``br_games=`` games (0: the column reads "n/a"),
+from ``br_init=`` if given, stopping at the convergence criterion or, with ``br_until=budget``, training
+the whole budget (equal budgets for every competitor, as the paper compares them); ``br_response=SPEC``
 (repeatable) adds a fixed candidate response (``scripted``, ``hierarchical``, a run) beside the trained one,
-and the figure is the best candidate's (``--br-budget 0`` with a response: fixed candidates only). A
+and the figure is the best candidate's (``br_budget=0`` with a response: fixed candidates only). A
 figure that no candidate's criterion holds for is marked as a lower bound. The within-population
-exploitability stands beside it. ``--reuse FILE`` (an earlier table3.json or crossplay.json) copies the
+exploitability stands beside it. ``reuse=FILE`` (an earlier table3.json or crossplay.json) copies the
 pairs it played with the same settings instead of playing them again, so adding a method to a table
 plays only its own pairs (``eval crossplay ... reuse=FILE``).
-Writes ``table3.json``, ``table3.md``, ``table3_crossplay.png`` and ``table3_ratings.png`` into ``--out``
+Writes ``table3.json``, ``table3.md``, ``table3_crossplay.png`` and ``table3_ratings.png`` into ``out=``
 (default ``outputs/table3``; docs/table3.md is the written-up table, which a run never overwrites), each
 naming games, rounds, seed and competitors.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
+
+from volleybots.config.args import option, script_options
+from volleybots.config.verbs import UNTIL  # the stopping rules eval exploitability knows
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 
+@dataclass
+class Args:
+    competitors: list[str] = option(help="run dirs, checkpoints, scripted, random; name=PATH labels one", factory=list, positional="+")
+    task: str = option("1v1", "the match")
+    games: int = option(1000, "games per pair (even)")
+    rounds: int = option(2000, "Elo rounds, sampled from the cross-play counts")
+    k: float = option(168.0, "Elo K")
+    seed: int = option(0, "seeds the games, the ratings and the best responses")
+    batch: int = option(256, "worlds per batch of games")
+    out: Path = option(ROOT / "outputs" / "table3", "folder of table3.json, the heatmap and the ratings plot")
+    br_budget: int = option(0, "frames of best-response training per competitor (0: no BR column)")
+    br_games: int = option(400, "games of each best response against its target")
+    br_envs: int = option(128, "envs of best-response training")
+    br_init: Optional[str] = option(None, "policy every best response starts from (init=, e.g. zoo:1v1/bc)")
+    br_until: str = option(UNTIL[0], "train each best response its whole budget, or until its win rate plateaus", choices=UNTIL)
+    br_seeds: int = option(2, "training seeds of each best response (the figure is the best candidate's)")
+    br_response: list[str] = option(help="a fixed candidate response beside the trained one (repeatable; eval exploitability's "
+                                    "response=)", factory=list)
+    reuse: Optional[Path] = option(None, "an earlier crossplay.json or table3.json whose pairs (same settings, same order) are "
+                                   "copied, not played")
+    br_root: Path = option(ROOT / "outputs" / "table3_br", "where the best responses' run dirs go")
+
+
 def main(argv=None) -> int:
-    from volleybots.eval.exploitability import UNTIL  # the stopping rules eval exploitability knows
+    a = script_options(Args, argv, __doc__)
 
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("competitors", nargs="+", help="run dirs, checkpoints, scripted, random; name=PATH labels one")
-    p.add_argument("--task", default="1v1")
-    p.add_argument("--games", type=int, default=1000, help="games per pair (even)")
-    p.add_argument("--rounds", type=int, default=2000, help="Elo rounds, sampled from the cross-play counts")
-    p.add_argument("--k", type=float, default=168.0, help="Elo K")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--batch", type=int, default=256, help="worlds per batch of games")
-    p.add_argument("--out", type=Path, default=ROOT / "outputs" / "table3")
-    p.add_argument("--br-budget", type=int, default=0, help="frames of best-response training per competitor (0: no BR column)")
-    p.add_argument("--br-games", type=int, default=400, help="games of each best response against its target")
-    p.add_argument("--br-envs", type=int, default=128, help="envs of best-response training")
-    p.add_argument("--br-init", default=None, help="policy every best response starts from (init=, e.g. zoo:1v1/bc)")
-    p.add_argument("--br-until", default=UNTIL[0], choices=UNTIL,
-                   help="train each best response its whole budget, or until its win rate plateaus")
-    p.add_argument("--br-seeds", type=int, default=2, help="training seeds of each best response (the figure is the best candidate's)")
-    p.add_argument("--br-response", action="append", default=[], metavar="SPEC",
-                   help="a fixed candidate response beside the trained one (repeatable; eval exploitability's response=)")
-    p.add_argument("--reuse", type=Path, default=None,
-                   help="an earlier crossplay.json or table3.json whose pairs (same settings, same order) are copied, not played")
-    p.add_argument("--br-root", type=Path, default=ROOT / "outputs" / "table3_br", help="where the best responses' run dirs go")
-    a = p.parse_args(argv)
-
-    from volleybots.eval.crossplay import OPTIONS, crossplay, heatmap, setup
+    from volleybots.eval.crossplay import crossplay, heatmap, setup
     from volleybots.eval.ranking import plot, ratings
 
-    comps, specs, _, cfg = setup([*a.competitors, f"task={a.task}", f"games={a.games}"], OPTIONS)
+    comps, specs, _, cfg = setup([*a.competitors, f"task={a.task}", f"games={a.games}"])
     a.out.mkdir(parents=True, exist_ok=True)
     reuse = a.reuse
     earlier = json.loads(reuse.read_text()) if reuse is not None else {}
@@ -85,7 +89,7 @@ def main(argv=None) -> int:
 
 
 def best_response(spec: str, a) -> dict:
-    """Exploitability of one competitor: a best response of ``--br-budget`` frames, ``--br-games`` games."""
+    """Exploitability of one competitor: a best response of ``br_budget=`` frames, ``br_games=`` games."""
     from volleybots.eval.exploitability import run_exploitability
 
     label = spec.partition("=")[0] if "=" in spec else Path(spec).name

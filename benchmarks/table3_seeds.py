@@ -1,6 +1,6 @@
 """Table 3's ratings on two evaluation seeds, side by side, and which claims hold on both.
 
-    python benchmarks/table3_seeds.py A/ratings.json B/ratings.json --out results/table3/two_seeds.md
+    python benchmarks/table3_seeds.py A/ratings.json B/ratings.json out=results/table3/two_seeds.md
 
 Each file is what ``volleybots eval elo`` wrote (the same competitors, two cross-play seeds). For
 every competitor: Bradley-Terry on decisive games with its 95 % interval, the paper's Elo with its
@@ -11,12 +11,14 @@ called ordered only where the Bradley-Terry intervals do not overlap on both see
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from volleybots.config.args import option, script_options
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -32,11 +34,14 @@ def vs(report: dict, name: str, other: str):
     return float(cp.win_rate()[i, j]), float(lo[i, j]), float(hi[i, j]), [int(x) for x in cp.wdl[i, j]]
 
 
+@dataclass
+class Args:
+    reports: list[Path] = option(help="the two seeds' table3.json reports", factory=list, positional="+")
+    out: Path = option(ROOT / "results" / "table3" / "two_seeds.md", "where the results go")
+
+
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("reports", nargs=2, type=Path)
-    p.add_argument("--out", type=Path, default=ROOT / "results" / "table3" / "two_seeds.md")
-    a = p.parse_args(argv)
+    a = script_options(Args, argv, __doc__)
     reps = [json.loads(r.read_text()) for r in a.reports]
     labels = reps[0]["labels"]
     if reps[1]["labels"] != labels:

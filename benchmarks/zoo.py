@@ -1,8 +1,8 @@
 """Put a trained run into the zoo: ``volleybots/zoo/<task>/<method>.pt`` and its card ``<method>.yaml``;
 a population run as a mixture, its members in ``<task>/<method>/``.
 
-    python benchmarks/zoo.py RUN_DIR METHOD --games 400 --seed 9000
-    python benchmarks/zoo.py TEAM.yaml METHOD --games 400 --seed 9000 --command "..."   # a hierarchical 3v3 team
+    python benchmarks/zoo.py RUN_DIR METHOD games=400 seed=9000
+    python benchmarks/zoo.py TEAM.yaml METHOD games=400 seed=9000 command="..."   # a hierarchical 3v3 team
 
 A checkpoint keeps what acting needs and what ``load_algo_state`` reads (networks, observation
 statistics, counters) with a fresh optimiser state: a few hundred KB instead of the run's megabytes.
@@ -14,23 +14,25 @@ benchmarks/hcsp.py writes it) ships as a team entry: each drill's policy slimmed
 high level as ``<method>/<drill>.pt`` and ``<method>/high_level.pt``, the card's ``hierarchical:``
 naming them (its frames: the drills' frames; its seed: the high level's).
 The card records the command, frames, seed and wall time from the run's files, and the figures of
-``--games`` games per pair of the entry (a mixture as the one competitor it is) against ``random`` and
-``scripted`` on the evaluation seed ``--seed`` (a seed no setting was chosen on), both sides equally.
+``games=`` games per pair of the entry (a mixture as the one competitor it is) against ``random`` and
+``scripted`` on the evaluation seed ``seed=`` (a seed no setting was chosen on), both sides equally.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import re
 import sys
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 import torch
 import yaml
 
 from volleybots.algos import method_name
 from volleybots.config import make_env, to_dict
+from volleybots.config.args import option, script_options
 from volleybots.eval.crossplay import crossplay, match_config, resolve_all
 from volleybots.policies.store import load_learner, saved_config
 from volleybots.runs import RunDir, is_population_run, read_checkpoint, read_population, run_policy_checkpoint
@@ -182,18 +184,22 @@ def start_fields(init: str | None, frames: int) -> dict:
     return out
 
 
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("run", type=Path)
-    p.add_argument("method")
-    p.add_argument("--games", type=int, default=400)
-    p.add_argument("--seed", type=int, default=9000)
-    p.add_argument("--command", default="", help="the command that trained the run, for the card")
-    p.add_argument("--init", default="", help="the zoo name of the policy the run started from, when the run was "
+@dataclass
+class Args:
+    run: Optional[Path] = option(None, "the run dir (or a hierarchical team's .yaml)", positional=True)
+    method: Optional[str] = option(None, "the zoo entry's method name", positional=True)
+    games: int = option(400, "games played")
+    seed: int = option(9000, "the seed")
+    command: str = option("", "the command that trained the run, for the card")
+    init: str = option("", "the zoo name of the policy the run started from, when the run was "
                    "trained from that policy's file before it shipped (its config names the file)")
-    a = p.parse_args(argv)
+
+
+def main(argv=None) -> int:
+    a = script_options(Args, argv, __doc__)
     if a.init and lookup(a.init) is None:
-        p.error(f"--init {a.init!r} is not a zoo entry")
+        print(f"error: init={a.init!r} is not a zoo entry", file=sys.stderr)
+        raise SystemExit(2)
     if a.run.suffix in (".yaml", ".yml"):  # a hierarchical team's file
         task, summary = "3v3", {}
         task_dir = ZOO_DIR / task

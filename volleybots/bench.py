@@ -15,12 +15,14 @@ from __future__ import annotations
 
 import statistics
 import time
-from typing import Callable, Iterable, Sequence
+from typing import Callable, Sequence
 
 import torch
 
-DEFAULT_TASKS = ("solo_bump",)
-DEFAULT_NUM_ENVS = (1, 256, 4096)
+from volleybots.config.verbs import BenchOptions
+
+DEFAULT_TASKS = tuple(BenchOptions().tasks)  # (the options' defaults: one place)
+DEFAULT_NUM_ENVS = tuple(BenchOptions().num_envs)
 TRAIN_CASES = (("solo_bump", "ppo"), ("3v3", "mappo"))  # (task, algorithm) of the training rows
 
 
@@ -205,45 +207,27 @@ def _seat(seat: str | None, cfg, env, seed: int):
     return Versus(opponent, seed=seed)
 
 
-def run_bench(
-    tasks: Iterable[str] = DEFAULT_TASKS,
-    backends: Iterable[str] = ("torch", "mujoco"),
-    num_envs: Iterable[int] = DEFAULT_NUM_ENVS,
-    devices: Iterable[str] | None = None,
-    compile: bool | Sequence[bool] = False,
-    repeats: int = 3,
-    steps: int | None = None,
-    action_space: str = "prt",
-    progress: Callable[[dict], None] | None = None,
-    threads: int | None = None,
-    train: bool = False,
-    train_batches: int = 3,
-    train_overrides: Sequence[str] = (),
-) -> list[dict]:
+def run_bench(options: BenchOptions | None = None, progress: Callable[[dict], None] | None = None) -> list[dict]:
     """Measure env-steps/s for every combination of task, backend, env count and device.
 
     Args:
-        tasks: task names of ``volleybots.tasks.TASKS``.
-        backends: physics backends of ``volleybots.physics.BACKENDS``. MuJoCo steps on the CPU
-            whatever the env device, so it is measured on "cpu" only.
-        num_envs: env counts (batch sizes).
-        devices: torch devices; default "cpu", plus "cuda" when available.
-        compile: ``torch.compile`` the torch physics sub-step (static shapes; the first steps of each
-            new shape compile, excluded from the timing, reported as ``setup_s``); a sequence such as
-            ``(False, True)`` measures the torch backend both ways.
-        repeats: timed repeats; the row reports their median.
-        steps: env steps per repeat; default ``default_steps`` (scaled by env count and backend).
-        action_space: "prt", "ctbr" or "discrete"; random actions from its spec.
-        progress: called with each row as soon as it is measured (for printing).
-        threads: the cores each row may use: torch's intra-op threads (``torch.set_num_threads``) for
-            the torch backend, the rollout pool for MuJoCo (whose torch glue runs on one thread);
-            default unchanged (torch's count). On a machine shared with other work, 1 is often much
-            faster than 2.
-        train: also measure end-to-end training frames/s (``measure_training``) of each
-            ``TRAIN_CASES`` (task, algorithm) whose task is in ``tasks``, for every env count, device and
-            compile mode, on the torch backend.
-        train_batches: timed training batches per training row.
-        train_overrides: config overrides of every training row (``algo.steps_per_batch=8``: tiny rows).
+        options: what to measure (``volleybots.config.verbs.BenchOptions``; its fields' help says each):
+            ``tasks`` (of ``volleybots.tasks.TASKS``), ``backends`` (of ``volleybots.physics.BACKENDS``;
+            MuJoCo steps on the CPU whatever the env device, so it is measured on "cpu" only),
+            ``num_envs`` (batch sizes), ``devices`` (default "cpu", plus "cuda" when available),
+            ``compile`` (``torch.compile`` the torch physics sub-step with static shapes: the first
+            steps of each new shape compile, excluded from the timing, reported as ``setup_s``; a list
+            such as ``[False, True]`` measures the torch backend both ways), ``repeats`` (a row reports
+            their median), ``steps`` (per repeat; default ``default_steps``, scaled by env count and
+            backend), ``action_space`` (random actions from its spec), ``threads`` (the cores each row
+            may use: torch's intra-op threads for the torch backend, the rollout pool for MuJoCo, whose
+            torch glue runs on one thread; on a machine shared with other work, 1 is often much faster
+            than 2), ``train`` (also end-to-end training frames/s, ``measure_training``, of each
+            ``TRAIN_CASES`` (task, algorithm) whose task is in ``tasks``, for every env count, device
+            and compile mode, on the torch backend), ``train_batches`` and ``train_overrides`` (config
+            overrides of every training row: ``algo.steps_per_batch=8`` gives tiny rows). ``None``: the defaults.
+        progress: called with each row as soon as it is measured (for printing); one with a ``begin``
+            method is first told the number of rows (``begin(total)``: its done / total and ETA).
 
     Returns:
         One dict per measurement with keys ``task, backend, device, compile, num_envs, n_drones,
@@ -251,34 +235,36 @@ def run_bench(
         ``all_env_steps_per_s`` (every repeat), ``env_steps_per_cpu_s`` (per second of the process's
         CPU time), ``setup_s`` (build + warm-up, incl. compilation) and ``threads`` (torch threads).
     """
+    o, default = options if options is not None else BenchOptions(), BenchOptions()
+    tasks, num_envs, devices, compile = tuple(o.tasks or default.tasks), tuple(o.num_envs or default.num_envs), o.devices, o.compile
     before = torch.get_num_threads()
-    if threads:
-        torch.set_num_threads(threads)
+    if o.threads:
+        torch.set_num_threads(o.threads)
     try:
-        rows = _run(tuple(tasks), tuple(backends), tuple(num_envs), devices, compile, repeats, steps, action_space, progress)
-        if train:
-            rows += _run_training(tuple(tasks), tuple(num_envs), devices, compile, train_batches, progress, tuple(train_overrides))
-        return rows
+        cases = _env_cases(tasks, tuple(o.backends or default.backends), num_envs, devices, compile)
+        trained = _train_cases(tasks, num_envs, devices, compile) if o.train else []
+        if hasattr(progress, "begin"):  # a progress that shows done / total and an ETA is told the total first
+            progress.begin(len(cases) + len(trained))
+        rows = _run(cases, o.repeats, o.steps, o.action_space, progress)
+        return rows + _run_training(trained, o.train_batches, progress, tuple(o.train_overrides or ()))
     finally:
         torch.set_num_threads(before)
 
 
-def _run(tasks, backends, num_envs, devices, compile, repeats, steps, action_space, progress) -> list[dict]:
+def _env_cases(tasks, backends, num_envs, devices, compile) -> list[tuple]:
+    """(task, backend, num_envs, device, compile) of every env row, in the order they are measured."""
     devices = tuple(devices) if devices is not None else default_devices()
-    modes = _modes(compile)
+    # MuJoCo steps on the CPU and has nothing to compile: one row whatever the devices and modes
+    return [(task, backend, n, device, comp) for task in tasks for n in num_envs for backend in backends for device in devices
+            if not (backend == "mujoco" and device != "cpu") for comp in (_modes(compile) if backend == "torch" else (False,))]
+
+
+def _run(cases, repeats, steps, action_space, progress) -> list[dict]:
     rows = []
-    for task in tasks:
-        for n in num_envs:
-            for backend in backends:
-                for device in devices:
-                    if backend == "mujoco" and device != "cpu":
-                        continue
-                    # MuJoCo has nothing to compile: one row whatever the modes
-                    for comp in modes if backend == "torch" else (False,):
-                        row = measure(task, backend, n, device, compile=comp, repeats=repeats, steps=steps, action_space=action_space)
-                        rows.append(row)
-                        if progress is not None:
-                            progress(row)
+    for task, backend, n, device, comp in cases:
+        rows.append(measure(task, backend, n, device, compile=comp, repeats=repeats, steps=steps, action_space=action_space))
+        if progress is not None:
+            progress(rows[-1])
     return rows
 
 
@@ -286,22 +272,23 @@ def _modes(compile) -> tuple[bool, ...]:
     return (bool(compile),) if isinstance(compile, bool) else tuple(bool(c) for c in compile)
 
 
-def _run_training(tasks, num_envs, devices, compile, batches, progress, overrides=()) -> list[dict]:
+def _train_cases(tasks, num_envs, devices, compile) -> list[tuple]:
+    """(task, algo, num_envs, device, compile, seat) of every training row: each competitive task's plain
+    MAPPO row (seat None) first, then its seats' rows, which are compared with it."""
     devices = tuple(devices) if devices is not None else default_devices()
+    return [(task, algo, n, device, comp, seat) for task, algo in TRAIN_CASES if task in tasks for n in num_envs for device in devices
+            for comp in _modes(compile) for seat in ((None, *SEATS) if _competitive(task) else (None,))]
+
+
+def _run_training(cases, batches, progress, overrides=()) -> list[dict]:
     rows, base = [], None  # base: the plain MAPPO row each seat's row is compared with
-    for task, algo in TRAIN_CASES:
-        if task not in tasks:
-            continue
-        for n in num_envs:
-            for device in devices:
-                for comp in _modes(compile):
-                    for seat in (None, *SEATS) if _competitive(task) else (None,):
-                        rows.append(measure_training(task, algo, n, device, compile=comp, batches=batches, seat=seat, overrides=overrides))
-                        if seat is not None:  # the seat's cost: its rate over plain MAPPO's of the same run
-                            rows[-1]["vs_mappo"] = rows[-1]["env_steps_per_s"] / base["env_steps_per_s"]
-                        base = rows[-1] if seat is None else base
-                        if progress is not None:
-                            progress(rows[-1])
+    for task, algo, n, device, comp, seat in cases:
+        rows.append(measure_training(task, algo, n, device, compile=comp, batches=batches, seat=seat, overrides=overrides))
+        if seat is not None:  # the seat's cost: its rate over plain MAPPO's of the same run
+            rows[-1]["vs_mappo"] = rows[-1]["env_steps_per_s"] / base["env_steps_per_s"]
+        base = rows[-1] if seat is None else base
+        if progress is not None:
+            progress(rows[-1])
     return rows
 
 

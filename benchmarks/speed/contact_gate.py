@@ -2,7 +2,7 @@
 and with it answering "yes" every time (every sub-step runs the contact tests, as before the gate).
 
     python benchmarks/speed/contact_gate.py                      # 32 envs, random actions, five tasks
-    python benchmarks/speed/contact_gate.py --num-envs 256 --tasks hover,1v1
+    python benchmarks/speed/contact_gate.py num_envs=256 tasks=[hover,1v1]
 
 Both ways give the same numbers (tests/physics/test_physics.py); only the time differs. The two ways take
 turns within one process, so the machine's load falls on both alike; each figure is the mean of the
@@ -12,8 +12,8 @@ machine's load beside it.
 
 from __future__ import annotations
 
-import argparse
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import torch
@@ -22,8 +22,17 @@ import volleybots
 import volleybots.physics.torch_backend as tb
 
 sys.path.insert(0, str(Path(__file__).parent))
-from bench import _csv  # noqa: E402  (the other benchmarks' helpers)
-from profile_step import cpu_ms  # noqa: E402
+from profile_step import cpu_ms  # noqa: E402  (the other benchmarks' helpers)
+
+from volleybots.config.args import option, script_options  # noqa: E402
+
+
+@dataclass
+class Args:
+    tasks: list[str] = option(help="tasks to step", factory=lambda: ["hover", "back_and_forth", "solo_bump", "1v1", "3v3"])
+    num_envs: int = option(32, "worlds stepped together", ge=1)
+    rounds: int = option(8, "rounds, each way once a round", ge=1)
+    steps: int = option(25, "env steps per round and way", ge=1)
 
 
 def random_steps(env):
@@ -37,17 +46,12 @@ def random_steps(env):
     return step
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--tasks", default="hover,back_and_forth,solo_bump,1v1,3v3")
-    p.add_argument("--num-envs", type=int, default=32)
-    p.add_argument("--rounds", type=int, default=8)
-    p.add_argument("--steps", type=int, default=25, help="env steps per round and way")
-    a = p.parse_args()
+def main(argv=None) -> None:
+    a = script_options(Args, argv, __doc__)
     torch.set_num_threads(1)
     gate, always = tb.may_touch, (lambda *args: True)
     print("| task | envs | gated (ms/step) | always tested (ms/step) | speed-up |\n|---|---|---|---|---|")
-    for task in _csv(a.tasks):
+    for task in a.tasks:
         step = random_steps(volleybots.make_env(task, num_envs=a.num_envs, seed=0))
         times: dict[str, list[float]] = {"gated": [], "always": []}
         for _ in range(a.rounds):

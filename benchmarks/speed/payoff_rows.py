@@ -2,30 +2,38 @@
 member files, every row timed as the population loop plays it now (``volleybots.play.pool.payoff_row``),
 then the last row again pair by pair (``play_games``), as the loop played it before.
 
-    python benchmarks/speed/payoff_rows.py RUN [--games 100] [--out payoff_rows.json]
+    python benchmarks/speed/payoff_rows.py RUN [games=100] [out=payoff_rows.json]
 
 Prints and writes each row's seconds with the load average at its start. One torch thread.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
+from volleybots.config.args import option, script_options  # noqa: E402
+
+
+@dataclass
+class Args:
+    run: Optional[Path] = option(None, "a population run dir (its population/member_*.pt)", positional=True)
+    games: int = option(100, "games per entry (the run's algo.payoff_games)", ge=2)
+    out: Optional[Path] = option(None, "FILE: also write the rows here (JSON)")
+
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("run", type=Path, help="a population run dir (its population/member_*.pt)")
-    p.add_argument("--games", type=int, default=100, help="games per entry (the run's algo.payoff_games)")
-    p.add_argument("--out", type=Path, default=None)
-    a = p.parse_args(argv)
+    a = script_options(Args, argv, __doc__)
+    if a.run is None:
+        raise SystemExit("error: name the population run: payoff_rows.py RUN")
 
     import torch
 

@@ -1,20 +1,23 @@
 """Bar chart of docs/performance.md's "Current figures": env-steps/s of torch eager, torch compiled and
 MuJoCo per task and core count (4096 envs, random actions, median of 3 repeats).
 
-    python benchmarks/speed/plot_performance.py --out outputs/performance/performance.png
-    python benchmarks/speed/plot_performance.py --json bench.json --out ...   # rows of bench.py --json instead
+    python benchmarks/speed/plot_performance.py out=outputs/performance/performance.png
+    python benchmarks/speed/plot_performance.py json=bench.json out=...   # rows of bench.py json=FILE instead
 
-The figures below are the page's table (measured with `bench.py --both --threads 2`, then `--threads 1`,
+The figures below are the page's table (measured with `bench.py both=true threads=2`, then `threads=1`,
 on the 2-core machine with nothing else running); the PNG the page shows is this script's output copied
-to docs/img/results/performance.png. With `--json`, the rows of one `bench.py --json` file are drawn
+to docs/img/results/performance.png. With `json=FILE`, the rows of one `bench.py json=FILE` file are drawn
 instead (one group per task and thread count found in it).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
+
+from volleybots.config.args import option, script_options
 
 # (task, threads) -> env-steps/s: torch eager, torch compiled, MuJoCo, and the table's compiled / MuJoCo
 # ratio (from the unrounded rates, so it can differ from the rounded figures' in the last digit)
@@ -29,12 +32,12 @@ SERIES = ("torch eager", "torch compiled", "MuJoCo")
 
 
 def figures_from_json(path: Path) -> dict[tuple[str, int], tuple[float, ...]]:
-    """(task, threads) -> (eager, compiled, mujoco, compiled / mujoco) from the rows `bench.py --json`
+    """(task, threads) -> (eager, compiled, mujoco, compiled / mujoco) from the rows `bench.py json=FILE`
     writes (a missing rate: 0)."""
     rows = json.loads(path.read_text())
     out: dict[tuple[str, int], list[float]] = {}
     for r in rows:
-        if r.get("kind", "env") != "env":  # the training rows of --train
+        if r.get("kind", "env") != "env":  # the training rows of train=true
             continue
         key = (r["task"], int(r.get("threads", 1)))
         col = 2 if r.get("backend") == "mujoco" else (1 if r.get("compile") else 0)
@@ -78,11 +81,14 @@ def plot(figures: dict, out: Path) -> None:
     plt.close(fig)
 
 
+@dataclass
+class Args:
+    out: Path = option(Path("outputs/performance/performance.png"), "the PNG to write")
+    json: Optional[Path] = option(None, "rows of `bench.py json=FILE` to draw instead of the page's figures")
+
+
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--out", type=Path, default=Path("outputs/performance/performance.png"), help="the PNG to write")
-    ap.add_argument("--json", type=Path, default=None, help="rows of `bench.py --json` to draw instead of the page's figures")
-    args = ap.parse_args(argv)
+    args = script_options(Args, argv, __doc__)
     plot(figures_from_json(args.json) if args.json else FIGURES, args.out)
     print(args.out)
     return 0

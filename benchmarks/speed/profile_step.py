@@ -1,6 +1,6 @@
 """Where the time of one compiled env step goes (docs/performance.md "Profile").
 
-    python benchmarks/speed/profile_step.py --task 3v3 --num-envs 4096
+    python benchmarks/speed/profile_step.py task=3v3 num_envs=4096
 
 Times, in CPU ms per call of this process (one torch thread; robust to a shared machine, unlike wall
 time), the compiled pieces of a step at the same shapes: the physics alone (one control step, the
@@ -12,12 +12,13 @@ the task's evaluation.
 
 from __future__ import annotations
 
-import argparse
 import time
+from dataclasses import dataclass
 
 import torch
 
 import volleybots
+from volleybots.config.args import option, script_options
 from volleybots.physics.torch_backend import compile_options
 
 
@@ -30,12 +31,15 @@ def cpu_ms(fn, reps: int) -> float:
     return (time.process_time() - start) / reps * 1e3
 
 
+@dataclass
+class Args:
+    task: str = option("3v3", "the task profiled")
+    num_envs: int = option(4096, "worlds stepped together", ge=1)
+    reps: int = option(20, "timed calls per piece", ge=1)
+
+
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--task", default="3v3")
-    ap.add_argument("--num-envs", type=int, default=4096)
-    ap.add_argument("--reps", type=int, default=20)
-    args = ap.parse_args(argv)
+    args = script_options(Args, argv, __doc__)
     torch.set_num_threads(1)
     n = args.num_envs
     env = volleybots.make_env(args.task, num_envs=n, compile=True, seed=0)

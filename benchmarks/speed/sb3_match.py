@@ -1,51 +1,56 @@
 """Stable-Baselines3 PPO on the batched match (``VolleyMatchSB3VecEnv``) against the env's own agent-steps.
 
-One process, each figure the median of ``--repeats``, the rows measured in turn each repeat so that a
+One process, each figure the median of ``repeats=``, the rows measured in turn each repeat so that a
 shared machine's load falls on all alike:
 
 - ``env``: the batched TorchRL match alone with random actions for every drone
   (``volleybots.bench.measure``), as agent-steps (world-steps x drones) per second;
 - ``self-play``: SB3 PPO learning with ``opponent="self"`` (every drone of every world is one of SB3's
   envs): its env-steps are agent-steps of the learner;
-- ``vs OPPONENT``: SB3 PPO learning one team against ``--opponent`` (default ``zoo:1v1/bc``): SB3's
+- ``vs OPPONENT``: SB3 PPO learning one team against ``opponent=`` (default ``zoo:1v1/bc``): SB3's
   env-steps are the learner's agent-steps; the opponent's forward pass is part of the cost.
 
-Rates per second of wall time and per second of this process's CPU time (``--threads`` torch threads;
+Rates per second of wall time and per second of this process's CPU time (``threads=`` torch threads;
 the steadier figure on a shared machine). The PPO keywords are ``sb3_env.ppo_kwargs`` (the rollout in
-``--minibatches`` minibatches, Adam's foreach update) with ``--n-epochs`` epochs.
+``minibatches=`` minibatches, Adam's foreach update) with ``n_epochs=`` epochs.
 
     OMP_NUM_THREADS=1 python benchmarks/speed/sb3_match.py                  # 1v1, 64 worlds
-    OMP_NUM_THREADS=1 python benchmarks/speed/sb3_match.py --json out.json
+    OMP_NUM_THREADS=1 python benchmarks/speed/sb3_match.py json=out.json
 
 Needs ``pip install 'volleybots[sb3]'``. Quote the machine load (``uptime``) beside the figures.
 """
 
 from __future__ import annotations
 
-import argparse
 import os
 import statistics
+from dataclasses import dataclass
+from typing import Optional
 
 from sb3_vecenv import sb3_rates  # the same SB3 timing as the single-drone benchmark (benchmarks/speed/)
 
+from volleybots.config.args import option, script_options
 from volleybots.files import write_json
 
 
+@dataclass
+class Args:
+    task: str = option("1v1", "the match")
+    num_envs: int = option(64, "worlds stepped together")
+    opponent: str = option("zoo:1v1/bc", "the competitor of the one-team row")
+    steps: int = option(200, "batched steps per timed repeat of the env")
+    n_steps: int = option(128, "PPO's rollout length per SB3 env")
+    minibatches: int = option(4, "minibatches per rollout (ppo_kwargs)", ge=1)
+    n_epochs: int = option(10, "PPO's epochs per rollout (SB3's default)")
+    rollouts: int = option(2, "rollouts per SB3 measurement")
+    repeats: int = option(3, "repeats, each figure their median", ge=1)
+    threads: int = option(1, "torch threads", ge=1)
+    seed: int = option(0, "seeds the envs and PPO", ge=0)
+    json: Optional[str] = option(None, "also write the figures here")
+
+
 def main(argv=None) -> dict:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--task", default="1v1")
-    ap.add_argument("--num-envs", type=int, default=64, help="worlds stepped together")
-    ap.add_argument("--opponent", default="zoo:1v1/bc", help="the competitor of the one-team row")
-    ap.add_argument("--steps", type=int, default=200, help="batched steps per timed repeat of the env")
-    ap.add_argument("--n-steps", type=int, default=128, help="PPO's rollout length per SB3 env")
-    ap.add_argument("--minibatches", type=int, default=4)
-    ap.add_argument("--n-epochs", type=int, default=10, help="PPO's epochs per rollout (SB3's default)")
-    ap.add_argument("--rollouts", type=int, default=2, help="rollouts per SB3 measurement")
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--threads", type=int, default=1)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--json", default=None, help="also write the figures here")
-    args = ap.parse_args(argv)
+    args = script_options(Args, argv, __doc__)
 
     import torch
 

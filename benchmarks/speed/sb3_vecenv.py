@@ -1,40 +1,43 @@
 """Stable-Baselines3 PPO through ``VolleySB3VecEnv`` against the env's own batched steps/s.
 
-Three rates on one task and world count, each the median of ``--repeats``:
+Three rates on one task and world count, each the median of ``repeats=``:
 
 - ``env``: the batched TorchRL env alone, random actions (``volleybots.bench.measure``);
 - ``adapter``: ``VolleySB3VecEnv.step`` with random actions (the adapter's numpy and info cost);
 - ``sb3 collect`` and ``sb3 learn``: SB3 PPO's env-steps per second of rollout collection (policy
   forward, the adapter's step, the rollout buffer) and of the whole ``learn`` (collection and the
-  gradient updates), timed with SB3's rollout callbacks, with ``--batch-size`` minibatches and SB3's
+  gradient updates), timed with SB3's rollout callbacks, with ``batch_size=`` minibatches and SB3's
   default optimiser;
 - ``sb3 learn, recommended``: the same with ``volleybots.integrations.sb3_env.ppo_kwargs`` (the
-  rollout in ``--minibatches`` minibatches, Adam's foreach update), what docs/integrations.md advises;
-- ``--dummy N``: for comparison, SB3's ``DummyVecEnv`` over N single ``gym.make`` envs (each world a
+  rollout in ``minibatches=`` minibatches, Adam's foreach update), what docs/integrations.md advises;
+- ``dummy=N``: for comparison, SB3's ``DummyVecEnv`` over N single ``gym.make`` envs (each world a
   torch step of its own), collection only.
 
 Each rate is given per second of wall time and per second of the process's CPU time (one torch
 thread): on a shared machine the second is the steadier, the three are measured in turn each repeat.
 
     OMP_NUM_THREADS=1 python benchmarks/speed/sb3_vecenv.py                     # solo_bump, 64 worlds
-    OMP_NUM_THREADS=1 python benchmarks/speed/sb3_vecenv.py --num-envs 256 --dummy 8 --json out.json
+    OMP_NUM_THREADS=1 python benchmarks/speed/sb3_vecenv.py num_envs=256 dummy=8 json=out.json
 
 Needs ``pip install 'volleybots[sb3]'``. Quote the machine load (``uptime``) beside the figures.
 """
 
 from __future__ import annotations
 
-import argparse
+import dataclasses
 import os
 import statistics
 import time
+from dataclasses import dataclass
+from typing import Optional
 
+from volleybots.config.args import option, script_options
 from volleybots.files import write_json
 
 
 def sb3_rates(make_env, args, learn: bool, ppo: dict | None = None) -> dict:
     """SB3 PPO's collection (and with ``learn`` whole-run) env-steps/s on ``make_env()``, with the
-    PPO keywords ``ppo`` (default: ``--n-steps`` and ``--batch-size``, SB3's optimiser)."""
+    PPO keywords ``ppo`` (default: ``n_steps=`` and ``batch_size=``, SB3's optimiser)."""
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
 
@@ -96,22 +99,25 @@ def adapter_rate(args) -> tuple[float, float]:
     return rates
 
 
+@dataclass
+class Args:
+    task: str = option("solo_bump", "the task")
+    num_envs: int = option(64, "worlds stepped together", ge=1)
+    steps: int = option(200, "batched steps per timed repeat of the env and the adapter")
+    n_steps: int = option(128, "PPO's rollout length per world")
+    batch_size: int = option(256, "PPO's minibatch of the first learn row")
+    minibatches: int = option(4, "minibatches per rollout of the recommended row")
+    n_epochs: int = option(10, "PPO's epochs per rollout (SB3's default)")
+    rollouts: int = option(3, "rollouts per SB3 measurement")
+    repeats: int = option(3, "repeats, each rate their median", ge=1)
+    dummy: int = option(0, "also SB3's DummyVecEnv over this many single envs (0: skip)")
+    threads: int = option(1, "torch threads", ge=1)
+    seed: int = option(0, "seeds the env and PPO", ge=0)
+    json: Optional[str] = option(None, "also write the figures here")
+
+
 def main(argv=None) -> dict:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--task", default="solo_bump")
-    ap.add_argument("--num-envs", type=int, default=64)
-    ap.add_argument("--steps", type=int, default=200, help="batched steps per timed repeat of the env and the adapter")
-    ap.add_argument("--n-steps", type=int, default=128, help="PPO's rollout length per world")
-    ap.add_argument("--batch-size", type=int, default=256, help="PPO's minibatch of the first learn row")
-    ap.add_argument("--minibatches", type=int, default=4, help="minibatches per rollout of the recommended row")
-    ap.add_argument("--n-epochs", type=int, default=10, help="PPO's epochs per rollout (SB3's default)")
-    ap.add_argument("--rollouts", type=int, default=3, help="rollouts per SB3 measurement")
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--dummy", type=int, default=0, help="also SB3's DummyVecEnv over this many single envs (0: skip)")
-    ap.add_argument("--threads", type=int, default=1)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--json", default=None, help="also write the figures here")
-    args = ap.parse_args(argv)
+    args = script_options(Args, argv, __doc__)
 
     import torch
 
@@ -147,7 +153,7 @@ def main(argv=None) -> dict:
         import volleybots.integrations  # noqa: F401  (registers the ids)
 
         env_id = f"volleybots/{''.join(w.capitalize() for w in args.task.split('_'))}-v0"
-        one = argparse.Namespace(**{**vars(args), "rollouts": 1})
+        one = dataclasses.replace(args, rollouts=1)
         dummy = sb3_rates(lambda: DummyVecEnv([lambda: gym.make(env_id)] * args.dummy), one, learn=False)
         row["dummy_num_envs"], row["dummy_collect_steps_per_s"] = args.dummy, dummy["sb3_collect_steps_per_s"]
         row["dummy_collect_steps_per_cpu_s"] = dummy["sb3_collect_steps_per_cpu_s"]

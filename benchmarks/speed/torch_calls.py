@@ -1,7 +1,7 @@
 """What a small eager batch costs: torch calls per physics sub-step, env step and scripted step.
 
     python benchmarks/speed/torch_calls.py                 # 32 envs, the default tasks
-    python benchmarks/speed/torch_calls.py --num-envs 8 --scripted bump_and_pass,set_and_spike_easy
+    python benchmarks/speed/torch_calls.py num_envs=8 scripted=[bump_and_pass,set_and_spike_easy]
 
 At the tests' and the lookahead's batch sizes an eager step is bound by the number of torch calls,
 not by the arithmetic, so the counts here (from ``torch.profiler``: every aten call, nested ones
@@ -15,19 +15,19 @@ call (``aten::to``, ``_to_copy``, ``empty_strided``, ``copy_``).
 
 from __future__ import annotations
 
-import argparse
 import sys
 from collections import Counter
+from dataclasses import dataclass
 from pathlib import Path
 
 import torch
 from torch.profiler import profile
 
 import volleybots
+from volleybots.config.args import option, script_options
 
 sys.path.insert(0, str(Path(__file__).parent))
-from bench import _csv  # noqa: E402  (the other benchmarks' helpers)
-from profile_step import cpu_ms as cpu_ms_once  # noqa: E402
+from profile_step import cpu_ms as cpu_ms_once  # noqa: E402  (the other benchmarks' helpers)
 
 
 def calls(fn, reps: int = 3) -> float:
@@ -91,13 +91,16 @@ def scripted_row(task: str, num_envs: int) -> str:
     return f"| {task} scripted players, one action (lookahead) | prt | {num_envs} | {calls(act, 2):.0f} | {cpu_ms(act, 2, 3):.1f} |"
 
 
+@dataclass
+class Args:
+    tasks: list[str] = option(help="env steps under random actions", factory=lambda: ["hover", "1v1", "3v3"])
+    scripted: list[str] = option(help="steps of the task's scripted players", factory=lambda: ["bump_and_pass"])
+    num_envs: int = option(32, "worlds stepped together", ge=1)
+    reps: int = option(20, "timed calls per row", ge=1)
+
+
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--tasks", type=_csv, default=["hover", "1v1", "3v3"], help="env steps under random actions")
-    ap.add_argument("--scripted", type=_csv, default=["bump_and_pass"], help="steps of the task's scripted players")
-    ap.add_argument("--num-envs", type=int, default=32)
-    ap.add_argument("--reps", type=int, default=20)
-    args = ap.parse_args(argv)
+    args = script_options(Args, argv, __doc__)
     torch.set_num_threads(1)
     print(scalar_line())
     print()

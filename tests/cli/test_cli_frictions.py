@@ -58,3 +58,30 @@ def test_config_errors_come_before_torch_loads(argv):
     assert res.stdout.strip().splitlines()[-1] == "exit 2 torch not loaded", res.stdout + res.stderr
     err = res.stderr.strip()
     assert len(err.splitlines()) == 1 and err.startswith("error: unknown ") and ("allowed" in err), err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["train", "task=hover", "env.num_envs=-1"], "error: bad value for 'env.num_envs': -1 (must be >= 1)"),
+    (["train", "task=hover", "evaluation.episodes=0"], "error: bad value for 'evaluation.episodes': 0 (must be >= 1)"),
+    (["train", "-m", "task=hover", "seed=0,1", "total_frames=0"], "error: bad value for 'total_frames': 0 (must be >= 1)"),
+    (["eval", "scripted", "task=hover", "episodes=0"], "error: bad value for 'episodes': 0 (must be >= 1)"),
+])
+def test_range_errors_of_the_fixed_keys_come_before_torch_loads(argv, message):
+    """A number out of its key's range (issue 55: 8 s to report, torch first): the same line as validate's,
+    from the words alone."""
+    code = ("import sys\nfrom volleybots.cli import app\ntry:\n    app(%r)\nexcept SystemExit as e:\n"
+            "    print('exit', e.code, 'torch loaded' if 'torch' in sys.modules else 'torch not loaded')" % (argv,))
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=CLI_ENV, timeout=120)
+    assert res.stdout.strip().splitlines()[-1] == "exit 2 torch not loaded", res.stdout + res.stderr
+    assert res.stderr.strip().startswith(message) and len(res.stderr.strip().splitlines()) == 1, res.stderr
+
+
+def test_a_value_of_another_type_or_a_task_key_is_left_to_validate():
+    from volleybots.config import ConfigError, load
+    from volleybots.config.compose import check_fixed_values
+
+    check_fixed_values(["env.num_envs=abc", "seed=0,1", "task.episode_len=0", "algo.actor_lr=-1", "total_frames=2e6", "junk"])
+    with pytest.raises(ConfigError, match=r"^bad value for 'env.substeps': 100 \(must be in \[1, 64\]\)$"):
+        check_fixed_values(["env.substeps=100"])
+    with pytest.raises(ConfigError, match="'task.episode_len'"):  # validate still reports what this leaves
+        load(["task=hover", "task.episode_len=0"])

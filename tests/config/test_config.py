@@ -153,12 +153,14 @@ def test_configs_saved_with_the_old_compile_physics_task_key_still_load():
 def test_a_verbs_count_option_reads_an_integral_float_and_refuses_a_fraction():
     # ``budget=4e6`` as ``total_frames=2e6`` reads in a config; 2.5 frames is no count
     from volleybots.config.args import split_args
+    from volleybots.config.verbs import ExploitabilityOptions
     from volleybots.errors import ConfigError
 
-    names, opts, over = split_args(["random", "budget=4e6", "games=400", "task=1v1"], {"budget": int, "games": int})
+    names, opts, over = split_args(["random", "budget=4e6", "games=400", "task=1v1"], ExploitabilityOptions)
     assert names == ["random"] and over == ["task=1v1"]
-    assert opts == {"budget": 4_000_000, "games": 400} and type(opts["budget"]) is int
+    assert (opts.budget, opts.games, opts.seeds) == (4_000_000, 400, 2) and type(opts.budget) is int
+    assert opts.given == {"budget", "games"}
     with pytest.raises(ConfigError, match=r"budget='2\.5' must be an integer"):
-        split_args(["budget=2.5"], {"budget": int})
+        split_args(["budget=2.5"], ExploitabilityOptions)
     with pytest.raises(ConfigError, match="out of range"):  # (budget=0 is exploitability's "no trained BR")
-        split_args(["budget=-1e0"], {"budget": int})
+        split_args(["budget=-1e0"], ExploitabilityOptions)

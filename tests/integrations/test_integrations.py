@@ -168,3 +168,35 @@ def test_cleanrl_example_trains_on_solo_bump():
     spec.loader.exec_module(example)
     returns = example.main(["--total-timesteps", "512", "--num-envs", "8", "--num-steps", "64", "--update-epochs", "1"])
     assert len(returns) >= 1 and np.all(np.isfinite(returns))
+
+
+def _example(name: str):
+    spec = importlib.util.spec_from_file_location(name, ROOT / "examples" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _curve(path) -> list[dict]:
+    import csv
+
+    with open(path) as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_the_examples_write_learning_curves_of_the_tasks_metric(tmp_path):
+    """Both examples write their curve (benchmarks/curves_rise.py plots them): one row per iteration /
+    rollout, the step counts rising by one rollout each, the task's metric (Hover's distance) by name."""
+    example = _example("cleanrl_ppo_solo_bump")
+    example.main(["--env-id", "volleybots/Hover-v0", "--total-timesteps", "256", "--num-envs", "4", "--num-steps", "32",
+                  "--update-epochs", "1", "--curve", str(tmp_path / "cleanrl.csv")])
+    rows = _curve(tmp_path / "cleanrl.csv")
+    assert list(rows[0]) == ["steps", "seconds", "episodes", "return", "distance"]
+    assert [int(r["steps"]) for r in rows] == [128, 256]
+    pytest.importorskip("stable_baselines3")
+    sb3 = _example("sb3_ppo_hover")
+    out = sb3.main(["--total-timesteps", "256", "--num-envs", "4", "--n-steps", "32", "--epochs", "1", "--curve", str(tmp_path / "sb3.csv"),
+                    "--task", "hover"])
+    rows = _curve(tmp_path / "sb3.csv")
+    assert list(rows[0]) == ["steps", "seconds", "episodes", "return", "distance"]
+    assert [int(r["steps"]) for r in rows] == [128, 256] and [r[0] for r in out] == [128, 256]

@@ -142,7 +142,7 @@ def test_bad_modes_are_named():
         VolleyVectorEnv("hover", 2, autoreset_mode="later")
     with pytest.raises(ValueError, match=r"render_mode must be None or one of \['rgb_array'\], got 'human'"):
         VolleyGymEnv("hover", render_mode="human")
-    with pytest.raises(ValueError, match=r"render_mode must be None for the vector env, got 'rgb_array'"):
-        VolleyVectorEnv("hover", 2, render_mode="rgb_array")
+    with pytest.raises(ValueError, match=r"render_mode must be None or one of \['rgb_array'\], got 'human'"):
+        VolleyVectorEnv("hover", 2, render_mode="human")  # the vector envs render too (rgb_array), nothing else
     with pytest.raises(ValueError, match=r"legacy_names must be True or False, got 'yes'"):
         VolleyParallelEnv("1v1", legacy_names="yes")

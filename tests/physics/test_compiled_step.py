@@ -136,8 +136,10 @@ def test_bench_training_rows():
     """train=True adds the trainer's end-to-end rate (collection + update) of PPO on Solo Bump, labelled
     in the table and left out of the torch/MuJoCo ratios."""
     from volleybots.bench import format_table, run_bench, speed_ratios
+    from volleybots.config import BenchOptions
 
-    rows = run_bench(["solo_bump"], ["torch"], num_envs=[2], devices=["cpu"], repeats=1, steps=2, threads=1, train=True, train_batches=1)
+    rows = run_bench(BenchOptions(tasks=["solo_bump"], backends=["torch"], num_envs=[2], devices=["cpu"], repeats=1, steps=2, threads=1,
+                                  train=True, train_batches=1))
     assert [(r["kind"], r["task"]) for r in rows] == [("env", "solo_bump"), ("train ppo", "solo_bump")]
     train = rows[1]
     assert train["steps"] == 64 and train["num_envs"] == 2 and train["env_steps_per_s"] > 0 and train["env_steps_per_cpu_s"] > 0

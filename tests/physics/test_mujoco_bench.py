@@ -3,12 +3,14 @@
 import pytest
 
 from volleybots.bench import format_table, run_bench, speed_ratios
+from volleybots.config import BenchOptions
 
 pytestmark = pytest.mark.mujoco
 
 
 def test_run_bench_rows_and_table():
-    rows = run_bench(["hover"], ["torch", "mujoco"], num_envs=[2], devices=["cpu"], repeats=2, steps=3, threads=1)
+    rows = run_bench(BenchOptions(tasks=["hover"], backends=["torch", "mujoco"], num_envs=[2], devices=["cpu"], repeats=2, steps=3,
+                                  threads=1))
     assert [(r["backend"], r["num_envs"], r["device"]) for r in rows] == [("torch", 2, "cpu"), ("mujoco", 2, "cpu")]
     for r in rows:
         assert r["env_steps_per_s"] > 0 and len(r["all_env_steps_per_s"]) == 2
@@ -26,5 +28,5 @@ def test_mujoco_rows_use_the_threads_for_the_pool_and_restore_torch():
     import torch
 
     before = torch.get_num_threads()
-    rows = run_bench(["hover"], ["mujoco"], num_envs=[2], devices=["cpu"], repeats=1, steps=2, threads=2)
+    rows = run_bench(BenchOptions(tasks=["hover"], backends=["mujoco"], num_envs=[2], devices=["cpu"], repeats=1, steps=2, threads=2))
     assert rows[0]["threads"] == 2 and torch.get_num_threads() == before

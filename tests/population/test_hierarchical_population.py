@@ -146,3 +146,31 @@ def test_self_play_with_hierarchical_members_trains_one_high_level_against_itsel
     assert meta["mixture"] == [0.0, 1.0]
     high = torch.load(tmp_path / "run" / "population" / "high_level_001.pt", weights_only=True)
     assert high["info"]["opponent"] == "self"
+
+
+@pytest.mark.slow  # records 3v3 serves and fine-tunes a drill
+def test_stage_three_tunes_the_receiving_drills_on_the_recorded_serves_and_the_oracle_plays_them(tmp_path):
+    """population.tune_drills=[attack]: before the first oracle, the opponent's serves are recorded into a ball
+    bank, the attack drill is fine-tuned on it by PPO, and the member trained then names the tuned drill."""
+    from volleybots.population.tune_drills import record_path
+    from volleybots.tasks.drills import read_ball_bank
+
+    cfg = tiny("algo.iterations=1", "algo.tune_drills=[attack]", "algo.tune_games=8", "algo.tune_frames=2048",
+               "algo.high_level_games=16", "algo.high_level_batch=8", "env.num_envs=16", "algo.seed_members=[zoo:3v3/hcsp_return]")
+    start(cfg, tmp_path / "run")
+    pop = tmp_path / "run" / "population"
+    record = json.loads(record_path(tmp_path / "run", 1).read_text())
+    tuned = record["drills"]["attack"]
+    assert list(record["drills"]) == ["attack"] and record["serves"] == len(read_ball_bank(pop / "tune" / "001" / "serves.pt")) > 0
+    first, second = (torch.load(pop / f"member_{k:03d}.pt", weights_only=True)["drills"] for k in (0, 1))
+    assert second["attack"] == tuned != first["attack"]  # the new member plays the tuned drill, the seed member its own
+    assert {k: v for k, v in second.items() if k not in ("attack", "high_level")} == \
+        {k: v for k, v in first.items() if k not in ("attack", "high_level")}
+    base, after = (torch.load(pop / f, weights_only=True)["algo"] for f in (first["attack"], tuned))
+    # PPO trained on the bank: two updates, in the recipe's critic warm-up (the actor held for 10)
+    assert int(after["updates"]) == 2 and any(not torch.equal(base["critic"][k], after["critic"][k]) for k in base["critic"])
+    assert all(torch.equal(base["actor"][k], after["actor"][k]) for k in base["actor"])
+    with pytest.raises(ConfigError, match="population.tune_drills: 'set' cannot be tuned on recorded serves; allowed: pass, attack"):
+        tiny("algo.tune_drills=[set]")
+    with pytest.raises(ConfigError, match="tunes a hierarchical team's drills; give population.members=hierarchical"):
+        tiny("algo.tune_drills=[attack]", "algo.members=flat")

@@ -368,7 +368,7 @@ def test_a_bc_seeded_population_starts_from_a_clone_that_beats_random_and_resume
     assert w >= 8 and record.win_rate(g.total) >= 0.75, (w, d, l_)
     assert len(torch.load(members[0], weights_only=True)["algo"]["data"]["obs"]) == 0  # the member holds no dataset
     br1 = torch.load(members[2], weights_only=True)
-    assert br1["init"]["source"].startswith(str(clone)) and br1["init"]["algo"] == "bc"  # the learner started from the clone (init=)
+    assert br1["init"]["source"].startswith("population/bc/") and br1["init"]["algo"] == "bc"  # the learner started from the clone (init=)
     # a resume with one more iteration reuses the clone: training or resuming a run now fails the test
     stamp = (clone / "checkpoints" / "final.pt").stat().st_mtime_ns
 

@@ -88,6 +88,13 @@ class LoopConfig:
     fixed_opponents: list[str] | None = None
     fixed_share: float | None = ranged(None, ge=0, le=1)
     oracle_fall_fault: bool = True  # hierarchical oracles train with task.fall_fault on (payoffs and evaluations: the task's rule)
+    # stage III of HCSP (population/tune_drills.py): before a hierarchical oracle trains its high level, the
+    # drills named here are fine-tuned by PPO on the serves recorded against its opponent ([]: off)
+    tune_drills: list[str] = field(default_factory=list)
+    tune_at: list[int] = ranged(factory=lambda: [1], ge=1)  # the iterations whose oracle first tunes the drills
+    tune_games: int = ranged(256, ge=1)  # games recorded (the team receiving) for the ball bank
+    tune_frames: int = ranged(1_000_000, ge=1)  # PPO frames per tuned drill
+    tune_share: float = ranged(0.5, ge=0, le=1)  # share of a tuned drill's balls drawn from the bank (the rest: its own)
 
 
 @dataclass
@@ -100,6 +107,7 @@ class SelfPlayLoop(LoopConfig):
 # docs/imitation.md (critic warm-up, KL anchor at 0.3), set under algo by conf/population/psro_nash.yaml;
 # they act on learners that start from a policy (the clone, or init=); the loop sets both to 0 for a
 # learner from scratch
+TUNABLE = ("pass", "attack")  # the drills that receive a serve: the ones a ball bank can feed (tasks/drills.py serve_bank)
 FINE_TUNING = {"actor_freeze_updates": 10, "anchor_coeff": 0.3}
 
 
@@ -199,6 +207,9 @@ class Preset:
             raise ConfigError(f"population={self.name} trains for matches, not task {task_cls.name!r}; allowed tasks: {', '.join(matches)}")
         if pop.fixed_share and not pop.fixed_opponents:
             raise ConfigError(f"population.fixed_share={pop.fixed_share} needs population.fixed_opponents (e.g. [scripted, hierarchical])")
+        if pop.tune_drills and pop.members != "hierarchical":
+            raise ConfigError(f"population.tune_drills={list(pop.tune_drills)} tunes a hierarchical team's drills; "
+                              "give population.members=hierarchical (3v3) or population.tune_drills=[]")
         if pop.members == "hierarchical":
             self.check_hierarchical(pop, algo.name, task_cls)
             return
@@ -253,6 +264,11 @@ class Preset:
         if pop.oracle_chunks > pop.high_level_batch:
             raise ConfigError(f"population.oracle_chunks={pop.oracle_chunks} must be at most population.high_level_batch="
                               f"{pop.high_level_batch} (a chunk plays at least one game)")
+        bad = [d for d in pop.tune_drills if d not in TUNABLE]
+        if bad:
+            raise ConfigError(f"population.tune_drills: {bad[0]!r} cannot be tuned on recorded serves; allowed: {', '.join(TUNABLE)}")
+        if any(not isinstance(i, int) or i < 1 for i in pop.tune_at):
+            raise ConfigError(f"population.tune_at={list(pop.tune_at)!r} must list iterations >= 1")
         if not pop.seed_members:
             raise ConfigError(f"population={self.name} needs a first opponent: population.seed_members=[{pop.drills}] "
                               "(or scripted, hierarchical)")

@@ -124,6 +124,19 @@ def _refuse_flags(args: list[str], allowed: str) -> None:
         raise ConfigError(f"unknown option {flags[0]!r}; allowed: {allowed}")
 
 
+def options_help(options: type, title: str = "key=value options") -> str:
+    """The end of a verb's ``--help``: its options dataclass described (``volleybots.config.args.help_epilog``),
+    escaped for rich's markup, which would take ``[solo_bump]`` or ``[0, 10]`` for a style and drop it."""
+    from volleybots.config.args import help_epilog
+
+    text = help_epilog(options, title)
+    try:
+        from rich.markup import escape
+    except ImportError:  # typer without rich prints the text as it is
+        return text
+    return escape(text)
+
+
 WIDE = 400  # columns a table may take when stdout is a file or a pipe (rich would cut it to 80)
 
 
@@ -133,3 +146,44 @@ def console():
     from rich.console import Console
 
     return Console() if sys.stdout.isatty() else Console(width=WIDE)
+
+
+def show(renderable, out=None) -> None:
+    """Print a verb's tables (a rich ``Table``, or a ``Group`` of tables and lines) on ``out`` (default:
+    ``console()``). A table wider than the terminal is printed as one record per row, each cell under
+    its column's name, instead of folded by rich into cells of a few letters each (``zoo:1v1/fsp_…``,
+    ``touch…``) that no one can read; off a terminal the console is wide and tables keep their shape."""
+    from rich.console import Group
+    from rich.table import Table
+
+    out = out or console()
+    parts = list(renderable.renderables) if isinstance(renderable, Group) else [renderable]
+    for part in parts:
+        # measured unbounded: measuring at the console's width would report the folded table's width
+        fits = not isinstance(part, Table) or out.measure(part, options=out.options.update_width(10 * WIDE)).maximum <= out.width
+        out.print(part if fits else records(part))
+
+
+def records(table):
+    """``table`` as records: its title, then per row the first cell as a heading and every other cell
+    on a line of its own after its column's name (a header of several lines on one)."""
+    from rich.console import Group
+    from rich.padding import Padding
+    from rich.table import Table
+    from rich.text import Text
+
+    heads = [" ".join(str(c.header).split()) for c in table.columns]
+    rows = list(zip(*(list(c.cells) for c in table.columns)))
+    parts = [Text(str(table.title), style="bold")] if table.title else []
+    for row in rows:
+        grid = Table.grid(padding=(0, 2))
+        grid.add_column(style="dim")
+        grid.add_column()
+        for head, cell in zip(heads[1:], row[1:]):
+            grid.add_row(head, cell)
+        first = Text.assemble(heads[0] + " " if heads[0] else "", row[0] if isinstance(row[0], (str, Text)) else str(row[0]))
+        first.stylize("bold")
+        parts += [first, Padding(grid, (0, 0, 0, 2))]
+    if table.caption:
+        parts.append(Text(str(table.caption)))
+    return Group(*parts)

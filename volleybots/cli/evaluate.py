@@ -9,8 +9,9 @@ from typing import List, Optional
 import typer
 from typer.core import TyperGroup
 
-from volleybots.cli.app import _PASS_THROUGH, _refuse_flags, _user_errors, app, console, say
-from volleybots.config.compose import check_group_args
+from volleybots.cli.app import _PASS_THROUGH, _refuse_flags, _user_errors, app, options_help, say, show
+from volleybots.config.compose import check_fixed_values, check_group_args
+from volleybots.config.verbs import CrossplayOptions, EloOptions, ExploitabilityOptions, ReplayOptions
 
 
 class _EvalGroup(TyperGroup):
@@ -32,6 +33,7 @@ eval_app = typer.Typer(
 )
 app.add_typer(eval_app, name="eval")
 _COMPETITORS = "Competitors (a run dir, a checkpoint, a population run, scripted, random; label one with name=PATH)"
+_MATCH = "config overrides of the match (task=1v1, env.action_space=prt, task.KEY=, env.KEY=, threads=)"
 
 
 @eval_app.command("policy", hidden=True, context_settings=_PASS_THROUGH)
@@ -45,6 +47,7 @@ def eval_cmd(
 ) -> None:
     """Play N episodes (episodes=100) and report the task metric's mean / std and every per-term return."""
     check_group_args(overrides or [])  # a mistyped task= before the policies (and torch) load
+    check_fixed_values(overrides or [])  # and episodes=0
     from volleybots.eval import evaluate, format_table
 
     _refuse_flags([target, *(overrides or [])], "--json, --help")
@@ -52,7 +55,7 @@ def eval_cmd(
     if as_json:
         typer.echo(json.dumps(result, indent=2))
     else:
-        console().print(format_table(result))
+        show(format_table(result))
 
 
 @eval_app.command("compare", context_settings=_PASS_THROUGH)
@@ -76,19 +79,33 @@ def compare_cmd(
     if as_json:
         typer.echo(json.dumps(result, indent=1))
     else:
-        console().print(format_table(result))
+        show(format_table(result))
 
 
-def _pair_progress(i: int, j: int, games) -> None:
-    from volleybots.eval.reuse import Reused
+class _PairProgress:
+    """cross-play's line per pair on stderr: its W/D/L and game content, then how many pairs are done of
+    how many, the time so far and the ETA (a cross-play of many competitors runs for hours)."""
 
-    c = games.content()
-    t = c["touches"]
-    typer.echo(
-        f"  pair {i},{j}: W/D/L {'/'.join(map(str, games.total.tolist()))}, touches/game {t[0]:.2f}/{t[1]:.2f}, "
-        f"rally {c['rally_steps']:.0f} steps" + (f" (reused from {games.source})" if isinstance(games, Reused) else ""),
-        err=True,
-    )
+    def __init__(self):
+        from volleybots.train.progress import Count
+
+        self.count = Count("pairs")
+
+    def begin(self, total: int) -> None:
+        self.count.begin(total)
+
+    def __call__(self, i: int, j: int, games) -> None:
+        from volleybots.eval.reuse import Reused
+
+        reused = isinstance(games, Reused)
+        c = games.content()
+        t = c["touches"]
+        typer.echo(
+            f"  pair {i},{j}: W/D/L {'/'.join(map(str, games.total.tolist()))}, touches/game {t[0]:.2f}/{t[1]:.2f}, "
+            f"rally {c['rally_steps']:.0f} steps" + (f" (reused from {games.source})" if reused else "")
+            + f"  [{self.count.tick(timed=not reused)}]",
+            err=True,
+        )
 
 
 def _show(data: dict, table, as_json: bool, files: list[Path]) -> None:
@@ -96,19 +113,14 @@ def _show(data: dict, table, as_json: bool, files: list[Path]) -> None:
     if as_json:
         typer.echo(json.dumps(data, indent=1))
         return
-    console().print(table)
+    show(table)
     say(f"wrote {' and '.join(map(str, files))}")
 
 
-@eval_app.command("crossplay", context_settings=_PASS_THROUGH)
+@eval_app.command("crossplay", context_settings=_PASS_THROUGH, epilog=options_help(CrossplayOptions))
 @_user_errors
 def crossplay_cmd(
-    args: Optional[List[str]] = typer.Argument(
-        None,
-        help=f"{_COMPETITORS}, then games=1000 seed=0 batch=256 scenario=any|serve|receive deterministic=false pool=serial|ray "
-        "task=1v1 env.action_space=prt; reuse=FILE copies the pairs an earlier crossplay.json played with the same settings; "
-        "pool=ray plays the pairs as Ray tasks together (the same numbers).",
-    ),
+    args: Optional[List[str]] = typer.Argument(None, help=f"{_COMPETITORS}, then the key=value options below and {_MATCH}."),
     as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of the table."),
     out: Optional[Path] = typer.Option(
         None, "--out", help="Folder for crossplay.json and crossplay.png (new or empty; default outputs/crossplay/<time>_<task>)."
@@ -121,20 +133,18 @@ def crossplay_cmd(
     from volleybots.eval.content import format_content
     from volleybots.eval.crossplay import format_table, run_crossplay
 
-    res, path = run_crossplay(list(args or []), out, progress=_pair_progress)  # on stderr, --json or not
+    res, path = run_crossplay(list(args or []), out, progress=_PairProgress())  # on stderr, --json or not
     tables = Group(format_table(res), format_content(res.labels, res.content))
     _show(res.to_dict(), tables, as_json, [path / "crossplay.json", path / "crossplay.png"])
 
 
-@eval_app.command("exploitability", context_settings=_PASS_THROUGH)
+@eval_app.command("exploitability", context_settings=_PASS_THROUGH, epilog=options_help(ExploitabilityOptions))
 @_user_errors
 def exploitability_cmd(
     args: Optional[List[str]] = typer.Argument(
         None,
-        help="TARGET (a competitor), then budget=1000000 seeds=2 games=1000 select_games=200 seed=0 scenario=any|serve|receive|split "
-        "until=budget|plateau init=RUN num_envs=N batch=256 members=true task=1v1 env.action_space=prt, and algo.KEY=VALUE for "
-        "the responses' MAPPO (with init=, a critic warm-up of algo.actor_freeze_updates=10 batches unless given); "
-        "response=SPEC (repeatable) adds a fixed candidate response (scripted, hierarchical, a run, zoo:...); budget=0 trains none.",
+        help=f"TARGET (a competitor), then the key=value options below, {_MATCH}, and algo.KEY=VALUE for the responses' MAPPO "
+        "(with init=, a critic warm-up of algo.actor_freeze_updates=10 batches unless given).",
     ),
     as_json: bool = typer.Option(False, "--json", help="Print the results JSON instead of a line (progress still goes to stderr)."),
     out: Optional[Path] = typer.Option(
@@ -160,11 +170,11 @@ def exploitability_cmd(
     say(f"wrote {path / RESULTS}{also}")
 
 
-@eval_app.command("elo", context_settings=_PASS_THROUGH)
+@eval_app.command("elo", context_settings=_PASS_THROUGH, epilog=options_help(EloOptions))
 @_user_errors
 def elo_cmd(
     args: Optional[List[str]] = typer.Argument(
-        None, help=f"{_COMPETITORS}, or from=CROSSPLAY_JSON; then rounds=2000 k=168 seed=0 and cross-play's options."
+        None, help=f"{_COMPETITORS}, or from=CROSSPLAY_JSON; then the key=value options below and {_MATCH}."
     ),
     as_json: bool = typer.Option(False, "--json", help="Print the ratings JSON instead of the table."),
     out: Optional[Path] = typer.Option(None, "--out", help="Folder for ratings.json, ratings.png (and the games played); new or empty."),
@@ -173,18 +183,18 @@ def elo_cmd(
     check_group_args(args or [])  # a mistyped task= before the policies (and torch) load
     from volleybots.eval.ranking import format_table, run_elo
 
-    report, path = run_elo(list(args or []), out, progress=_pair_progress)  # on stderr, --json or not
+    report, path = run_elo(list(args or []), out, progress=_PairProgress())  # on stderr, --json or not
     _show(report, format_table(report), as_json, [path / "ratings.json", path / "ratings.png"])
 
 
-@app.command(context_settings=_PASS_THROUGH)
+@app.command(context_settings=_PASS_THROUGH, epilog=options_help(ReplayOptions, "key=value options of a match (A B)"))
 @_user_errors
 def replay(
     args: List[str] = typer.Argument(
         ...,
         help="TARGET [overrides]: a run dir, a checkpoint, 'scripted' or 'random' with seed=0 deterministic=true "
-        "(for scripted/random also task=NAME env.action_space=ctbr); or A B [task=3v3 seed=0 scenario=any|serve|receive]: "
-        "a match between two competitors (name=PATH labels one).",
+        "(for scripted/random also task=NAME env.action_space=ctbr); or A B, then the key=value options below and "
+        f"{_MATCH}: a match between two competitors (name=PATH labels one).",
     ),
     out: Optional[Path] = typer.Option(None, "--out", help="The .rrd file to write (never overwritten)."),
     no_viewer: bool = typer.Option(False, "--no-viewer", help="Do not open the rerun viewer even when a display exists."),

@@ -8,7 +8,8 @@ from typing import List, Optional
 
 import typer
 
-from volleybots.cli.app import _PASS_THROUGH, _user_errors, app
+from volleybots.cli.app import _PASS_THROUGH, _user_errors, app, options_help
+from volleybots.config.verbs import BenchOptions
 from volleybots.errors import ConfigError
 
 
@@ -103,20 +104,17 @@ def _fits(algo: str, task: str) -> bool:
 BENCH_ALIASES = {"task": "tasks", "backend": "backends", "device": "devices"}
 
 
-@app.command(context_settings=_PASS_THROUGH)
+@app.command(context_settings=_PASS_THROUGH, epilog=options_help(BenchOptions, "key=value options (task=, backend=, device=: one of each)"))
 @_user_errors
 def bench(
     options: Optional[List[str]] = typer.Argument(
-        None,
-        help="key=value arguments of volleybots.bench.run_bench: task=solo_bump or tasks=[solo_bump,3v3] num_envs=[256,4096] "
-        "backends=[torch,mujoco] "
-        "devices=[cpu] threads=1 repeats=3 steps=100 train=true (adds PPO / MAPPO training frames/s).",
+        None, help="The key=value options below: task=solo_bump or tasks=[solo_bump,3v3] num_envs=[256,4096] train=true ..."
     ),
     compile: bool = typer.Option(False, "--compile", help="Compile the torch env step (static shapes); same as compile=true."),
     as_json: bool = typer.Option(False, "--json", help="Print the measured rows as JSON instead of a table."),
 ) -> None:
     """Measure env-steps/s (and with train=true training frames/s) per task, backend, env count and device; print the table."""
-    import inspect
+    import dataclasses
 
     try:
         from volleybots.bench import format_table, run_bench
@@ -125,23 +123,33 @@ def bench(
     from volleybots.config import check_bench_options
     from volleybots.config.args import parse_options
 
-    allowed = [p for p in inspect.signature(run_bench).parameters if p != "progress"]
+    allowed = [f.name for f in dataclasses.fields(BenchOptions)]
     kwargs = {"compile": True} if compile else {}
     kwargs.update(parse_options(options or [], allowed, "bench", aliases=BENCH_ALIASES))
     kwargs = check_bench_options(kwargs)
 
-    def measured(row: dict) -> None:
-        typer.echo(
-            f"  measured {row.get('task')} {row.get('kind', 'env')} {row.get('backend')} x{row.get('num_envs')}: "
-            f"{row.get('env_steps_per_s', 0):,.0f}/s",
-            err=True,
-        )
-
     try:
-        rows = run_bench(**kwargs, progress=measured)
+        rows = run_bench(BenchOptions(**kwargs), progress=_RowProgress())
     except ValueError as e:
         raise ConfigError(str(e).splitlines()[0]) from None
     typer.echo(json.dumps(rows, indent=1) if as_json else format_table(rows))
+
+
+class _RowProgress:
+    """bench's line per measured row on stderr, with the rows done of how many and the ETA (train=true
+    on several env counts takes many minutes)."""
+
+    def __init__(self):
+        from volleybots.train.progress import Count
+
+        self.count = Count("rows")
+
+    def begin(self, total: int) -> None:
+        self.count.begin(total)
+
+    def __call__(self, row: dict) -> None:
+        typer.echo(f"  measured {row.get('task')} {row.get('kind', 'env')} {row.get('backend')} x{row.get('num_envs')}: "
+                   f"{row.get('env_steps_per_s', 0):,.0f}/s  [{self.count.tick()}]", err=True)
 
 
 # ------------------------------------------------------------------------------------------ report

@@ -170,10 +170,23 @@ def train(
     ),
     multirun: bool = typer.Option(False, "-m", "--multirun", help="Sweep: one job per combination of comma-separated values (seed=0,1,2)."),
     show: Optional[str] = typer.Option(None, "--cfg", "-c", help="Print the composed config (job, hydra or all) instead of training."),
+    config_dir: Optional[str] = typer.Option(
+        None, "--config-dir", "-cd", help="A folder of your own presets (algo/NAME.yaml, task/NAME.yaml, ...) beside the packaged ones "
+        "(as hydra.searchpath=[file://DIR]; docs/usage.md).",
+    ),
 ) -> None:
     """Train a policy; writes a run directory (config, metrics.csv, checkpoints, summary.json, recordings)."""
     overrides = list(overrides or [])
-    _refuse_flags(overrides, "-m/--multirun, --cfg job|hydra|all, --help")
+    _refuse_flags(overrides, "-m/--multirun, --cfg job|hydra|all, --config-dir DIR, --help")
+    from volleybots.config.searchpath import active, with_config_dir
+
+    # --config-dir is read as the first hydra.searchpath entry, so every job and Hydra itself see the same words
+    overrides = with_config_dir(overrides, config_dir)
+    with active(overrides):  # the checks before composition know the user's presets
+        _train(overrides, multirun, show)
+
+
+def _train(overrides: list[str], multirun: bool, show: str | None) -> None:
     _refuse_empty(overrides)
     if show is not None and show not in ("job", "hydra", "all"):
         raise ConfigError(f"unknown --cfg {show!r}; allowed: job, hydra, all")

@@ -12,7 +12,8 @@ schemas so that a misspelt key or a value of the wrong type is rejected with one
 
 Modules: ``schema`` (dataclasses, ranges), ``validate``, ``compose`` (Hydra, ``key=value`` values),
 ``spelling`` (the command line's population words: old spellings, a task's default method),
-``envs`` (an env from a config), ``resources`` (memory checks, bench options).
+``envs`` (an env from a config), ``resources`` (memory checks, bench options), ``searchpath`` (a user's
+own presets through ``hydra.searchpath`` / ``--config-dir``).
 """
 
 from volleybots.config.compose import algo_action_space, apply_overrides, compose, load, parse_value

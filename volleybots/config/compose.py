@@ -7,8 +7,11 @@ same way everywhere.
 
 from __future__ import annotations
 
+import dataclasses
+
 from omegaconf import DictConfig, OmegaConf
 
+from volleybots.config import searchpath
 from volleybots.config.schema import GROUPS, group_options, to_dict
 from volleybots.config.spelling import respell, task_default
 from volleybots.config.validate import validate
@@ -45,11 +48,57 @@ def check_group_value(group: str, value) -> None:
 
 def check_group_args(args) -> None:
     """The group choices (``task=``, ``algo=``, ``env=``) among a verb's words checked against ``conf/``
-    alone: a verb calls this first, so a mistyped task is reported before torch and the policies load."""
+    alone (and a user's config folders, ``hydra.searchpath``): a verb calls this first, so a mistyped
+    task is reported before torch and the policies load."""
+    with searchpath.active(args):
+        for arg in args:
+            key, value = split_arg(str(arg))
+            if value is not None and key in GROUPS:
+                check_group_value(key, value)
+
+
+def check_fixed_values(args) -> None:
+    """The numbers that ``key=value`` words give the run's fixed keys (``schema.Config``: ``env.num_envs``,
+    ``seed``, ``total_frames``, ``evaluation.*``, ...) against their ranges. ``validate`` checks them too, but
+    only once the task and algorithm registries have loaded torch (8 s and more); from the words alone a bad
+    value is one line at once. A value of another type, a sweep, a task's or an algorithm's key is left to ``validate``.
+    For the words of a run's config only (``train``, ``eval TARGET``): the match verbs' own ``seed=`` has another range."""
+    import typing
+
+    from volleybots.config.schema import Config, Range, check_magnitude, check_range, field_range
+
     for arg in args:
         key, value = split_arg(str(arg))
-        if value is not None and key in GROUPS:
-            check_group_value(key, value)
+        if value is None or key.startswith(("+", "~")):
+            continue
+        found = _fixed_field(Config, key)
+        kind = typing.get_type_hints(found[0]).get(found[1]) if found else None
+        if kind not in (int, float):
+            continue
+        schema, name = found
+        try:
+            v = parse_value(value)
+        except ConfigError:
+            continue  # Hydra's grammar reports it
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or (kind is int and not isinstance(v, int)):
+            continue
+        rng = field_range(schema, name)
+        check_range(key, v, rng or (Range() if isinstance(v, float) else None))
+        check_magnitude(key, v, rng)
+
+
+def _fixed_field(schema, key: str):
+    """(dataclass, field name) of the dotted ``key`` under ``schema`` (``env.num_envs``: ``EnvConfig``,
+    ``num_envs``); None where a part is no field or no section (``task.*`` and ``algo.*`` are typed ``Any``)."""
+    import typing
+
+    *sections, name = key.split(".")
+    for part in sections:
+        sub = typing.get_type_hints(schema).get(part)
+        if not dataclasses.is_dataclass(sub):
+            return None
+        schema = sub
+    return (schema, name) if name in typing.get_type_hints(schema) else None
 
 
 def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = False) -> DictConfig:
@@ -57,17 +106,24 @@ def compose(overrides: list[str] | tuple[str, ...] = (), hydra_node: bool = Fals
     task's default method where none is named (``volleybots.config.spelling``). Raises ``ConfigError``.
 
     A misspelt key is reported with the keys allowed beside it."""
+    with searchpath.active(overrides):  # a user's presets (hydra.searchpath) are options of their groups
+        return _compose(list(overrides), hydra_node)
+
+
+def _compose(overrides: list[str], hydra_node: bool) -> DictConfig:
     from hydra import compose as hydra_compose
     from hydra import initialize_config_dir
     from hydra.errors import HydraException
 
     overrides = respell(overrides)[0]
     _check_overrides(overrides)
+    check_fixed_values(overrides)  # before the registries (and torch) load
     with initialize_config_dir(config_dir=str(conf_dir()), version_base="1.3"):
         try:
             cfg = hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node)
             # then the task's default method where none is named (a bad word is reported above, before torch loads)
-            default = [] if names_key(overrides, "algo", "population") else task_default(overrides)
+            # by the composed task's registered name: a user's preset (task=my1v1, defaults: [1v1]) trains as its task does
+            default = [] if names_key(overrides, "algo", "population") else task_default([*overrides, f"task={cfg.task.name}"])
             if default:
                 overrides = respell([*overrides, *default], population=names_key(default, "population"))[0]
                 cfg = hydra_compose("config", overrides=overrides, return_hydra_config=hydra_node)
@@ -83,7 +139,8 @@ def _explain_unknown_key(overrides: list[str], hydra_compose) -> None:
     from hydra.errors import HydraException
 
     try:
-        base = hydra_compose("config", overrides=[o for o in overrides if override_key(o) in GROUPS])
+        # the groups and the search path that finds a user's presets: the keys a user preset declares are known
+        base = hydra_compose("config", overrides=[o for o in overrides if override_key(o) in GROUPS or searchpath.is_searchpath(o)])
     except HydraException:
         return
     for o in overrides:

@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any, Optional
-
 from volleybots.config.envs import build_env, make_env
-from volleybots.config.schema import MAX_THREADS, _typed, check_values, to_dict
-from volleybots.errors import ConfigError, check_device, ranged
+from volleybots.config.schema import _typed, check_values, to_dict
+from volleybots.config.verbs import BenchOptions
+from volleybots.errors import ConfigError, check_device
 
 
 def check_memory(cfg, worlds: int | None = None) -> None:
@@ -119,25 +117,6 @@ def _step_bytes(probe) -> int:
     if close is not None:
         close()
     return n
-
-
-@dataclass
-class BenchOptions:
-    """The options of ``volleybots bench`` (the keywords of ``volleybots.bench.run_bench``), typed and
-    ranged like the config; a scalar where a list is expected is taken as a list of one."""
-
-    tasks: Optional[list[str]] = None
-    backends: Optional[list[str]] = None
-    num_envs: Optional[list[int]] = ranged(None, ge=1)
-    devices: Optional[list[str]] = None
-    compile: Any = None  # a bool, or a list of bools to measure both ways
-    repeats: int = ranged(3, ge=1, le=20)
-    steps: Optional[int] = ranged(None, ge=1, le=100_000)  # batched steps per repeat: 200 times the most default_steps gives
-    action_space: str = "prt"
-    threads: Optional[int] = ranged(None, ge=0, le=MAX_THREADS)
-    train: bool = False  # also measure PPO (solo_bump) / MAPPO (3v3) training frames/s
-    train_batches: int = ranged(3, ge=1, le=1000)  # timed training batches per training row
-    train_overrides: Optional[list[str]] = None  # config overrides of the training rows (algo.steps_per_batch=8: quick rows)
 
 
 def check_bench_options(options: dict) -> dict:

@@ -113,8 +113,13 @@ TASK_RANGES: dict[str, Range] = {
 
 # ---------------------------------------------------------------------------------------- schemas
 def group_options(group: str) -> list[str]:
-    """The options of a config group: the YAML files of ``conf/<group>/``."""
-    return sorted(p.stem for p in (conf_dir() / group).glob("*.yaml"))
+    """The options of a config group: the YAML files of ``conf/<group>/``, and of ``<DIR>/<group>/`` for
+    a user's config folder of the words being checked (``searchpath.active``: the top groups only; a
+    drone file is read by the physics from ``conf/`` alone)."""
+    from volleybots.config.searchpath import active_dirs
+
+    roots = (conf_dir(), *active_dirs()) if group in GROUPS else (conf_dir(),)
+    return sorted({p.stem for root in roots for p in (root / group).glob("*.yaml")})
 
 
 def _omegaconf_type(tp) -> Any:

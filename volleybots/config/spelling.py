@@ -33,11 +33,12 @@ def loop_keys() -> set[str]:
     an algorithm (torch), so that a bad word is still reported in a second."""
     from omegaconf import OmegaConf
 
+    from volleybots.config.searchpath import option_file
     from volleybots.paths import conf_dir
 
     keys = set()
-    for name in group_options("population"):
-        node = OmegaConf.load(conf_dir() / "population" / f"{name}.yaml").get("population") or {}
+    for name in group_options("population"):  # a user's preset too (a --config-dir): its loop keys are accepted
+        node = OmegaConf.load(option_file(conf_dir(), "population", name)).get("population") or {}
         keys |= set(node)
     return keys - {"name"}
 

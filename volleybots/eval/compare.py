@@ -98,7 +98,7 @@ OVERRIDES = tuple(dict.fromkeys((*EVAL_KEYS, *OVERRIDE_KEYS)))
 def split(args) -> tuple[list[str], list[str]]:
     """Targets and overrides (``key=value``) of a command line, in order, read by the verbs' one
     grammar (``volleybots.config.args``)."""
-    targets, _, overrides = split_args(args, {}, OVERRIDES)
+    targets, _, overrides = split_args(args, None, OVERRIDES)
     for t in targets:
         key, value = split_arg(t)
         # a path whose name holds '=' (an existing run dir or checkpoint) is a target; any other key=value is a typo

@@ -24,6 +24,7 @@ import numpy as np
 from volleybots.config import load, make_env, to_dict
 from volleybots.config.args import split_args
 from volleybots.config.resources import check_play
+from volleybots.config.verbs import CrossplayOptions, PlayOptions
 from volleybots.errors import ConfigError
 from volleybots.eval.crossplay_view import format_table, heatmap  # noqa: F401 (the views, importable from here as before)
 from volleybots.eval.results import check_consistent
@@ -152,8 +153,6 @@ def versions() -> dict:
     }
 
 
-# options of the cross-play verbs (key=value on the command line) and their types
-OPTIONS = {"games": int, "seed": int, "batch": int, "scenario": str, "deterministic": bool, "reuse": str, "pool": str}
 
 
 MAX_LABEL = 1000  # characters: past any file or run name (a long one still replays), short enough to draw at once
@@ -226,7 +225,8 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
         scenario: "any", "serve" (the row competitor serves) or "receive".
         deterministic: competitors act with their mode instead of sampling.
         specs: the competitors as named on the command line, for the provenance.
-        progress: called as ``progress(i, j, games)`` after each pair.
+        progress: called as ``progress(i, j, games)`` after each pair; one with a ``begin`` method is first
+            told the number of pairs (``begin(total)``: its done / total and ETA).
         reuse: an earlier results file whose pairs are copied instead of played (``volleybots.eval.reuse``).
         pool: "serial" (pairs in turn) or "ray" (pairs as Ray tasks together; the same numbers: every
             pair plays on ``seed``).
@@ -253,6 +253,8 @@ def crossplay(cfg, competitors, games: int, seed: int = 0, batch: int = DEFAULT_
     pairs = list(combinations(range(n), 2))
     copied = {(i, j): earlier.pair(meta["competitors"][i], meta["competitors"][j]) for i, j in pairs} if earlier is not None else {}
     todo = [(i, j) for i, j in pairs if copied.get((i, j)) is None]
+    if hasattr(progress, "begin"):
+        progress.begin(len(pairs))
     from volleybots.play.pool import pool_map
 
     played = pool_map(_play_pair, cfg, [(competitors[i], competitors[j], games, seed, batch, scenario, deterministic) for i, j in todo],
@@ -288,25 +290,26 @@ def default_out(task: str, verb: str) -> Path:
     return Path("outputs") / verb / f"{time.strftime('%Y-%m-%d_%H-%M-%S')}_{task}"
 
 
-def setup(args, options: dict, min_competitors: int = 2):
-    """(competitors, specs, options, config) of a cross-play command line, all validated."""
+def setup(args, options: type[PlayOptions] = CrossplayOptions, min_competitors: int = 2, games: int | None = None):
+    """(competitors, specs, options, config) of a cross-play command line, all validated; ``games``: the
+    games per pair when given (``eval elo`` plays its rounds), else ``options``' own (None: none played)."""
     specs, opts, overrides = split_args(args, options)
     if len(specs) < min_competitors:
         raise ConfigError(f"cross-play needs at least {min_competitors} competitors; got {len(specs)} ({' '.join(specs) or 'none'})")
-    games = opts.get("games", 1000)
-    if "games" in options and (games < 2 or games % 2):
+    games = games if games is not None else getattr(opts, "games", None)
+    if games is not None and games % 2:  # (>= 2: the option's range)
         raise ConfigError(f"games={games} must be an even number >= 2 (each side plays half of them)")
-    if "reuse" in opts:
-        check_readable(opts["reuse"])
-    if "pool" in opts:
+    if getattr(opts, "reuse", None) is not None:
+        check_readable(opts.reuse)
+    if "pool" in opts.given:  # (the name is the option's choice; ray's install and cluster are checked here)
         from volleybots.play.pool import check_pool
 
-        check_pool(opts["pool"], "pool")
+        check_pool(opts.pool, "pool")
     comps = resolve_all(specs)
     cfg = match_config(comps, overrides)
-    check_scenario(opts.get("scenario", "any"), cfg)
-    if "games" in options:  # absurd counts are refused here, before any game
-        check_play(cfg, games, len(comps) * (len(comps) - 1) // 2, opts.get("batch", DEFAULT_BATCH))
+    check_scenario(opts.scenario, cfg)
+    if games is not None:  # absurd counts are refused here, before any game
+        check_play(cfg, games, len(comps) * (len(comps) - 1) // 2, getattr(opts, "batch", DEFAULT_BATCH))
     return comps, specs, opts, cfg
 
 
@@ -325,18 +328,18 @@ def run_crossplay(args, out: Path | None = None, progress=None, verb: str = "cro
     """
     from volleybots.runs import output_dir
 
-    comps, specs, opts, cfg = setup(args, OPTIONS)
+    comps, specs, opts, cfg = setup(args)
     with output_dir(out, default_out(cfg.task.name, verb)) as path:  # claimed and locked before the games
         res = play_and_save(comps, specs, opts, cfg, path, progress)
     return res, path
 
 
-def play_and_save(comps, specs, opts, cfg, path: Path, progress=None) -> CrossPlay:
-    """Play the cross-play ``setup`` validated and write its results and heatmap into ``path``."""
+def play_and_save(comps, specs, opts: PlayOptions, cfg, path: Path, progress=None, games: int | None = None) -> CrossPlay:
+    """Play the cross-play ``setup`` validated (``games`` per pair when given, else ``opts.games``) and
+    write its results and heatmap into ``path``."""
     res = crossplay(
-        cfg, comps, opts.get("games", 1000), seed=opts.get("seed", 0), batch=opts.get("batch", DEFAULT_BATCH),
-        scenario=opts.get("scenario", "any"), deterministic=opts.get("deterministic", False), specs=specs, progress=progress,
-        reuse=opts.get("reuse"), pool=opts.get("pool", "serial"),
+        cfg, comps, games if games is not None else opts.games, seed=opts.seed, batch=opts.batch, scenario=opts.scenario,
+        deterministic=opts.deterministic, specs=specs, progress=progress, reuse=opts.reuse, pool=opts.pool,
     )
     res.save(path / RESULTS)
     heatmap(res, path / HEATMAP)

@@ -17,7 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from volleybots.errors import ConfigError, Range
+from volleybots.config.verbs import EloOptions
+from volleybots.errors import ConfigError
 from volleybots.eval.content import by_competitor
 from volleybots.eval.crossplay import CrossPlay
 from volleybots.eval.plain import clean, plain
@@ -26,7 +27,6 @@ from volleybots.overrides import split_arg
 from volleybots.ratings import ELO_K
 from volleybots.ratings.methods import ORDERS, RATINGS, RESAMPLES, ROUNDS, Games, rate
 
-K_RANGE = Range(low=0.0, low_open=True)  # Elo's K: a finite step > 0 (nan or inf would make every rating nan)
 CONTENT_COLUMNS = ("touches/game (opp.)", "rally steps", "serving W/D/L", "receiving W/D/L")  # what the games held, after the ratings
 
 
@@ -111,8 +111,6 @@ def format_table(report: dict):
 
 
 # ------------------------------------------------------------------ command line
-# options of `volleybots eval elo` besides cross-play's (rounds replaces games)
-ELO_OPTIONS = {"rounds": int, "k": float, "sample": bool, "from": str, "orders": int}
 REPORT = "ratings.json"
 PLOT = "ratings.png"
 
@@ -131,7 +129,7 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
         ``(report, directory)``: the dict of ``ratings`` and where it was written (JSON and plot).
     """
     from volleybots.config.resources import check_rounds
-    from volleybots.eval.crossplay import HEATMAP, OPTIONS, RESULTS, default_out, heatmap, play_and_save, resolve_all, setup, split_args
+    from volleybots.eval.crossplay import HEATMAP, RESULTS, default_out, heatmap, play_and_save, resolve_all, setup, split_args
     from volleybots.runs import output_dir
 
     if any(split_arg(a)[0] == "bootstrap" for a in args):
@@ -139,20 +137,14 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
             "bootstrap= is no longer an option of eval elo: Bradley-Terry's intervals are profile-likelihood intervals, "
             "which draw no resamples; leave it out"
         )
-    options = {**{k: v for k, v in OPTIONS.items() if k != "games"}, **ELO_OPTIONS}
-    specs, opts, _ = split_args(args, options)
-    rounds = opts.get("rounds", ROUNDS)
-    if rounds < 1:
-        raise ConfigError(f"rounds={rounds} must be >= 1")
-    k = opts.get("k", ELO_K)
-    if k not in K_RANGE:
-        raise ConfigError(f"k={k} must be a finite number > 0 (Elo's step; the paper's is {ELO_K:g})")
-    orders = opts.get("orders", ORDERS)
-    if not 1 <= orders <= 10_000:
-        raise ConfigError(f"orders={orders} must be 1 to 10000 (seeded game orders over which Elo's spread is reported)")
-    source = opts.get("from")
+    specs, opts, _ = split_args(args, EloOptions)  # (each option's type and range checked as it is read)
+    if opts.games is not None and "rounds" not in opts.given:  # games= is rounds= as eval crossplay spells it
+        opts.rounds = opts.games
+    # (with both, rounds= counts, as it always did: a command line copied from eval crossplay and given its own
+    # rounds= keeps playing what it played)
+    rounds, k, orders, source = opts.rounds, opts.k, opts.orders, opts.source
     if source is not None:
-        playing = [key for key in ("reuse", "batch", "scenario", "deterministic", "pool") if key in opts]
+        playing = [key for key in ("reuse", "batch", "scenario", "deterministic", "pool", "games") if key in opts.given]
         if playing:  # they say how games are played, and from= plays none: silently ignored, they would mislead
             raise ConfigError(f"{'= and '.join(playing)}= play games, but from={source!r} rates a cross-play already played; "
                               "leave them out, or name competitors instead of from= to play")
@@ -170,13 +162,12 @@ def run_elo(args, out: Path | None = None, progress=None) -> tuple[dict, Path]:
         if rounds % 2:
             raise ConfigError(f"rounds={rounds} must be even: the games of every pair are played half on each side")
         check_rounds(rounds, max(2, len(specs)), orders)  # before the competitors load: rounds are the games per pair
-        play = [a for a in args if split_arg(a)[0] not in ELO_OPTIONS] + [f"games={rounds}"]
-        comps, specs, play_opts, cfg = setup(play, OPTIONS)
-        task, sample = cfg.task.name, opts.get("sample", False)
+        comps, specs, opts, cfg = setup(args, EloOptions, games=rounds)
+        task, sample = cfg.task.name, opts.sample
     with output_dir(out, default_out(task, "elo")) as path:  # claimed and locked before any game
         if source is None:
-            result = play_and_save(comps, specs, play_opts, cfg, path, progress)
-        report = ratings(result, rounds, k, opts.get("seed", 0), sample, orders=orders)
+            result = play_and_save(comps, specs, opts, cfg, path, progress, games=rounds)
+        report = ratings(result, rounds, k, opts.seed, sample, orders=orders)
         report["source"] = str(source) if source is not None else str(path / RESULTS)
         write_json(path / REPORT, report, "the ratings")
         plot(report, path / PLOT)

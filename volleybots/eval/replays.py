@@ -8,11 +8,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from volleybots.config.args import split_args
+from volleybots.config.verbs import ReplayOptions
 from volleybots.errors import ConfigError
 from volleybots.eval.crossplay import setup
 from volleybots.overrides import split_arg
-
-REPLAY_OPTIONS = {"seed": int, "scenario": str, "deterministic": bool}
 
 
 def is_competitor_spec(arg: str) -> bool:
@@ -97,18 +96,18 @@ def replay_match(args, out: Path | None, viewer: bool) -> tuple[dict, Path | Non
     from volleybots.replay import record_match
     from volleybots.tasks.multi import TeamPolicies
 
-    specs = split_args(args, REPLAY_OPTIONS)[0]
+    specs = split_args(args, ReplayOptions)[0]
     if len(specs) != 2:
         raise ConfigError(f"a match replay takes two competitors; got {len(specs)}: {' '.join(specs)}")
-    comps, specs, opts, cfg = setup(args, REPLAY_OPTIONS)
+    comps, specs, opts, cfg = setup(args, ReplayOptions)
     labels = [c.label for c in comps]
     default = None
     if out is None and not viewer:
         default = Path("outputs") / "replays" / replay_name(cfg.task.name, labels, time.strftime("%Y%m%d-%H%M%S"))
-    seed = opts.get("seed", 0)
-    env = side_env(cfg, 0, opts.get("scenario", "any"), 1, seed)  # A is team 0 (blue)
+    seed = opts.seed
+    env = side_env(cfg, 0, opts.scenario, 1, seed)  # A is team 0 (blue)
     gen = torch_generator(seed)
-    policy = TeamPolicies(env, tuple(c.team_policy(env, opts.get("deterministic", False), gen) for c in comps))
+    policy = TeamPolicies(env, tuple(c.team_policy(env, opts.deterministic, gen) for c in comps))
     out = replay_file(out, default)
     try:
         return record_match(env, policy, tuple(labels), out, viewer=viewer), out, labels

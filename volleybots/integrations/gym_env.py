@@ -99,6 +99,7 @@ class _BatchedVectorEnv(_Closable, VectorEnv):
             self._reseed(seed)
         self._td = self.env.reset()
         self._after_reset()
+        self._trail_restart()
         return self._observe(self._rows(self._td.get(OBS))), {}
 
     def step(self, actions):
@@ -115,6 +116,33 @@ class _BatchedVectorEnv(_Closable, VectorEnv):
             return {}
         stats = {k: self._per_row(v) for k, v in episode_stats(self.env, nxt).items()}
         return {"final_obs": self._observe(self._rows(nxt.get(OBS))), "_final_obs": done, STATS_KEY: stats, "_" + STATS_KEY: done.copy()}
+
+    # ------------------------------------------------------------------ rendering (the first world)
+    _trail: Trail | None = None
+
+    def _init_render(self, render_mode) -> None:
+        self.render_mode = check_render_mode(render_mode)
+        self._trail = Trail(self.env, 0) if self.render_mode else None
+
+    def _trail_restart(self) -> None:
+        """World 0 began an episode: its trail starts again from the state now."""
+        if self._trail is not None:
+            self._trail.clear()
+            self._trail.record(after_step=False)
+
+    def _trail_step(self, nxt, ended: bool) -> None:
+        """After a same-step-autoreset step: world 0's trail goes on, or gives its point and starts again."""
+        if self._trail is not None:
+            self._trail.after_batched_step(episode_stats(self.env, nxt, 0), ended)
+
+    def render(self):
+        """The first world's video frame ([H, W, 3] uint8: ``volleybots.integrations.render``) as a tuple
+        of one, as Gymnasium's vector envs return one frame per env; None without a render mode. One
+        world only: the frames of all of them would cost a frame each and show the same picture."""
+        self._check_open()
+        if self._trail is None:
+            return None
+        return (self._trail.frame(title=f"{self.task} (world 0)"),)
 
     def close_extras(self, **kwargs):
         self._closed = True
@@ -134,26 +162,27 @@ class VolleyVectorEnv(_BatchedVectorEnv):
         autoreset_mode: ``"same_step"`` (the batched env's own) or ``"next_step"`` (Gymnasium's default).
         clip_obs: declare finite bounds for the positions and velocities and clip observations into
             them (``bounds``; for wrappers that scale by the bounds); ``obs_clip`` counts the clipped values.
-        render_mode: None only (render one world with ``VolleyGymEnv(render_mode="rgb_array")``).
+        render_mode: None, or ``"rgb_array"``: ``render()`` gives the first world's video frame (a
+            tuple of one frame), for Gymnasium's and SB3's video recorders.
         **task_overrides: as for ``volleybots.make_env`` (``episode_len``, ``reward_shaping``, ...).
     """
 
-    metadata: ClassVar[dict] = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
+    metadata: ClassVar[dict] = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": list(RENDER_MODES), "render_fps": 50}
 
     def __init__(self, task: str = "solo_bump", num_envs: int = 1, action_space: str = "prt", physics: str = "torch",
                  device="cpu", seed: int = 0, render_mode: str | None = None, autoreset_mode="same_step", clip_obs: bool = False,
                  **task_overrides):
-        if render_mode is not None:
-            raise ValueError(f"render_mode must be None for the vector env, got {render_mode!r}; "
-                             "VolleyGymEnv(render_mode='rgb_array') renders one world")
-        self.render_mode = None
+        check_render_mode(render_mode)  # before the env is built: a bad mode is one line
         mode = _autoreset_mode(autoreset_mode)
         self.env = _make(task, num_envs, action_space=action_space, physics=physics, device=device, seed=seed, **task_overrides)
+        self._init_render(render_mode)
         self._observe = sp.Observations(self.env, clip_obs)
         self.obs_clip = self._observe.clip
         self.metadata = {**type(self).metadata, "autoreset_mode": mode}
         self.next_step = mode == AutoresetMode.NEXT_STEP
         self.task, self.num_envs = task, int(num_envs)
+        # the task's headline statistic, a key of info["final_stats"], and its direction (a script plots it by name)
+        self.metric, self.metric_higher_is_better = self.env.metric, bool(self.env.metric_higher_is_better)
         self.single_observation_space = self._observe.space
         self.single_action_space = sp.action_space(self.env)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
@@ -179,6 +208,7 @@ class VolleyVectorEnv(_BatchedVectorEnv):
         cur, self._td = self.env.step_and_maybe_reset(self._td)
         nxt = cur.get(NEXT)
         term, trunc = self._flags(nxt)
+        self._trail_step(nxt, bool(term[0] or trunc[0]))
         return self._observe(self._td.get(OBS)[:, 0]), to_numpy(nxt.get(REWARD)[:, 0, 0]), term, trunc, self._ended_info(nxt, term | trunc)
 
     def _step_next(self, arr: np.ndarray):
@@ -200,6 +230,12 @@ class VolleyVectorEnv(_BatchedVectorEnv):
             reward[pending], term[pending], trunc[pending] = 0.0, False, False
         self._td = nxt
         done = term | trunc
+        if pending[0]:  # world 0 was reset after this step: its trail starts again
+            self._trail_restart()
+        elif self._trail is not None:
+            self._trail.record(after_step=True, stats=episode_stats(self.env, nxt, 0))
+            if done[0]:
+                self._trail.end(episode_stats(self.env, nxt, 0))
         info: dict[str, Any] = {}
         if done.any():
             info[STATS_KEY] = episode_stats(self.env, nxt)
@@ -212,8 +248,8 @@ class VolleyGymEnv(_Closable, gym.Env):
     """One world of a single-drone task as a ``gymnasium.Env`` (the batched env with ``num_envs=1``).
 
     Arguments as for ``VolleyVectorEnv`` (without ``num_envs`` and ``autoreset_mode``);
-    ``render_mode="rgb_array"`` makes ``render()`` return the replay's still picture of the episode so
-    far ([H, W, 3] uint8). The episode's statistics come in ``info["final_stats"]`` on its last step;
+    ``render_mode="rgb_array"`` makes ``render()`` return the video frame of the episode so far
+    ([H, W, 3] uint8: ``volleybots.integrations.render``). The episode's statistics come in ``info["final_stats"]`` on its last step;
     ``step`` is refused after that until ``reset()``.
     """
 
@@ -260,12 +296,14 @@ class VolleyGymEnv(_Closable, gym.Env):
         terminated, truncated = bool(nxt.get(TERMINATED)), bool(nxt.get(TRUNCATED))
         self._ended = terminated or truncated
         if self._trail is not None:
-            self._trail.record(after_step=True)
+            self._trail.record(after_step=True, stats=episode_stats(self.env, nxt, 0))
+            if self._ended:
+                self._trail.end(episode_stats(self.env, nxt, 0))
         info = {STATS_KEY: episode_stats(self.env, nxt, 0)} if self._ended else {}
         return self._observe(nxt.get(OBS)[0, 0]), float(nxt.get(REWARD)), terminated, truncated, info
 
     def render(self):
-        """The still picture of the episode so far ([H, W, 3] uint8), or None without a render mode."""
+        """The video frame of the episode so far ([H, W, 3] uint8), or None without a render mode."""
         self._check_open()
         if self._trail is None:
             return None

@@ -38,6 +38,7 @@ from gymnasium.vector.utils import batch_space
 
 from volleybots.integrations import spaces as sp
 from volleybots.integrations.gym_env import _BatchedVectorEnv
+from volleybots.integrations.render import RENDER_MODES, check_render_mode
 from volleybots.integrations.spaces import Actions, to_numpy
 from volleybots.keys import ACTION, NEXT, OBS, REWARD
 from volleybots.policies import Competitor, callable_competitor, resolve_competitor
@@ -73,21 +74,25 @@ class VolleyMatchVectorEnv(_BatchedVectorEnv):
         device: where the env's tensors live (arrays always come back on the CPU).
         seed: the generator's seed (the env's and the mixture's draws) until ``reset(seed=...)`` gives another.
         clip_obs: clip observations into declared bounds, as ``VolleyVectorEnv`` does.
+        render_mode: None or ``"rgb_array"``: ``render()`` gives world 0's video frame with the score
+            (points each team won there since the env was made), for the video recorders.
         **task_overrides: as for ``volleybots.make_env`` (``episode_len``, ``serve``, ...).
     """
 
-    metadata: ClassVar[dict] = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
+    metadata: ClassVar[dict] = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": list(RENDER_MODES), "render_fps": 50}
 
     def __init__(self, task: str = "1v1", n_worlds: int = 8, opponent="scripted", team: int = 0, opponent_deterministic: bool = False,
-                 action_space: str = "prt", physics: str = "torch", device="cpu", seed: int = 0, clip_obs: bool = False, **task_overrides):
+                 action_space: str = "prt", physics: str = "torch", device="cpu", seed: int = 0, clip_obs: bool = False,
+                 render_mode: str | None = None, **task_overrides):
         if task not in MATCHES:
             raise ValueError(f"task {task!r} is not a match; allowed: {list(MATCHES)} (VolleyVectorEnv takes the single-drone tasks)")
         if team not in (0, 1) or isinstance(team, bool):
             raise ValueError(f"team must be 0 or 1, got {team!r}")
         if not isinstance(opponent_deterministic, (bool, np.bool_)):
             raise ValueError(f"opponent_deterministic must be True or False, got {opponent_deterministic!r}")
-        self.render_mode = None
+        check_render_mode(render_mode)  # before the env is built: a bad mode is one line
         self.env = sp.build(task, n_worlds, action_space=action_space, physics=physics, device=device, seed=seed, **task_overrides)
+        self._init_render(render_mode)
         self.task, self.team, self.n_worlds = task, int(team), int(n_worlds)
         self.opponent_deterministic = bool(opponent_deterministic)
         # the mixture's draws: a generator of its own, seeded with the env, so a seed fixes who plays which world
@@ -161,6 +166,7 @@ class VolleyMatchVectorEnv(_BatchedVectorEnv):
         cur, self._td = self.env.step_and_maybe_reset(self._td)
         nxt = cur.get(NEXT)
         term, trunc = self._flags(nxt)
+        self._trail_step(nxt, bool(term[0] or trunc[0]))  # row 0 is a drone of world 0
         reward = to_numpy(self._rows(nxt.get(REWARD))[:, 0])
         return self._observe(self._rows(self._td.get(OBS))), reward, term, trunc, self._ended_info(nxt, term | trunc)
 

@@ -46,7 +46,7 @@ class VolleyParallelEnv(ParallelEnv):
         physics: ``torch`` or ``mujoco``.
         device: where the env's tensors live (arrays always come back on the CPU).
         seed: the generator's seed until ``reset(seed=...)`` gives another.
-        render_mode: None or ``rgb_array`` (``render()``: the replay's still picture of the episode so far).
+        render_mode: None or ``rgb_array`` (``render()``: the video frame of the episode so far, with the score).
         legacy_names: a match's agents named ``team0_drone0`` ... as they were first.
         clip_obs: declare finite bounds for the positions and velocities and clip observations into
             them (for SuperSuit's ``normalize_obs_v0``); ``obs_clip`` counts the clipped values.
@@ -129,10 +129,12 @@ class VolleyParallelEnv(ParallelEnv):
         self._td.set(ACTION, self._actions.tensor(stacked))
         nxt = self.env.step(self._td).get(NEXT)
         self._td = nxt
-        if self._trail is not None:
-            self._trail.record(after_step=True)
         reward = to_numpy(nxt.get(REWARD)[0, :, 0])
         terminated, truncated = bool(nxt.get(TERMINATED)), bool(nxt.get(TRUNCATED))
+        if self._trail is not None:
+            self._trail.record(after_step=True, stats=episode_stats(self.env, nxt, 0))
+            if terminated or truncated:  # a match's winner takes the point the frames' header shows
+                self._trail.end(episode_stats(self.env, nxt, 0))
         agents = self.agents
         info = {STATS_KEY: episode_stats(self.env, nxt, 0)} if terminated or truncated else {}
         if terminated or truncated:
@@ -146,7 +148,7 @@ class VolleyParallelEnv(ParallelEnv):
         )
 
     def render(self):
-        """The still picture of the episode so far ([H, W, 3] uint8), or None without a render mode."""
+        """The video frame of the episode so far ([H, W, 3] uint8), or None without a render mode."""
         self._check_open()
         return None if self._trail is None else self._trail.frame(title=self.task)
 

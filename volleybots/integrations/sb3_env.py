@@ -58,8 +58,9 @@ class _BatchedVecEnv(VecEnv):
 
     def __init__(self, venv):
         self.venv = venv
-        self.render_mode = None
         super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
+        # SB3's VecVideoRecorder asks for "rgb_array" and records render(), which tiles get_images()
+        self.render_mode = venv.render_mode
         self._actions = None
 
     # ------------------------------------------------------------------ stepping
@@ -122,18 +123,25 @@ class _BatchedVecEnv(VecEnv):
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
         return [False] * self._count(indices)  # the worlds are no gymnasium.Env: nothing wraps them
 
-    def get_images(self):
-        raise NotImplementedError(f"{type(self).__name__} renders nothing; VolleyGymEnv(render_mode='rgb_array') renders one world")
+    def get_images(self) -> list[np.ndarray]:
+        """The first world's video frame, as a list of one (SB3's ``render()`` tiles the list into one
+        image: here that frame). One world only: a frame costs milliseconds, all worlds a frame each."""
+        frames = self.venv.render()
+        if frames is None:
+            raise ValueError(f"{type(self).__name__} was made without render_mode='rgb_array': it has no frames to give")
+        return list(frames)
 
 
 class VolleySB3VecEnv(_BatchedVecEnv):
     """``num_envs`` worlds of a single-drone task as one Stable-Baselines3 ``VecEnv``.
 
     Args: as for ``VolleyVectorEnv`` (``task``, ``num_envs``, ``action_space``, ``physics``,
-    ``device``, ``seed``, ``clip_obs`` and the task's overrides); the autoreset is SB3's (same step).
+    ``device``, ``seed``, ``clip_obs``, ``render_mode`` and the task's overrides); the autoreset is SB3's
+    (same step). With ``render_mode="rgb_array"``, ``render()`` gives the first world's video frame and
+    SB3's ``VecVideoRecorder`` records it.
     """
 
     def __init__(self, task: str = "solo_bump", num_envs: int = 8, action_space: str = "prt", physics: str = "torch",
-                 device="cpu", seed: int = 0, **task_overrides):
+                 device="cpu", seed: int = 0, render_mode: str | None = None, **task_overrides):
         super().__init__(VolleyVectorEnv(task, num_envs, action_space=action_space, physics=physics, device=device, seed=seed,
-                                         autoreset_mode="same_step", **task_overrides))
+                                         render_mode=render_mode, autoreset_mode="same_step", **task_overrides))

@@ -30,14 +30,12 @@ import torch
 from omegaconf import OmegaConf
 
 from volleybots.config import make_env, to_dict
+from volleybots.config.verbs import DEFAULT_BATCH, SCENARIOS  # (the verbs' options show them in their help)
 from volleybots.errors import ConfigError
 from volleybots.play.episodes import run_episodes
 from volleybots.ratings.record import OUTCOMES
 from volleybots.rules import Referee
 from volleybots.tasks.multi import TeamPolicies
-
-SCENARIOS = ("any", "serve", "receive")
-DEFAULT_BATCH = 256  # worlds per batch: bounded so memory stays small while the batch amortises stepping
 
 
 @dataclass

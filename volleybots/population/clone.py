@@ -14,6 +14,7 @@ normalisations, centralised critic, discount), so every learner can start from i
 from __future__ import annotations
 
 import dataclasses
+import sys
 from pathlib import Path
 
 import torch
@@ -59,10 +60,13 @@ def make_clone(cfg, run_path: Path) -> Path:
 
     run = RunDir(clone_dir(run_path))
     if not run.final_path.is_file():
+        if cfg.progress:  # the clone's lines say "clone", and this one what it is: the run's first phase, not an iteration
+            print(f"clone: the population's first phase, a behaviour clone of the scripted team (algo=bc, population.bc_frames="
+                  f"{cfg.population.bc_frames}) in {run.path}; iteration 1 starts from it", file=sys.stderr, flush=True)
         if (run.path / "config.yaml").is_file():
-            resume(run.path)
+            resume(run.path, label="clone")
         else:
-            train(clone_config(cfg), run.path)
+            train(clone_config(cfg), run.path, label="clone")
     return run.best_path if run.best_path.is_file() else run.final_path
 
 

@@ -1,4 +1,12 @@
-"""The oracle's stopping rule, shared by the population loop's oracles and exploitability's best responses."""
+"""A best response's stop rules: one interface (``StopRule``), two rules.
+
+``Convergence`` is the population loop's: an oracle stops once its win rate over a window has reached a
+level and settled (or at ``max_updates``). ``Plateau`` is ``eval exploitability``'s: a response stops once
+its win rate has stopped rising, whatever its level (a level would censor every figure near it). The
+best response (``population/oracle.py``) calls the rule after every batch with the batch's metrics row,
+records ``state_dict()`` in each periodic checkpoint so a resumed response stops where the whole one
+would, asks ``judged`` whether what it trained is a response at all, and reports ``summary()``.
+"""
 
 from __future__ import annotations
 
@@ -7,10 +15,50 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from volleybots.algos.population import LoopConfig
+from volleybots.ratings.best_response import plateau
+
+WINDOW = LoopConfig().win_window  # batches a plateau window spans (the oracles' window)
+
 
 @dataclass
-class Convergence:
-    """The oracle's stopping rule: the win rate over the last ``window`` batches has mean >= ``mean``
+class StopRule:
+    """What every stop rule keeps: its updates and the win rates it saw (its whole resumable state)."""
+
+    updates: int = field(default=0, kw_only=True)
+    win_rates: list[float] = field(default_factory=list, kw_only=True)
+
+    def __call__(self, row: dict) -> bool:
+        """After a batch (its metrics ``row``): whether to stop now."""
+        self.updates += 1
+        self.record(row.get("win"))
+        return self.done()
+
+    def record(self, win) -> None:
+        raise NotImplementedError
+
+    def done(self) -> bool:
+        raise NotImplementedError
+
+    @property
+    def judged(self) -> bool:
+        """Whether the response trained long enough for the rule to judge it (one that was not is no
+        response: the population loop drops it)."""
+        return True
+
+    def summary(self) -> dict:
+        raise NotImplementedError
+
+    def state_dict(self) -> dict:
+        return {"updates": self.updates, "win_rates": list(self.win_rates)}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.updates, self.win_rates = int(state["updates"]), [float(w) for w in state["win_rates"]]
+
+
+@dataclass
+class Convergence(StopRule):
+    """The population oracle's rule: the win rate over the last ``window`` batches has mean >= ``mean``
     and std <= ``std`` after ``min_updates`` updates, or ``max_updates`` updates are done. With
     ``early=False`` the criterion never stops the run (a best response of a fixed budget); it is still
     judged on the last window."""
@@ -21,15 +69,17 @@ class Convergence:
     mean: float
     std: float
     early: bool = True
-    updates: int = 0
-    win_rates: list[float] = field(default_factory=list)
 
-    def __call__(self, row: dict) -> bool:
-        self.updates += 1
-        w = row.get("win", math.nan)
-        if w is not None and not math.isnan(w):
-            self.win_rates.append(float(w))
+    def record(self, win) -> None:
+        if win is not None and not math.isnan(win):  # a batch where no episode ended says nothing
+            self.win_rates.append(float(win))
+
+    def done(self) -> bool:
         return self.updates >= self.max_updates or (self.early and self.updates >= self.min_updates and self.converged)
+
+    @property
+    def judged(self) -> bool:
+        return self.updates >= self.min_updates
 
     @property
     def recent(self) -> np.ndarray:
@@ -57,8 +107,26 @@ class Convergence:
             "win_std": float(r.std()) if len(r) else None,
         }
 
-    def state_dict(self) -> dict:
-        return {"updates": self.updates, "win_rates": list(self.win_rates)}
 
-    def load_state_dict(self, state: dict) -> None:
-        self.updates, self.win_rates = int(state["updates"]), [float(w) for w in state["win_rates"]]
+@dataclass
+class Plateau(StopRule):
+    """``eval exploitability``'s rule: never (``early=False``, ``until=budget``), or once the training win
+    rate has plateaued (``until=plateau``, ``ratings.best_response.plateau`` over two windows of
+    ``window`` batches); the plateau test is judged either way and reported."""
+
+    early: bool = False
+    window: int = WINDOW
+
+    def record(self, win) -> None:
+        if win is not None:  # NaN kept: the summary's window counts batches, as the exploitability reports always have
+            self.win_rates.append(float(win))
+
+    def done(self) -> bool:
+        return self.early and plateau(self.win_rates, self.window)["plateau"]
+
+    def summary(self) -> dict:
+        recent = [w for w in self.win_rates[-self.window:] if w == w]
+        return {"updates": self.updates, "win_rate": sum(recent) / len(recent) if recent else None, **plateau(self.win_rates, self.window)}
+
+
+__all__ = ["WINDOW", "Convergence", "Plateau", "StopRule"]

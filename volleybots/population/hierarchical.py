@@ -11,8 +11,9 @@ those drills against the opponent the loop hands it (the meta-solver's mixture o
     population/high_level_<k>.pt   the member's high level (``save_high_level``: weights only)
 
 Stage I of HCSP (the drills) is reused from the zoo by default (its frames stated on the zoo card);
-stage II (high levels as best responses to the population) is the oracle here; stage III (drills
-fine-tuned inside matches) is not done by this loop (docs/competitive.md says what was tried).
+stage II (high levels as best responses to the population) is the oracle here; stage III (the
+receiving drills fine-tuned on the serves recorded against the oracle's opponent) runs before the
+oracles of ``population.tune_at`` where ``population.tune_drills`` names drills (population/tune_drills.py).
 
 Determinism: an oracle is seeded by the run's seed and its iteration alone, and starts from a member
 file, so an oracle killed before its member was written is trained again from the start by a resume
@@ -31,10 +32,11 @@ from volleybots.algos.population import population_of
 from volleybots.config import to_dict
 from volleybots.errors import ConfigError
 from volleybots.files import sha256, write_atomic
-from volleybots.policies import resolve_competitor, single_policy
+from volleybots.policies import single_policy
 from volleybots.policies.builtin import HIGH_LEVEL
 from volleybots.policies.high_level import read_high_level, save_high_level
 from volleybots.policies.store import policy_checkpoint
+from volleybots.population.tune_drills import current_drills, tune
 from volleybots.runs import CKPT_FORMAT, POPULATION_DIR, MetricsLog, population_members, read_checkpoint
 from volleybots.train.high_level import HighLevelConfig, train_high_level
 
@@ -118,7 +120,11 @@ def train_member(cfg, run_path, metrics_path, i: int, k: int, opponent, frames: 
     ``opponent`` (a ``Competitor``, the loop's choice; None: self-play, population=sp), to be written as member ``k``; ``frames`` were
     spent before it, ``time_left`` seconds remain to it (inf: no limit). Returns the member's record."""
     m = population_of(cfg)  # the loop's keys
-    drills = run_drills(run_path, m.drills)
+    drills = current_drills(run_path, i - 1, run_drills(run_path, m.drills))
+    if m.tune_drills:  # stage III: the receiving drills fine-tuned on the serves the newest member meets
+        receiver = str(population_members(run_path)[k - 1])
+        note = (lambda line: print(line, file=sys.stderr, flush=True)) if cfg.progress else None
+        drills = tune(cfg, run_path, i, receiver, opponent, drills, seed, note)
     coming, attack = team_options(m.drills)
     start = newest_high_level(run_path, population_members(run_path)[:k]) if m.learner_init == "last" else None
     limit = 0.0 if time_left == float("inf") else max(time_left, 1e-3)
@@ -153,19 +159,5 @@ def train_member(cfg, run_path, metrics_path, i: int, k: int, opponent, frames: 
     return team_record("sp" if opponent is None else f"br{i}", files, frames=frames + spent[0], iteration=len(history), oracle=oracle)
 
 
-def fixed_mixture(population, fixed: list[str], share: float):
-    """The oracle's opponent: the population's mixture with weight 1 - ``share`` and the ``fixed``
-    competitors, equally, with ``share`` (a league's anchors; none: the mixture alone)."""
-    from volleybots.policies import Competitor
-
-    if not fixed or share <= 0:
-        return population
-    comps = [resolve_competitor(s) for s in fixed]
-    members = list(population.members) + [mm for c in comps for mm in c.members]
-    weights = [(1 - share) * float(w) for w in population.mixture]
-    weights += [share / len(comps) * float(w) for c in comps for w in c.mixture]
-    return Competitor(population.label, members, weights)
-
-
-__all__ = ["copy_team", "fixed_mixture", "high_level_path", "run_drills", "seed_member", "team_files",
+__all__ = ["copy_team", "high_level_path", "run_drills", "seed_member", "team_files",
            "team_record", "train_member"]

@@ -29,7 +29,6 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
-import numpy as np
 import torch
 
 from volleybots.algos.population import ZOO, ZOO_STARTS, population_of
@@ -44,17 +43,17 @@ from volleybots.policies.store import policy_checkpoint
 from volleybots.population.clone import CLONE, clone_member, make_clone, needs_clone
 from volleybots.population.convergence import Convergence
 from volleybots.population.final import evaluate_mixture, log_final_eval
-from volleybots.population.hierarchical import fixed_mixture, seed_member, train_member
-from volleybots.population.oracle import Oracle
+from volleybots.population.hierarchical import seed_member
+from volleybots.population.opponents import member_label, oracle_opponent, population_competitor
+from volleybots.population.oracle import BestResponse, HighLevelResponse, Presentation, Start
 from volleybots.ratings.payoffs import PayoffTable, payoff_reserve, plot
 from volleybots.ratings.solvers import SOLVERS
 from volleybots.replay import write_curves
 from volleybots.runs import CKPT_FORMAT, POPULATION_DIR, RunDir, check_writable, locked, read_checkpoint, read_metas, read_population
 from volleybots.train import RESUME_KEYS as TRAIN_RESUME_KEYS
-from volleybots.train import resume_config
+from volleybots.train import resume_config, write_summary
 from volleybots.train.progress import hms
 from volleybots.train.wandb import WandbLogger
-from volleybots.version import __version__
 
 # the learner keys that shape its networks: a learner fine-tuned from the zoo start takes that policy's
 NETWORK_KEYS = ("hidden", "activation", "obs_norm", "value_norm", "centralised_critic", "init_log_std")
@@ -63,19 +62,24 @@ GAMES_SEED = 500_000  # payoff games of member k against j use seed + GAMES_SEED
 SPLIT = ("clone", "oracle_training", "payoff_games", "evaluations")  # the parts of a run's wall time it reports
 
 
+def hierarchical(m) -> bool:
+    """Whether the population node ``m`` has hierarchical members (saved configs before population.members: flat)."""
+    return m.get("members", "flat") == "hierarchical"
+
+
 class PopulationLoop:
     """Grows the population of ``cfg`` in ``run``; ``oracle`` trains each best response (default: the
-    learner the preset names, ``Oracle.of(cfg)``)."""
+    learner ``algo=`` names, ``BestResponse.of(cfg)``; hierarchical members: ``HighLevelResponse``)."""
 
-    def __init__(self, cfg, run: RunDir, oracle: Oracle | None = None):
+    def __init__(self, cfg, run: RunDir, oracle=None):
         self.cfg, self.run, self.m = cfg, run, population_of(cfg)  # the loop's keys (population.*)
-        self.oracle = oracle or Oracle.of(cfg)
         self.dir = run.path / POPULATION_DIR
         self.meta_path = self.dir / "meta.jsonl"
         self.payoffs_path = self.dir / "payoffs.json"
         self.wandb = None
         self.dropped: dict | None = None  # the oracle the budget cut before min_updates, if one was
-        self.hierarchical = self.m.get("members", "flat") == "hierarchical"  # saved configs before population.members: flat
+        self.hierarchical = hierarchical(self.m)
+        self.oracle = oracle or (HighLevelResponse(cfg) if self.hierarchical else BestResponse.of(cfg))
 
     # ---------------------------------------------------------------------------- disk state
     def metas(self) -> list[dict]:
@@ -83,11 +87,6 @@ class PopulationLoop:
 
     def _append_meta(self, line: dict) -> None:
         write_atomic(self.meta_path, "".join(json.dumps(m) + "\n" for m in [*self.metas(), line]))
-
-    @staticmethod
-    def _label(path: Path) -> str:
-        state = read_checkpoint(path)
-        return state.get("label", path.stem)
 
     def _save_member(self, k: int, state: dict) -> None:
         write_atomic(member_path(self.run.path, k), lambda f: torch.save(state, f), "a population member")
@@ -167,13 +166,6 @@ class PopulationLoop:
                 write_atomic(path, Path(src["path"]).read_bytes(), "a population member")
         self._play_payoffs()
 
-    def _population(self, mixture) -> Competitor:
-        """The opponent: the members with positive weight in the mixture (the others are never drawn)."""
-        paths = population_members(self.run.path)
-        keep = [j for j, w in enumerate(mixture) if w > 0]
-        weights = np.asarray([mixture[j] for j in keep], dtype=float)
-        return Competitor("population", [checkpoint_member(paths[j], self._label(paths[j])) for j in keep], list(weights / weights.sum()))
-
     def _play_payoffs(self) -> None:
         """Add a row and column to the payoff table for every member it lacks, from games played."""
         table = PayoffTable.load(self.payoffs_path)
@@ -183,7 +175,7 @@ class PopulationLoop:
             olds = [Competitor("old", [checkpoint_member(paths[j])]) for j in range(k)]
             seed = self.cfg.seed + GAMES_SEED + 1000 * k
             results = payoff_row(self.cfg, new, olds, self.m.payoff_games, seed, self.m.payoff_pool)
-            table.add_member(self._label(paths[k]), results)
+            table.add_member(member_label(paths[k]), results)
             table.save(self.payoffs_path)
 
     def _solve_and_record(self, i: int, frames: int, updates: int, wall: float, oracle: dict | None) -> None:
@@ -210,6 +202,8 @@ class PopulationLoop:
         data["seed"] = self.cfg.seed + i * ITERATION_SEED
         if self.cfg.time_limit and reserve:
             data["time_limit"] = self.cfg.time_limit - reserve
+        if hierarchical(self.m):  # a high level's oracle takes its seed and time limit alone (HighLevelResponse)
+            return validate(data)
         if self.m.learner_init == CLONE:
             data["init"] = str(self.clone)
         elif self.m.learner_init == ZOO:  # every learner fine-tuned from the task's zoo start, in its networks' shape
@@ -239,45 +233,31 @@ class PopulationLoop:
         return payoff_reserve(self.split["payoff_games"], k) if self.cfg.time_limit else 0.0
 
     def _oracle(self, i: int, k: int, frames: int, updates: int, wall: float) -> float:
-        """Train iteration ``i``'s learner (resuming its checkpoint if one exists) as member ``k``, early
-        enough for its payoff games to end by the time limit; returns its periodic evaluations' seconds."""
+        """Train iteration ``i``'s response as member ``k`` through the oracle (resuming its checkpoint if one
+        exists), early enough for its payoff games to end by the time limit; returns its periodic
+        evaluations' seconds. The loop chooses the opponent (``population/opponents.py``), the stop rule
+        and the start; the oracle trains."""
         m = self.m
-        opponent = None if m.self_play else fixed_mixture(self._population(self.metas()[-1]["mixture"]), m.fixed_opponents, m.fixed_share)
-        if self.hierarchical:  # the oracle trains a high level over the run's drills (population/hierarchical.py)
-            left = self.cfg.time_limit - self._reserve(k) - wall if self.cfg.time_limit else float("inf")
-            seed = self.cfg.seed + i * ITERATION_SEED
-            self._save_member(k, train_member(self.cfg, self.run.path, self.run.metrics_path, i, k, opponent, frames, left, seed))
-            return 0.0
         cfg = self._iteration_cfg(i, frames, self._reserve(k))
         yardstick = resolve_competitor(m.eval_opponent)
-        if m.self_play:
-            seat = SelfPlay(yardstick)
-            stop = None
+        if m.self_play:  # one learner on both teams for the whole budget: no frozen opponent, no stop rule
+            seat, stop = SelfPlay(yardstick), None
         else:
+            opponent = oracle_opponent(self.run.path, self.metas()[-1]["mixture"], m)
             seat = Versus(opponent, m.opponent_deterministic, cfg.seed, yardstick)
             stop = Convergence(m.min_updates, m.max_updates, m.win_window, m.win_mean, m.win_std)
-        extra = lambda: {"population": {"iteration": i, "oracle": stop.state_dict() if stop else None}}  # noqa: E731
-        ckpt = self._checkpoint_of(i)
-        tr = self.oracle.trainer(cfg, self.run, ckpt, seat, extra, self.wandb)
-        if ckpt is not None:
-            if stop is not None:
-                stop.load_state_dict(tr.checkpoint_state["population"]["oracle"])
+        members = tuple(population_members(self.run.path)[:k])
+        start = Start(frames, updates, wall, members, warm=m.learner_init == "last", resume=self._checkpoint_of(i), iteration=i)
+        show = Presentation(self.wandb, self._note(i, stop), {"pop_iteration": i})
+        member = self.oracle(cfg, self.run, seat, stop, start, "sp" if m.self_play else f"br{i}", show)
+        if member.kept:
+            self._save_member(k, member.state)
         else:
-            tr.start_at(frames, updates, wall)
-            if m.learner_init == "last":
-                self.oracle.continue_from(tr, population_members(self.run.path)[:k])
-        tr.train_loop(stop=stop, row_extra={"pop_iteration": i}, note=self._note(i, stop))
-        state = tr.state()
-        if stop is not None and stop.updates < m.min_updates:
             # the run's budget ended the oracle before the criterion could judge it: a policy a few updates
             # from its start is no response to the mixture, so it does not join; its last periodic
             # checkpoint (if one was written) lets a resume with more budget carry it on
-            self.dropped = {"iteration": i, "updates": stop.updates, "frames": int(state["frames"]) - frames}
-            return tr.eval_wall
-        label = "sp" if m.self_play else f"br{i}"
-        state.update(label=label, oracle=(stop.summary() if stop else {"updates": tr.iteration - updates, "converged": None}))
-        self._save_member(k, state)
-        return tr.eval_wall
+            self.dropped = {"iteration": i, "updates": stop.updates, "frames": int(member.state["frames"]) - frames}
+        return member.eval_wall
 
     def _note(self, i: int, stop):
         """The progress line's note: the iteration, the oracle's updates and the whole run's ETA (the
@@ -315,35 +295,21 @@ class PopulationLoop:
         final_eval = None
         if last.get("mixture"):
             with self._timed("evaluations"):
-                final_eval = evaluate_mixture(self.cfg, self._population(last["mixture"]), self.m.eval_opponent)
+                final_eval = evaluate_mixture(self.cfg, population_competitor(self.run.path, last["mixture"]), self.m.eval_opponent)
             log_final_eval(self.run, final_eval, frames, int(last.get("updates", 0)), self._wall())
         if self.run.metrics_path.is_file():
             write_curves(self.run.metrics_path, self.run.curves_path)
         wall = self._wall()
         split = {**{k: round(v, 3) for k, v in self.split.items()}, "other": round(max(wall - sum(self.split.values()), 0.0), 3)}
-        summary = {
-            "task": self.cfg.task.name,
-            "algo": self.m.name,
-            "action_space": self.cfg.env.action_space,
-            "num_envs": self.cfg.env.num_envs,
-            "seed": self.cfg.seed,
-            "frames": frames,
-            "iterations": sum(1 for m in metas if m["iteration"] >= 1),
-            "wall_time_s": wall,
-            "frames_per_s": frames / max(wall, 1e-9),
+        extra = {
             "wall_time_split": split,  # seconds; other: solving, plots, files, and time lost to a kill before a resume
-            "metric": "win",
-            **({"final_eval": final_eval} if final_eval is not None else {}),
             "population": {"members": last.get("members", []), "mixture": last.get("mixture", []), "solver": self.m.solver},
             "oracles": [m["oracle"] for m in metas if m["iteration"] >= 1],
             # an oracle the budget cut before min_updates: its frames were spent, but it is not a member
             **({"dropped_oracle": self.dropped} if self.dropped else {}),
-            "version": __version__,
         }
-        self.run.write_summary(summary)
-        if self.wandb:
-            self.wandb.finish(summary, self.run)
-        return summary
+        iterations = sum(1 for m in metas if m["iteration"] >= 1)
+        return write_summary(self.run, self.cfg, self.m.name, (frames, iterations, wall), "win", final_eval, extra, self.wandb)
 
 
 def start(cfg, run_dir) -> dict:

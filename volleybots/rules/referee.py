@@ -97,6 +97,14 @@ class Outcome:
 class Referee:
     # "fell": a drone below the crash height, a fault only where the match says so (task.fall_fault)
     FAULTS = ("cross", "net_drone", "wrong_turn", "body_hit", "too_soon", "ball_out", "ball_net", "landed", "fell")
+    # what each fault means, for the legends of the verbs that count them (``eval``'s "ended by" row)
+    FAULT_TEXT = {
+        "cross": "a drone crossed into the other half", "net_drone": "a drone touched the net",
+        "wrong_turn": "a touch out of turn", "body_hit": "the ball hit a drone's body, not its racket",
+        "too_soon": "a drone's second hit too soon after its first", "ball_out": "the last hitter sent the ball out",
+        "ball_net": "the last hitter sent the ball into the net", "landed": "the ball landed in the team's half",
+        "fell": "a drone fell below the crash height (task.fall_fault)",
+    }
 
     def __init__(self, cfg: RefereeConfig, num_envs: int, team: list[int] | torch.Tensor, device="cpu"):
         self.cfg = cfg

@@ -44,7 +44,7 @@ from volleybots.runs.locks import (
     reserve_file,
     unlock,
 )
-from volleybots.runs.metrics import MetricsLog, read_metrics
+from volleybots.runs.metrics import MetricsLog, read_metrics, wall_at
 from volleybots.runs.rundir import (
     CKPT_FORMAT,
     POPULATION_DIR,
@@ -60,5 +60,5 @@ __all__ = [
     "CKPT_FORMAT", "LOCK_NAME", "META_FILE", "POPULATION_DIR", "Population", "is_population_run", "member_path", "population_members",
     "read_metas", "read_population", "refuse_interpolation", "run_policy_checkpoint", "InUseError", "MetricsLog", "RunDir",
     "check_writable", "claim_run_dir", "config_problem", "load_algo_state", "lock",
-    "locked", "make_dir", "memory_errors_as", "note", "output_dir", "reserve_file", "read_checkpoint", "read_metrics", "unlock",
+    "locked", "make_dir", "memory_errors_as", "note", "output_dir", "reserve_file", "read_checkpoint", "read_metrics", "unlock", "wall_at",
 ]

@@ -63,6 +63,18 @@ def read_metrics(path) -> list[dict[str, float | str]]:
     return out
 
 
+def wall_at(path, frames: int) -> float:
+    """The run's wall time when it had trained ``frames`` frames: the last ``wall_time`` of metrics.csv's
+    rows up to them (0.0 without any). A resume continues its clock from here, since a checkpoint holds
+    no wall time (its bytes depend on the training alone: two identical runs write equal files)."""
+    path = Path(path)
+    if not path.is_file():
+        return 0.0
+    walls = [float(r["wall_time"]) for r in read_metrics(path)
+             if isinstance(r.get("frames"), float) and r["frames"] <= frames and isinstance(r.get("wall_time"), float)]
+    return max(walls, default=0.0)
+
+
 def _is_number(v) -> bool:
     try:
         float(v)

@@ -32,6 +32,10 @@ from volleybots.physics.params import WorldParams
 from volleybots.physics.torch_backend import Constants, PhysicsState, substep
 from volleybots.scripted.control import DroneObs
 
+# control steps ``refine``'s rollouts fly past the plan's time to the contact, which is an estimate: a
+# constant, not a parameter: no caller ever set another
+MARGIN_STEPS = 3
+
 Fly = Callable[[DroneObs, torch.Tensor, torch.Tensor], torch.Tensor]  # (drone, ball pos, ball vel) -> action [M, 4]
 
 
@@ -162,11 +166,10 @@ class Lookahead:
 
     def refine(self, plain: torch.Tensor, now: torch.Tensor, t_go: torch.Tensor, drone: DroneObs, ball_p: torch.Tensor,
                ball_v: torch.Tensor, variants: torch.Tensor, fly, cost: Callable[..., torch.Tensor],
-               context: tuple[torch.Tensor, ...] = (), after: Fly | None = None, after_steps: int = 0,
-               margin: int = 3) -> torch.Tensor:
+               context: tuple[torch.Tensor, ...] = (), after: Fly | None = None, after_steps: int = 0) -> torch.Tensor:
         """``plain`` [..., 4] (a player's actions, any batch shape) with the drones where ``now``
         [...] is set flying their best variant instead (``choose``); the rollouts last ``t_go`` [...]
-        seconds (the plan's time to the contact) plus ``margin`` steps. ``fly(drone, ball_p,
+        seconds (the plan's time to the contact) plus ``MARGIN_STEPS``. ``fly(drone, ball_p,
         ball_v, *context, variant)``: ``context`` holds per-drone tensors [..., n] the flight needs
         besides the drone and the ball; ``cost(outcome, *context)`` gets them too, one row per
         rollout. With ``every`` > 1 a drone keeps its choice for that many steps (kept per call
@@ -194,7 +197,7 @@ class Lookahead:
         idx = (flat_now & ~keep["valid"]).nonzero().squeeze(-1)
         if len(idx):
             ctx = tuple(pick(x, idx).repeat_interleave(k, 0) for x in context)
-            steps = math.ceil(float(flat_t[idx].clamp_min(0.0).max()) / self.params.dt) + margin
+            steps = math.ceil(float(flat_t[idx].clamp_min(0.0).max()) / self.params.dt) + MARGIN_STEPS
             out[idx], _, best = self._search(drone_of(idx), pick(ball_p, idx), pick(ball_v, idx), variants,
                                              lambda dd, p, v, var: fly(dd, p, v, *ctx, var), lambda o: cost(o, *ctx),
                                              steps, after, after_steps)

@@ -7,6 +7,8 @@ run the population loop over this trainer: ``volleybots.population.start`` dispa
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 from volleybots.algos import population_of
 from volleybots.config import apply_overrides, check_memory, to_dict
 from volleybots.errors import ConfigError
@@ -15,7 +17,7 @@ from volleybots.play.seats import AllAgents, SelfPlay, Versus, default_seat
 from volleybots.policies.targets import check_references
 from volleybots.runs import RunDir, check_writable, locked, memory_errors_as, read_checkpoint
 from volleybots.train.init import apply_init, check_init, init_checkpoint, learner_spec
-from volleybots.train.trainer import EVAL_SEED_OFFSET, RESUME_KEYS, Trainer
+from volleybots.train.trainer import EVAL_SEED_OFFSET, RESUME_KEYS, Trainer, write_summary
 
 
 def preflight(cfg) -> None:
@@ -50,15 +52,24 @@ def check_payoff_games(cfg) -> None:
         raise ConfigError(f"population.payoff_games={m.payoff_games}: {e} (population.payoff_games)") from None
 
 
-def train(cfg, run_dir, checked: bool = False, stop=None) -> dict:
+def train(cfg, run_dir, checked: bool = False, stop=None, label: str = "train") -> dict:
     """Start a new run of the validated config ``cfg`` in ``run_dir``, holding its lock while it trains
     (``checked``: the caller ran ``preflight`` already); ``stop(row)`` may end it early after a batch
-    (``Trainer.train_loop``)."""
+    (``Trainer.train_loop``); ``label`` starts its progress lines."""
+    with new_run(cfg, run_dir, checked) as run:
+        return Trainer(cfg, run, label=label).fit(stop)
+
+
+@contextmanager
+def new_run(cfg, run_dir, checked: bool = False):
+    """What every new learner run trains inside (``train``, and ``eval exploitability``'s best responses):
+    ``preflight`` unless ``checked``, the run dir's config written and its lock held, an out-of-memory
+    error as one line naming the counts. Yields the ``RunDir``."""
     if not checked:
         preflight(cfg)
     run = RunDir(run_dir)
     with run.new_run(cfg), memory_errors_as(_counts(cfg)):
-        return Trainer(cfg, run).fit(stop)
+        yield run
 
 
 def resume_config(run_dir, overrides=(), keys=RESUME_KEYS):
@@ -67,7 +78,7 @@ def resume_config(run_dir, overrides=(), keys=RESUME_KEYS):
     return apply_overrides(to_dict(base), overrides, keys, f"run {str(run_dir)!r} (resume)")
 
 
-def resume(run_dir, overrides=()) -> dict:
+def resume(run_dir, overrides=(), label: str = "train") -> dict:
     """Continue the run in ``run_dir`` from its latest checkpoint (``train resume=DIR``); a run killed
     before its first checkpoint starts afresh, saying so.
 
@@ -94,7 +105,7 @@ def resume(run_dir, overrides=()) -> dict:
     check_memory(cfg)
     check_references(cfg)
     with memory_errors_as(_counts(cfg)):
-        trainer = Trainer(cfg, run, checkpoint=ckpt)  # a checkpoint that does not fit the run fails here
+        trainer = Trainer(cfg, run, checkpoint=ckpt, label=label)  # a checkpoint that does not fit the run fails here
         with locked(run.path):
             if run.checkpoint_stamp() != stamp:
                 raise ConfigError(f"run {str(run_dir)!r} was trained by another process while this one checked it; run the command again")
@@ -114,5 +125,6 @@ def _counts(cfg) -> str:
 
 __all__ = [
     "AllAgents", "EVAL_SEED_OFFSET", "RESUME_KEYS", "SelfPlay", "Trainer", "Versus", "apply_init", "check_init", "collect", "default_seat",
-    "check_payoff_games", "finished_stats", "init_checkpoint", "learner_spec", "preflight", "resume", "resume_config", "train",
+    "check_payoff_games", "finished_stats", "init_checkpoint", "learner_spec", "new_run", "preflight", "resume", "resume_config", "train",
+    "write_summary",
 ]

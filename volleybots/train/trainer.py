@@ -9,10 +9,11 @@ cut episodes count as truncated, hence bootstrapped). The run's state is then ex
 optimiser, normalisers, counters and random generators, and a run resumed from a checkpoint repeats
 the uninterrupted one bit for bit on a CPU.
 
-Seats (``volleybots.play.seats``) say whom the learner plays for. Callers that drive the loop
-themselves (the population loop's oracle) use its public surface: ``start_at`` (the counters a new
-iteration continues from), ``train_loop(stop=..., row_extra=...)``, ``state()`` (what a checkpoint
-holds) and ``checkpoint_state`` (what it was restored from).
+Seats (``volleybots.play.seats``) say whom the learner plays for. The one caller that drives the loop
+itself, the best response (``population/oracle.py``, for population oracles and exploitability's
+responses), uses its public surface: ``start_at`` (the counters a new iteration continues from),
+``train_loop(stop=..., row_extra=...)``, ``state()`` (what a checkpoint holds), ``checkpoint_state``
+(what it was restored from) and ``finish``. ``write_summary`` is the one writer of summary.json.
 
 ``init=RUN_OR_CHECKPOINT`` starts a new run from another run's networks (``volleybots.train.init``).
 """
@@ -30,7 +31,7 @@ from volleybots.config import make_env, to_dict
 from volleybots.play.episodes import collect, finished_stats, run_episodes, summarize
 from volleybots.play.seats import default_seat
 from volleybots.replay import write_curves
-from volleybots.runs import CKPT_FORMAT, MetricsLog, RunDir, load_algo_state, read_checkpoint
+from volleybots.runs import CKPT_FORMAT, MetricsLog, RunDir, load_algo_state, read_checkpoint, wall_at
 from volleybots.train.init import apply_init
 from volleybots.train.progress import Progress
 from volleybots.train.wandb import WandbLogger
@@ -46,12 +47,15 @@ class Trainer:
     """The run loop over one learner. ``seat`` says whom it plays for (default: every drone);
     ``learner_cls`` overrides the registry's class (a population method's learner); ``extra_state``
     adds the caller's own counters to every checkpoint (the population loop's oracle); ``logger`` is
-    the caller's W&B run (which the caller ends), else the trainer opens its own with ``logger=wandb``."""
+    the caller's W&B run (which the caller ends), else the trainer opens its own with ``logger=wandb``;
+    ``label`` starts its progress lines."""
 
-    def __init__(self, cfg, run: RunDir, checkpoint: Path | None = None, seat=None, learner_cls=None, extra_state=None, logger=None):
+    def __init__(self, cfg, run: RunDir, checkpoint: Path | None = None, seat=None, learner_cls=None, extra_state=None, logger=None,
+                 label: str = "train"):
         from volleybots.algos import ALGOS
 
         self.cfg, self.run = cfg, run
+        self.label = label  # what its progress lines start with (a population's clone says "clone")
         self.wandb, self._owns_wandb = logger, logger is None
         torch.manual_seed(cfg.seed)
         self.seat = seat or default_seat(cfg)
@@ -87,30 +91,32 @@ class Trainer:
         return state
 
     def state(self) -> dict:
-        """Everything a checkpoint holds: a run restored from it repeats the uninterrupted one."""
+        """Everything a checkpoint holds: a run restored from it repeats the uninterrupted one. Nothing of
+        the machine's: no wall time (metrics.csv and summary.json hold it) and the paths inside the run
+        written relative to it, so two identical runs in two folders write files of equal bytes."""
         return {
             "format": CKPT_FORMAT,
             "version": __version__,
-            "config": to_dict(self.cfg),
+            "config": _inside(to_dict(self.cfg), self.run.path),
             "task": self.cfg.task.name,
             "action_space": self.cfg.env.action_space,
             "obs_dim": int(self.env.obs_dim),
             "n_agents": int(self.algo.n_agents),
             "frames": int(self.frames),
             "iteration": int(self.iteration),
-            "wall_time": float(self._wall()),
             "evals": self.evals,
             "algo": self.algo.state_dict(),
             "rng": self._rng_state(),
             "seat": self.seat.state_dict(),
-            "init": self.init_info,
+            "init": _inside(self.init_info, self.run.path),
             **self.extra_state(),
         }
 
     def _restore(self, state: dict) -> None:
         load_algo_state(self.algo, state, f"the checkpoint of run {str(self.run.path)!r}", self.cfg)
         self.frames, self.iteration = int(state["frames"]), int(state["iteration"])
-        self.wall_offset = float(state["wall_time"])
+        # older checkpoints hold their wall time; newer ones leave it to the run's metrics.csv
+        self.wall_offset = float(state["wall_time"]) if "wall_time" in state else wall_at(self.run.metrics_path, self.frames)
         self.evals = list(state.get("evals", []))
         self.init_info = state.get("init")
         rng = state["rng"]
@@ -182,7 +188,9 @@ class Trainer:
         next_ev = _next_multiple(self.frames, ev_every)
         last: dict = {}
         last_dt = 0.0
-        with Progress(cfg.progress, cfg.total_frames, self.frames, cfg.time_limit) as bar:
+        # the loop trains whole batches: the frames it reaches, so that the counter ends at 100 %, not past it
+        planned = self.frames + -(-(cfg.total_frames - self.frames) // self.frames_per_batch) * self.frames_per_batch
+        with Progress(cfg.progress, max(planned, self.frames), self.frames, cfg.time_limit, label=self.label) as bar:
             while self.frames < cfg.total_frames and not (cfg.time_limit and self._wall() + last_dt > cfg.time_limit):
                 t_batch = time.perf_counter()
                 batch, td = collect(self.env, policy, td, self.algo.steps_per_batch)
@@ -227,29 +235,16 @@ class Trainer:
         final_eval = self._evaluate_and_log(wandb)
         final = run.save_checkpoint(self.state(), final=True)
         write_curves(run.metrics_path, run.curves_path)
-        summary = {
-            "task": cfg.task.name,
-            "algo": cfg.algo.name,
-            "action_space": cfg.env.action_space,
-            "num_envs": cfg.env.num_envs,
-            "seed": cfg.seed,
-            "frames": self.frames,
-            "iterations": self.iteration,
-            "wall_time_s": self._wall(),
-            "frames_per_s": self.frames / max(self._wall(), 1e-9),
-            "metric": self.metric,
-            "final_eval": final_eval,
+        extra = {
             "last_train_episodes": last,
             "checkpoints": [str(p.relative_to(run.path)) for p in [*run.periodic_checkpoints(), final]],
             **({"best_eval": self._best_eval()} if run.best_path.is_file() else {}),
-            "version": __version__,
             **({"init": self.init_info} if self.init_info else {}),
             **(summary_extra or {}),
         }
-        run.write_summary(summary)
-        if wandb and self._owns_wandb:
-            wandb.finish(summary, run)
-        return summary
+        wall = self._wall()
+        return write_summary(run, cfg, cfg.algo.name, (self.frames, self.iteration, wall), self.metric, final_eval, extra,
+                             wandb if self._owns_wandb else None)
 
     def _evaluate_and_log(self, wandb) -> dict:
         t = time.perf_counter()
@@ -287,6 +282,49 @@ class Trainer:
         self.metrics.write(row)
         if wandb:
             wandb.log(row)
+
+
+def _inside(data, root: Path):
+    """``data`` (plain containers) with each string that is a path inside the run directory ``root`` (the
+    clone a population's learners start from, ``init=``) written relative to it: where the run lies is no
+    part of its training."""
+    if isinstance(data, dict):
+        return {k: _inside(v, root) for k, v in data.items()}
+    if isinstance(data, list):
+        return [_inside(v, root) for v in data]
+    if isinstance(data, str) and Path(data).is_absolute():
+        try:
+            return str(Path(data).resolve().relative_to(Path(root).resolve()))
+        except ValueError:  # outside the run: another run's, named by the user
+            return data
+    return data
+
+
+def write_summary(run, cfg, algo: str, counts: tuple, metric: str, final_eval: dict | None, extra: dict, wandb=None) -> dict:
+    """The one writer of a run's summary.json, a learner's (``Trainer.finish``) and a population's
+    (``population/loop.py``): the keys every run has (``counts``: its frames, iterations and wall
+    seconds), ``final_eval`` where there is one, then the caller's ``extra``; ``wandb`` (the caller's
+    own W&B run, None: none or not the caller's to end) is ended with it."""
+    frames, iterations, wall = counts
+    summary = {
+        "task": cfg.task.name,
+        "algo": algo,
+        "action_space": cfg.env.action_space,
+        "num_envs": cfg.env.num_envs,
+        "seed": cfg.seed,
+        "frames": int(frames),
+        "iterations": int(iterations),
+        "wall_time_s": wall,
+        "frames_per_s": frames / max(wall, 1e-9),
+        "metric": metric,
+        **({"final_eval": final_eval} if final_eval is not None else {}),
+        **extra,
+        "version": __version__,
+    }
+    run.write_summary(summary)
+    if wandb:
+        wandb.finish(summary, run)
+    return summary
 
 
 def _next_multiple(frames: int, every: int) -> int:
