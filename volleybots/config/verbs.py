@@ -80,6 +80,9 @@ class ExploitabilityOptions(VerbOptions):
     pool: str = option("serial", "train the seeds' responses in turn, or as Ray tasks together", choices=POOLS)
     progress: bool = option(True, "print each stage and the training's progress on stderr")
     response: list[str] = option(help="SPEC: a fixed candidate response (scripted, hierarchical, a run, zoo:...); repeatable", factory=list)
+    high_level: int = option(0, "3v3: games of each best response over the high level (a high level trained over "
+                             "high_level_drills against the target, one per seed); 0: none", ge=0, le=10**8)
+    high_level_drills: str = option("zoo:3v3/hcsp_return", "the drills the high-level responses play (a hierarchical team)")
 
 
 @dataclass
