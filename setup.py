@@ -8,5 +8,5 @@ setup(
     package_dir={"volleybots.conf": "conf"},
     # the zoo's weights-only checkpoints, a mixture's member files (<task>/<method>/*.pt, a hierarchical member's drills in
     # <task>/<method>/drills/) and their cards ship inside the package
-    package_data={"volleybots.conf": ["**/*.yaml"], "volleybots.zoo": ["*/*.pt", "*/*/*.pt", "*/*/*/*.pt", "*/*.yaml"]},
+    package_data={"volleybots.conf": ["**/*.yaml"], "volleybots": ["catalogue.json"], "volleybots.zoo": ["*/*.pt", "*/*/*.pt", "*/*/*/*.pt", "*/*.yaml"]},
 )

@@ -85,3 +85,22 @@ def test_a_value_of_another_type_or_a_task_key_is_left_to_validate():
         check_fixed_values(["env.substeps=100"])
     with pytest.raises(ConfigError, match="'task.episode_len'"):  # validate still reports what this leaves
         load(["task=hover", "task.episode_len=0"])
+
+
+def test_list_answers_before_torch_loads():
+    """``list`` reads the registries' part from the shipped catalogue (and the zoo's cards), so torch is never imported."""
+    code = ("import sys\nfrom volleybots.cli import app\ntry:\n    app(['list', '--json'])\nexcept SystemExit as e:\n"
+            "    print('exit', e.code, 'torch loaded' if 'torch' in sys.modules else 'torch not loaded', file=sys.stderr)")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=CLI_ENV, timeout=120)
+    assert res.stderr.strip().splitlines()[-1] == "exit 0 torch not loaded", res.stderr
+    data = json.loads(res.stdout)
+    assert {t["name"]: t["drones"] for t in data["tasks"]}["3v3"] == 6 and any(e["name"] == "zoo:3v3/headline" for e in data["zoo"])
+
+
+@pytest.mark.slow  # every algorithm's check against every task, 4-8 s on the shared cores
+def test_the_shipped_catalogue_is_what_the_registries_say():
+    """volleybots/catalogue.json must be rewritten when a task, algorithm, backend or player is added:
+    python -c "from volleybots.cli.tools import write_catalogue; write_catalogue()"."""
+    from volleybots.cli.tools import CATALOGUE, registries
+
+    assert json.loads(CATALOGUE.read_text()) == json.loads(json.dumps(registries()))

@@ -49,30 +49,52 @@ def list_cmd(
         typer.echo("  (none in this install)")
 
 
+CATALOGUE = Path(__file__).resolve().parents[1] / "catalogue.json"  # the registries' part of list, written by write_catalogue()
+
+
 def _catalogue() -> dict:
-    """What ``list`` shows, as plain data (the text and the JSON are two views of it)."""
-    from volleybots.algos import ALGOS, LEARNERS, PRESETS
-    from volleybots.algos.base import class_attr
-    from volleybots.config import group_options
-    from volleybots.physics import ACTION_SPACE_INFO, BACKEND_INFO
-    from volleybots.policies import PLAYERS
-    from volleybots.tasks import TASKS
+    """What ``list`` shows, as plain data (the text and the JSON are two views of it). The registries'
+    part (tasks, algorithms, populations, backends, action spaces, players) is read from the shipped
+    ``catalogue.json`` so that ``list`` answers before torch loads; a test holds it equal to what the
+    registries say (``registries()``). The task files and the zoo are read live (neither needs torch)."""
+    from volleybots.config.schema import group_options
     from volleybots.zoo import PREFIX, entries
 
-    tasks = [{"name": name, "drones": int(class_attr(cls, "n_drones")), "metric": cls.metric, "config_file": name in group_options("task")}
-             for name, cls in TASKS.items()]
-    algos = [{"name": name, "action_spaces": list(cls.action_spaces), "tasks": [t for t in TASKS if _fits(name, t)]}
-             for name, cls in ALGOS.items()]
-    populations = [{"name": name, "solver": p.solver, "learners": list(LEARNERS), "tasks": [t for t in TASKS if _fits(name, t)]}
-                   for name, p in PRESETS.items()]
+    data = json.loads(CATALOGUE.read_text()) if CATALOGUE.is_file() else registries()
+    files = set(group_options("task"))
+    for t in data["tasks"]:
+        t["config_file"] = t["name"] in files
     zoo = []
     for name, e in entries().items():
         kind = "team" if e.is_team else "mixture" if e.is_mixture else "policy"
         zoo.append({"name": PREFIX + name, "kind": kind, "task": e.card.get("task"), "members": len(e.members),
                     "drills": list(e.card.get("hierarchical") or ()), "frames": e.card.get("frames", "?"), "seed": e.card.get("seed", "?"),
                     "figures": dict(e.card.get("figures") or {})})
+    return {**data, "zoo": zoo}
+
+
+def registries() -> dict:
+    """The registries' part of ``list``, from the classes themselves (imports torch)."""
+    from volleybots.algos import ALGOS, LEARNERS, PRESETS
+    from volleybots.algos.base import class_attr
+    from volleybots.physics import ACTION_SPACE_INFO, BACKEND_INFO
+    from volleybots.policies import PLAYERS
+    from volleybots.tasks import TASKS
+
+    tasks = [{"name": name, "drones": int(class_attr(cls, "n_drones")), "metric": cls.metric} for name, cls in TASKS.items()]
+    algos = [{"name": name, "action_spaces": list(cls.action_spaces), "tasks": [t for t in TASKS if _fits(name, t)]}
+             for name, cls in ALGOS.items()]
+    populations = [{"name": name, "solver": p.solver, "learners": list(LEARNERS), "tasks": [t for t in TASKS if _fits(name, t)]}
+                   for name, p in PRESETS.items()]
     return {"tasks": tasks, "algorithms": algos, "populations": populations, "backends": dict(BACKEND_INFO),
-            "action_spaces": dict(ACTION_SPACE_INFO), "players": {name: p.description for name, p in PLAYERS.items()}, "zoo": zoo}
+            "action_spaces": dict(ACTION_SPACE_INFO), "players": {name: p.description for name, p in PLAYERS.items()}}
+
+
+def write_catalogue() -> Path:
+    """Write ``catalogue.json`` from the registries: after adding a task, algorithm, backend or player
+    (``python -c "from volleybots.cli.tools import write_catalogue; write_catalogue()"``)."""
+    CATALOGUE.write_text(json.dumps(registries(), indent=1) + "\n")
+    return CATALOGUE
 
 
 def _fits(algo: str, task: str) -> bool:
