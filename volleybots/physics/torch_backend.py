@@ -11,7 +11,7 @@ from __future__ import annotations
 import contextlib
 import functools
 from dataclasses import dataclass, fields, replace
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import torch
 
@@ -130,7 +130,20 @@ def control_step_downwash(c: Constants, s: PhysicsState) -> torch.Tensor | None:
     return downwash_force(s.pos, up, rotor_thrusts(s.throttle, c.kf).sum(-1)) / num(c.mass, s.pos)
 
 
-def may_touch(c: Constants, hgt0: torch.Tensor, hgt1: torch.Tensor, off: Vec3) -> bool:
+class Approach(NamedTuple):
+    """The ball seen from each drone across a sub-step (a NamedTuple: ``torch.compile`` traces it as its
+    tensors): where the contact tests start from."""
+
+    rel0: Vec3  # [N, D] ball minus racket centre, before the sub-step's motion
+    rel1: Vec3  # ... and after it
+    hgt0: torch.Tensor  # [N, D] the ball's height above the racket plane, before ...
+    hgt1: torch.Tensor  # ... and after
+    up1: Vec3  # [N, D] the racket plane's normal (body z), after
+    racket1: Vec3  # [N, D] the racket centre, after
+    off: Vec3  # [N, D] ball minus drone centre, after
+
+
+def may_touch(c: Constants, a: Approach) -> bool:
     """Whether some drone may meet the ball in this sub-step: the ball crosses a racket's plane from above (the
     first two of the racket test's conditions in ``touch``) or comes within the body's reach of a drone's
     centre (the body box's half-diagonal plus the ball's radius, and a millimetre for rounding: a ball
@@ -140,18 +153,19 @@ def may_touch(c: Constants, hgt0: torch.Tensor, hgt1: torch.Tensor, off: Vec3) -
     (its graph has no data-dependent branch), and so does one on an accelerator, where reading the answer
     back would stall the queue of kernels every sub-step. The near test comes first: in a game it is the one
     that holds, and the test then costs 8 calls."""
-    if torch.compiler.is_compiling() or hgt1.device.type != "cpu":
+    if torch.compiler.is_compiling() or a.hgt1.device.type != "cpu":
         return True
-    k = functools.partial(num, like=hgt1)
-    if bool((off.dot(off) < k(c.body_reach**2)).any()):
+    k = functools.partial(num, like=a.hgt1)
+    if bool((a.off.dot(a.off) < k(c.body_reach**2)).any()):
         return True
-    return bool(((hgt0 >= k(0.5 * c.ball_r)) & (hgt1 < k(c.ball_r))).any())
+    return bool(((a.hgt0 >= k(0.5 * c.ball_r)) & (a.hgt1 < k(c.ball_r))).any())
 
 
-def touch(c: Constants, q1: Quat, pos: Vec3, vel: Vec3, omega: Vec3, ball_pos: Vec3, ball_vel: Vec3, rel0: Vec3, rel1: Vec3,
-          hgt0: torch.Tensor, hgt1: torch.Tensor, up1: Vec3, racket1: Vec3, off: Vec3):
-    """The ball's contacts with the drones after a sub-step's free motion: the racket and body flags [N, D],
-    and the ball's position and velocity and the drones' velocities after the impulses."""
+def touch(c: Constants, q1: Quat, pos: Vec3, vel: Vec3, omega: Vec3, ball_pos: Vec3, ball_vel: Vec3, a: Approach):
+    """The ball's contacts with the drones after a sub-step's free motion (the drones at ``pos``, ``q1``,
+    the ball as ``a`` sees it): the racket and body flags [N, D], and the ball's position and velocity and
+    the drones' velocities after the impulses."""
+    rel0, rel1, hgt0, hgt1, up1, racket1, off = a
     # ball vs racket: swept test of the ball centre against the racket plane (offset by the ball
     # radius) so that no speed can tunnel through the thin disk; the racket's own motion counts.
     k = functools.partial(num, like=hgt1)
@@ -252,13 +266,11 @@ def substep(
     racket1 = pos + up1.scale(k(c.racket_off))
     ball1 = ball_pos.unsqueeze(1)
     rel1 = ball1 - racket1
-    hgt1 = rel1.dot(up1)
-    off = ball1 - pos
-    if may_touch(c, hgt0, hgt1, off):
-        racket_hit, body_hit, ball_pos, ball_vel, vel = touch(
-            c, q1, pos, vel, omega, ball_pos, ball_vel, rel0, rel1, hgt0, hgt1, up1, racket1, off)
+    seen = Approach(rel0, rel1, hgt0, rel1.dot(up1), up1, racket1, ball1 - pos)
+    if may_touch(c, seen):
+        racket_hit, body_hit, ball_pos, ball_vel, vel = touch(c, q1, pos, vel, omega, ball_pos, ball_vel, seen)
     else:
-        racket_hit = body_hit = torch.zeros_like(hgt1, dtype=torch.bool)
+        racket_hit = body_hit = torch.zeros_like(seen.hgt1, dtype=torch.bool)
 
     # ground: the ball bounces, a drone rests on its body box
     ball_r = k(c.ball_r)
