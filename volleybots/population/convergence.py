@@ -11,6 +11,7 @@ would, asks ``judged`` whether what it trained is a response at all, and reports
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -22,7 +23,7 @@ WINDOW = LoopConfig().win_window  # batches a plateau window spans (the oracles'
 
 
 @dataclass
-class StopRule:
+class StopRule(ABC):
     """What every stop rule keeps: its updates and the win rates it saw (its whole resumable state)."""
 
     updates: int = field(default=0, kw_only=True)
@@ -34,11 +35,13 @@ class StopRule:
         self.record(row.get("win"))
         return self.done()
 
+    @abstractmethod
     def record(self, win) -> None:
-        raise NotImplementedError
+        """Keep this batch's win rate (None where the batch finished no episode), as the rule counts it."""
 
+    @abstractmethod
     def done(self) -> bool:
-        raise NotImplementedError
+        """Whether the win rates kept so far say stop."""
 
     @property
     def judged(self) -> bool:
@@ -46,8 +49,9 @@ class StopRule:
         response: the population loop drops it)."""
         return True
 
+    @abstractmethod
     def summary(self) -> dict:
-        raise NotImplementedError
+        """What the report and the member's record say of the stop (its criterion and where it stood)."""
 
     def state_dict(self) -> dict:
         return {"updates": self.updates, "win_rates": list(self.win_rates)}
