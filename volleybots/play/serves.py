@@ -18,10 +18,9 @@ from volleybots.files import write_atomic
 from volleybots.keys import DONE
 from volleybots.play.episodes import run_episodes
 from volleybots.play.games import batch_sizes, side_env
+from volleybots.scripted.hierarchical import HIT_JUMP  # a hit, as the high level detects one
 from volleybots.tasks.drills import BANK_FORMAT
 from volleybots.tasks.multi import TeamPolicies
-
-HIT_JUMP = 0.5  # m/s: a change of the ball's velocity beyond free flight this large is a hit
 
 
 class _Watch:
@@ -77,11 +76,8 @@ def record_serves(cfg, a, b, games: int, seed: int, batch: int = 256) -> torch.T
 
 def write_bank(path, balls: torch.Tensor, **info) -> None:
     """Write ``balls`` [K, 6] as a ball bank file (``tasks.drills.read_ball_bank`` reads it; weights-only)."""
-    import io
-
-    buf = io.BytesIO()
-    torch.save({"format": BANK_FORMAT, "balls": balls.detach().cpu().float().contiguous(), **info}, buf)
-    write_atomic(path, buf.getvalue(), "a ball bank")
+    state = {"format": BANK_FORMAT, "balls": balls.detach().cpu().float().contiguous(), **info}
+    write_atomic(path, lambda f: torch.save(state, f), "a ball bank")
 
 
 __all__ = ["record_serves", "write_bank"]

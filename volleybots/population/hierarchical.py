@@ -31,20 +31,14 @@ from omegaconf import OmegaConf
 from volleybots.algos.population import population_of
 from volleybots.config import to_dict
 from volleybots.errors import ConfigError
-from volleybots.files import sha256, write_atomic
 from volleybots.policies import single_policy
 from volleybots.policies.builtin import HIGH_LEVEL
 from volleybots.policies.high_level import read_high_level, save_high_level
 from volleybots.policies.store import policy_checkpoint
+from volleybots.population.team_files import copy_team, high_level_path
 from volleybots.population.tune_drills import current_drills, tune
 from volleybots.runs import CKPT_FORMAT, POPULATION_DIR, MetricsLog, population_members, read_checkpoint
 from volleybots.train.high_level import HighLevelConfig, train_high_level
-
-DRILLS_DIR = "drills"
-
-
-def high_level_path(run_path, k: int) -> Path:
-    return Path(run_path) / POPULATION_DIR / f"high_level_{k:03d}.pt"
 
 
 def team_files(spec: str, what: str = "population.drills") -> tuple[str, dict[str, str]]:
@@ -58,23 +52,6 @@ def team_files(spec: str, what: str = "population.drills") -> tuple[str, dict[st
     for name, target in src["drills"].items():
         files[name] = str(target) if name == HIGH_LEVEL else str(policy_checkpoint(str(target), f"{what} drill {name!r}:", builtins=()))
     return comp.label, files
-
-
-def copy_team(run_path, files: dict[str, str], k: int) -> dict[str, str]:
-    """Copy a team's files into the run's population folder (drills by name and content, the high level
-    as member ``k``'s); returns them relative to that folder, as a member record names them."""
-    root = Path(run_path) / POPULATION_DIR
-    out = {}
-    for name, src in files.items():
-        if name == HIGH_LEVEL:
-            dst = high_level_path(run_path, k)
-        else:
-            dst = root / DRILLS_DIR / f"{name}-{sha256(src)[:12]}.pt"
-        if not dst.is_file():
-            dst.parent.mkdir(parents=True, exist_ok=True)
-            write_atomic(dst, Path(src).read_bytes(), "a population member's file")
-        out[name] = str(dst.relative_to(root))
-    return out
 
 
 def team_record(label: str, files: dict[str, str], **extra) -> dict:

@@ -28,10 +28,12 @@ from pathlib import Path
 
 from volleybots.algos.population import population_of
 from volleybots.config import load
-from volleybots.files import sha256, write_atomic
+from volleybots.files import write_atomic
 from volleybots.play.serves import record_serves, write_bank
 from volleybots.policies import resolve_competitor
+from volleybots.population.team_files import copy_team
 from volleybots.runs import POPULATION_DIR
+from volleybots.train import train
 
 TUNE_DIR = "tune"
 # the PPO recipe of the zoo's attack on the scripted serve (docs/hierarchical.md): the critic first
@@ -58,8 +60,6 @@ def tune(cfg, run_path, i: int, receiver: str, opponent, base: dict[str, str], s
     """Iteration ``i``'s stage III (when ``i`` is in ``population.tune_at``): ``receiver`` (a member file)
     receives ``opponent``'s serves, and the drills of ``population.tune_drills`` are fine-tuned on them from
     ``base``'s weights; returns the drills the oracle then plays (unchanged when ``i`` tunes nothing)."""
-    from volleybots.train import train  # the drill's PPO run (train sits on the population's floor)
-
     m = population_of(cfg)
     if not m.tune_drills or i not in m.tune_at:
         return base
@@ -83,11 +83,7 @@ def tune(cfg, run_path, i: int, receiver: str, opponent, base: dict[str, str], s
                           f"threads={cfg.threads}", f"env.num_envs={cfg.env.num_envs}", "progress=false", "evaluation.record=false"])
         run = work / name
         summary = train(drill_cfg, run)
-        src = run / "checkpoints" / "final.pt"
-        dst = root / "drills" / f"{name}-{sha256(src)[:12]}.pt"
-        if not dst.is_file():
-            write_atomic(dst, src.read_bytes(), "a tuned drill")
-        tuned[name] = str(dst.relative_to(root))
+        tuned.update(copy_team(run_path, {name: str(run / "checkpoints" / "final.pt")}, i))
         if log is not None:
             log(f"iteration {i}, stage III: {name} tuned for {summary.get('frames', m.tune_frames)} frames")
     write_atomic(record_path(run_path, i), json.dumps({"iteration": i, "serves": len(balls), "drills": tuned}, indent=1),

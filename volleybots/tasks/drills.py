@@ -55,8 +55,12 @@ where the drill was done; 0 where it was not).
 
 from __future__ import annotations
 
+import io
+
 import torch
 
+from volleybots.errors import ConfigError
+from volleybots.files import read_bytes
 from volleybots.physics.torch_backend import masked_select
 from volleybots.rules import COURTS, RefereeConfig
 from volleybots.tasks.base import StepResult, VolleyEnv
@@ -87,15 +91,16 @@ def serve_share_arg(serves) -> float:
 
 
 BANK_FORMAT = "volleybots-ball-bank/1"  # a file of recorded incoming balls (``read_ball_bank``)
+BANK_BYTES = 64 << 20  # a bank holds 24 bytes a ball: a million balls fit
 
 
 def read_ball_bank(path) -> torch.Tensor:
     """[K, 6] the balls (position, velocity; the receiving team on +x) of a ball bank file, as
     ``volleybots.play.serves.record_serves`` writes it: the balls a team met, which the Pass and Attack
     drills draw their serves from (``serve_bank``; HCSP's stage III, drills fine-tuned on what they meet)."""
-    try:
-        data = torch.load(str(path), map_location="cpu", weights_only=True)
-    except (OSError, RuntimeError, EOFError, ValueError) as e:
+    try:  # a bounded read (a folder, a device or a huge file is one line), then weights only
+        data = torch.load(io.BytesIO(read_bytes(path, "ball bank", BANK_BYTES)), map_location="cpu", weights_only=True)
+    except (OSError, RuntimeError, EOFError, ValueError, ConfigError) as e:
         raise ValueError(f"serve_bank={str(path)!r} is no readable ball bank ({type(e).__name__}); allowed: a file "
                          "written by volleybots.play.serves.record_serves") from None
     balls = data.get("balls") if isinstance(data, dict) and data.get("format") == BANK_FORMAT else None
