@@ -72,21 +72,21 @@ def figures(team: str, vs: str, games: int, seed: int, cfg) -> dict:
 
 @dataclass
 class Args:
-    drills_dir: str = option("", "")
+    drills_dir: str = option("", "a benchmarks/hierarchical.py learn= folder whose drill runs are used")
     drills: str = option("", "drill=checkpoint,... (the others scripted)")
-    out: Optional[str] = option(None, "")
-    opponent: str = option("scripted", "")
-    games: int = option(4096, "")
-    batch: int = option(256, "")
-    lr: float = option(1e-3, "")
-    entropy: float = option(0.01, "")
-    seed: int = option(1, "")
+    out: Optional[str] = option(None, "the folder of high_level.pt, team.yaml, history.jsonl and figures.json")
+    opponent: str = option("scripted", "whom the high level trains against")
+    games: int = option(4096, "games the high level trains on")
+    batch: int = option(256, "games (worlds) per update")
+    lr: float = option(1e-3, "Adam's learning rate")
+    entropy: float = option(0.01, "entropy bonus per choice")
+    seed: int = option(1, "the training seed")
     receive_coming: bool = option(False, "call a receiver only for balls coming down in the own half")
     receive_attack: bool = option(False, "a front drone called to receive returns the ball at once (attack drill)")
-    time_limit: float = option(0.0, "")
-    eval_games: int = option(400, "")
-    eval_seeds: str = option("9100,9101", "")
-    vs: str = option("scripted,hierarchical", "")
+    time_limit: float = option(0.0, "seconds of training at most (0: none)")
+    eval_games: int = option(400, "games against each of vs= per evaluation seed")
+    eval_seeds: str = option("9100,9101", "comma-separated held-out evaluation seeds")
+    vs: str = option("scripted,hierarchical", "comma-separated opponents of the evaluation")
     skip_train: bool = option(False, "play the DIR's high level again (no training)")
 
 

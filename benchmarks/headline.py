@@ -50,12 +50,12 @@ def row(team, opponent: str, cfg, games: int, seed: int) -> dict:
 @dataclass
 class Args:
     competitor: Optional[str] = option(None, "", positional=True)
-    task: str = option("3v3", "")
-    seeds: str = option("9200,9201", "")
-    games: int = option(200, "")
-    vs: str = option("scripted,hierarchical,zoo:3v3/hcsp_return,zoo:3v3/sp_noanchor", "")
-    rules: str = option("paper,volleyball", "")
-    out: Optional[str] = option(None, "")
+    task: str = option("3v3", "the match task")
+    seeds: str = option("9200,9201", "comma-separated held-out cross-play seeds")
+    games: int = option(200, "games a pair on each seed")
+    vs: str = option("scripted,hierarchical,zoo:3v3/hcsp_return,zoo:3v3/sp_noanchor", "comma-separated opponents")
+    rules: str = option("paper,volleyball", "the fall rules played: paper (a fall is a draw), volleyball (a fault)")
+    out: Optional[str] = option(None, "where the figures are written (JSON)")
 
 
 def main(argv=None) -> int:
