@@ -35,6 +35,12 @@ def test_members_auto_is_hierarchical_on_3v3_only_and_refused_where_it_cannot_pl
     assert load(["task=1v1", "algo=psro_nash"]).population.members == "flat"
     assert load(["task=3v3", "algo=sp"]).population.members == "flat"  # one learner on both teams is a flat policy
     assert load(["task=3v3", "algo=psro_nash", "algo.members=flat"]).population.learner_init == "bc"  # the paper's table 3, one key away
+    # PSRO-uniform's oracles start from the first team (continuing would make it FSP run for run); FSP continues
+    assert [load(["task=3v3", f"algo={a}"]).population.learner_init for a in ("psro_uniform", "fsp")] == ["first", "last"]
+    with pytest.raises(ConfigError, match="population=fsp continues each learner from the newest member"):
+        load(["task=3v3", "algo=fsp", "algo.learner_init=first"])
+    with pytest.raises(ConfigError, match="unknown population.learner_init 'first'; allowed: scratch, last, bc, zoo"):
+        load(["task=3v3", "algo=psro_uniform", "algo.members=flat", "algo.learner_init=first"])  # a flat learner has no high level
     with pytest.raises(ConfigError, match="population.members=hierarchical plays task 3v3, not '1v1'"):
         load(["task=1v1", "algo=psro_nash", "algo.members=hierarchical"])
     with pytest.raises(ConfigError, match="unknown population.members 'tree'; allowed: auto, flat, hierarchical"):
@@ -65,6 +71,28 @@ def test_the_oracle_trains_against_the_meta_solvers_mixture_and_the_fixed_oppone
         assert weights[:-1] == pytest.approx([0.75 * w / sum(kept) for w in kept]) and weights[-1] == pytest.approx(0.25)
         assert fall and warm  # trained under the volleyball rule, from the newest high level (learner_init=last)
     assert len(seen) == 2 and _members(tmp_path / "run") == ["zoo:3v3/hcsp_return", "hierarchical", "br1", "br2"]
+
+
+@pytest.mark.slow  # trains or plays 3v3 games
+def test_psro_uniform_starts_every_oracle_from_the_first_team_and_fsp_from_the_newest(tmp_path, monkeypatch):
+    starts = {}
+    real = hierarchical.train_high_level
+
+    def spy(match, drills, opponent, hc, log=None, start=None):
+        starts.setdefault(method, []).append({k: v.clone() for k, v in start.state_dict().items()})
+        return real(match, drills, opponent, hc, log, start=start)
+
+    monkeypatch.setattr(hierarchical, "train_high_level", spy)
+    for method in ("psro_uniform", "fsp"):
+        start(tiny("algo.iterations=2", algo=method), tmp_path / method)
+    def equal(a, b):
+        return a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+
+    uniform, fsp = starts["psro_uniform"], starts["fsp"]
+    assert len(uniform) == len(fsp) == 2 and equal(uniform[0], fsp[0])  # both first oracles from the first team's high level
+    assert equal(uniform[1], uniform[0])  # PSRO-uniform's second oracle too ...
+    br1 = torch.load(tmp_path / "fsp" / "population" / "high_level_001.pt", weights_only=True)["state_dict"]
+    assert equal(fsp[1], br1) and not equal(fsp[1], fsp[0])  # ... FSP's from br1's, the newest
 
 
 @pytest.mark.slow  # trains or plays 3v3 games

@@ -24,6 +24,9 @@ from volleybots.ratings.solvers import SOLVERS  # a leaf module (numpy and scipy
 CLONE = "bc"  # the run's behaviour clone of the scripted team: a learner_init and a seed_members name
 ZOO = "zoo"  # learners fine-tuned from the task's zoo start (ZOO_STARTS), the first member that policy
 INITS = ("scratch", "last", CLONE, ZOO)
+# a hierarchical oracle's high level starts near uniform (scratch), from the newest member's (last) or from
+# the first member's, the team the run starts from (first: what flat PSRO's learners do from the clone)
+HIERARCHICAL_INITS = ("scratch", "last", "first")
 # population.start: what a population starts from where population.learner_init / seed_members are left unset.
 # "clone" is the default because learners from scratch do not hit the ball within a default budget:
 # a bare `train task=3v3 algo=psro_nash` from scratch ended with the Nash mixture on `random` alone
@@ -128,6 +131,8 @@ class Preset:
     otherwise: str = ""
     # population.start -> (learner_init, seed_members) where the config leaves them unset
     starts: tuple = (("clone", CLONE, (CLONE,)), ("scratch", "scratch", ("random",)))
+    # hierarchical members: where each oracle's high level starts when learner_init is unset (HIERARCHICAL_INITS)
+    hierarchical_init: str = "last"
 
     @property
     def config_cls(self) -> type:
@@ -178,7 +183,7 @@ class Preset:
         cfg.fixed_share = (fixed[1] if cfg.fixed_opponents else 0.0) if cfg.fixed_share is None else cfg.fixed_share
         if cfg.members == "hierarchical":
             if cfg.learner_init is None:
-                cfg.learner_init = "last" if cfg.start == "clone" else "scratch"
+                cfg.learner_init = self.hierarchical_init if cfg.start == "clone" else "scratch"
             if cfg.seed_members is None:
                 cfg.seed_members = [cfg.drills] if cfg.start == "clone" else ["random"]
             return
@@ -255,7 +260,7 @@ class Preset:
             raise ConfigError(f"algo={learner} trains flat members; a hierarchical member's oracle trains its high level "
                               "(population.high_level_*): give population.members=flat with it")
         for value, allowed, key in ((pop.solver, SOLVERS, "population.solver"),
-                                    (pop.learner_init, ("scratch", "last"), "population.learner_init"),
+                                    (pop.learner_init, HIERARCHICAL_INITS, "population.learner_init"),
                                     (pop.payoff_pool, POOLS, "population.payoff_pool"), (pop.oracle_pool, POOLS, "population.oracle_pool")):
             if value not in allowed:
                 raise ConfigError(f"unknown {key} {value!r} for population.members=hierarchical; allowed: {', '.join(allowed)}")
@@ -344,6 +349,10 @@ FSP = Preset(
     otherwise="continues each learner from the newest member (population.learner_init=last), not {init!r}, which makes it "
     "population=psro_uniform; to start FSP from the clone give population.seed_members=[bc] (its first learner continues from the clone)",
 )
-PSROUniform = Preset("psro_uniform", "uniform")
+# PSRO-uniform's oracles start from the run's first team, as its flat learners start from the clone: had they
+# continued from the newest member (last), a hierarchical PSRO-uniform would be FSP run for run (it was:
+# the same high levels, bit for bit, seed 1). PSRO-Nash continues (the headline's setting, HCSP's one high
+# level carried through the population); population.learner_init=first starts it as PSRO-uniform does
+PSROUniform = Preset("psro_uniform", "uniform", hierarchical_init="first")
 PSRONash = Preset("psro_nash", "nash")
 PRESETS = {p.name: p for p in (SP, FSP, PSROUniform, PSRONash)}

@@ -103,7 +103,9 @@ def train_member(cfg, run_path, metrics_path, i: int, k: int, opponent, frames: 
         note = (lambda line: print(line, file=sys.stderr, flush=True)) if cfg.progress else None
         drills = tune(cfg, run_path, i, receiver, opponent, drills, seed, note)
     coming, attack = team_options(m.drills)
-    start = newest_high_level(run_path, population_members(run_path)[:k]) if m.learner_init == "last" else None
+    # the newest member's high level (last), the first member's (first: the team the run starts from), or none
+    since = {"last": k, "first": 1}.get(m.learner_init, 0)
+    start = newest_high_level(run_path, population_members(run_path)[:since]) if since else None
     limit = 0.0 if time_left == float("inf") else max(time_left, 1e-3)
     hc = HighLevelConfig(games=m.high_level_games, batch=m.high_level_batch, lr=m.high_level_lr, seed=seed,
                          receive_coming=coming, receive_attack=attack, time_limit=limit,
