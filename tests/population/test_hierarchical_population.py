@@ -8,6 +8,7 @@ import torch
 from helpers import one_line_exit_2, run_cli
 
 from volleybots.config import ConfigError, load
+from volleybots.files import sha256
 from volleybots.policies import resolve_competitor
 from volleybots.population import hierarchical
 from volleybots.population.run import resume, start
@@ -93,6 +94,34 @@ def test_psro_uniform_starts_every_oracle_from_the_first_team_and_fsp_from_the_n
     assert equal(uniform[1], uniform[0])  # PSRO-uniform's second oracle too ...
     br1 = torch.load(tmp_path / "fsp" / "population" / "high_level_001.pt", weights_only=True)["state_dict"]
     assert equal(fsp[1], br1) and not equal(fsp[1], fsp[0])  # ... FSP's from br1's, the newest
+
+
+@pytest.mark.slow  # trains drills and plays 3v3 games
+def test_stage_one_trains_the_drills_in_the_run_and_every_member_plays_them(tmp_path):
+    from volleybots.population.stage_one import TRAINED, team_path
+
+    cfg = tiny("algo.iterations=1", "algo.drills=train", "algo.drill_bc_frames=2048", "algo.drill_frames=2048", "env.num_envs=16")
+    assert cfg.population.seed_members == ["train"]  # member 0: the trained drills under the rules
+    run = tmp_path / "run"
+    summary = start(cfg, run)
+    team = team_path(run)
+    text = team.read_text()
+    for name in TRAINED:  # each drill imitated, then fine-tuned from its clone, in the run
+        ppo = json.loads((team.parent / name / "ppo" / "summary.json").read_text())
+        assert ppo["task"] == name and ppo["algo"] == "ppo" and ppo["frames"] >= 2048
+        assert f"{name}: {name}/ppo/checkpoints/final.pt" in text
+    assert summary["wall_time_split"]["drills"] > 0
+    # every member (the first team and br1) plays the trained drills, copied into the run by content
+    trained = {n: sha256(team.parent / n / "ppo" / "checkpoints" / "final.pt")[:12] for n in TRAINED}
+    for k in (0, 1):
+        record = torch.load(run / "population" / f"member_{k:03d}.pt", weights_only=True)
+        assert {n: record["drills"][n].split("-")[-1][:12] for n in TRAINED} == trained
+    # a resume finds the team file made and trains no drill again
+    stamp = team.stat().st_mtime_ns
+    resume(run, ["algo.iterations=2"])
+    assert team.stat().st_mtime_ns == stamp and _members(run) == ["trained_drills", "br1", "br2"]
+    with pytest.raises(ConfigError, match="drill_frames"):
+        tiny("algo.drills=train", "algo.drill_frames=0")
 
 
 @pytest.mark.slow  # trains or plays 3v3 games

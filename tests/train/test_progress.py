@@ -74,7 +74,7 @@ def test_a_population_run_reports_progress_final_eval_curves_and_its_wall_time_s
     assert ev["stats"]["win"]["mean"] == ev["wdl"][0] / 2
     assert ev["content"]["games"] == 2
     split = summary["wall_time_split"]
-    assert set(split) == {"clone", "oracle_training", "payoff_games", "evaluations", "other"} and split["clone"] == 0
+    assert set(split) == {"clone", "drills", "oracle_training", "payoff_games", "evaluations", "other"} and split["clone"] == 0
     assert all(v >= 0 for v in split.values()) and split["oracle_training"] > 0 and split["payoff_games"] > 0 and split["evaluations"] > 0
     assert abs(sum(split.values()) - summary["wall_time_s"]) < 0.05
     assert (tmp_path / "pop" / "curves.rrd").stat().st_size > 0

@@ -22,6 +22,7 @@ from volleybots.errors import ConfigError, ranged
 from volleybots.ratings.solvers import SOLVERS  # a leaf module (numpy and scipy only)
 
 CLONE = "bc"  # the run's behaviour clone of the scripted team: a learner_init and a seed_members name
+TRAIN = "train"  # population.drills (and a seed_members entry): the drills the run trains itself (stage I)
 ZOO = "zoo"  # learners fine-tuned from the task's zoo start (ZOO_STARTS), the first member that policy
 INITS = ("scratch", "last", CLONE, ZOO)
 # a hierarchical oracle's high level starts near uniform (scratch), from the newest member's (last) or from
@@ -81,7 +82,10 @@ class LoopConfig:
     # take about 90 minutes on 2 cores, so it is bounded by an hour ({6v6: 0} lifts it)
     default_time_limit: dict[str, float] = field(default_factory=lambda: {"6v6": 3600.0})
     members: str = "auto"
-    drills: str = "zoo:3v3/hcsp_return"  # a hierarchical population's drills: a zoo team, a team file, or hierarchical
+    drills: str = "zoo:3v3/hcsp_return"  # a hierarchical population's drills: a zoo team, a team file, hierarchical, or train
+    # stage I of HCSP (population/stage_one.py), with drills=train: each drill imitated, then fine-tuned by PPO
+    drill_bc_frames: int = ranged(500_000, ge=1)  # imitation frames per drill
+    drill_frames: int = ranged(500_000, ge=1)  # PPO frames per drill, from its clone
     high_level_games: int = ranged(1024, ge=1)  # games each hierarchical oracle trains its high level on
     high_level_batch: int = ranged(256, ge=1)  # games (worlds) per high-level update
     high_level_lr: float = ranged(1e-3, gt=0, le=1)  # Adam's learning rate of a high level

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from volleybots.algos.population import CLONE, method_name
+from volleybots.algos.population import CLONE, TRAIN, method_name
 from volleybots.errors import ConfigError
 from volleybots.policies.builtin import BUILTIN, PLAYERS
 from volleybots.policies.store import load_learner, parse_single, policy_checkpoint
@@ -123,7 +123,7 @@ def check_references(cfg) -> None:
                 raise ConfigError(f"population.{key}=ray needs the ray package: pip install 'volleybots[cluster]' "
                                   f"(or use population.{key}=serial)")
     for spec in pop.get("seed_members") or ():
-        if str(spec) == CLONE:  # the run's own clone of the scripted team: made by the run, checked by the preset
+        if str(spec) in (CLONE, TRAIN):  # the run's own clone, or its stage-I drills: made by the run
             continue
         single_policy(str(spec), "population.seed_members entry").check_fits(task_cls.name, cfg.env.action_space, obs_dim)
 

@@ -35,6 +35,7 @@ from volleybots.policies import single_policy
 from volleybots.policies.builtin import HIGH_LEVEL
 from volleybots.policies.high_level import read_high_level, save_high_level
 from volleybots.policies.store import policy_checkpoint
+from volleybots.population.stage_one import drills_spec
 from volleybots.population.team_files import copy_team, high_level_path
 from volleybots.population.tune_drills import current_drills, tune
 from volleybots.runs import CKPT_FORMAT, POPULATION_DIR, MetricsLog, population_members, read_checkpoint
@@ -97,12 +98,13 @@ def train_member(cfg, run_path, metrics_path, i: int, k: int, opponent, frames: 
     ``opponent`` (a ``Competitor``, the loop's choice; None: self-play, population=sp), to be written as member ``k``; ``frames`` were
     spent before it, ``time_left`` seconds remain to it (inf: no limit). Returns the member's record."""
     m = population_of(cfg)  # the loop's keys
-    drills = current_drills(run_path, i - 1, run_drills(run_path, m.drills))
+    spec = drills_spec(run_path, m.drills)  # population.drills=train: stage I's team file
+    drills = current_drills(run_path, i - 1, run_drills(run_path, spec))
     if m.tune_drills:  # stage III: the receiving drills fine-tuned on the serves the newest member meets
         receiver = str(population_members(run_path)[k - 1])
         note = (lambda line: print(line, file=sys.stderr, flush=True)) if cfg.progress else None
         drills = tune(cfg, run_path, i, receiver, opponent, drills, seed, note)
-    coming, attack = team_options(m.drills)
+    coming, attack = team_options(spec)
     # the newest member's high level (last), the first member's (first: the team the run starts from), or none
     since = {"last": k, "first": 1}.get(m.learner_init, 0)
     start = newest_high_level(run_path, population_members(run_path)[:since]) if since else None

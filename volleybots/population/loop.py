@@ -25,6 +25,7 @@ written are never rewritten.
 from __future__ import annotations
 
 import json
+import sys
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -46,6 +47,7 @@ from volleybots.population.final import evaluate_mixture, log_final_eval
 from volleybots.population.hierarchical import seed_member
 from volleybots.population.opponents import member_label, oracle_opponent, population_competitor
 from volleybots.population.oracle import BestResponse, HighLevelResponse, Presentation, Start
+from volleybots.population.stage_one import TRAIN, drills_spec, train_drills
 from volleybots.ratings.payoffs import PayoffTable, payoff_reserve, plot
 from volleybots.ratings.solvers import SOLVERS
 from volleybots.replay import write_curves
@@ -59,7 +61,7 @@ from volleybots.train.wandb import WandbLogger
 NETWORK_KEYS = ("hidden", "activation", "obs_norm", "value_norm", "centralised_critic", "init_log_std")
 ITERATION_SEED = 1_000  # iteration i runs with seed + i * ITERATION_SEED
 GAMES_SEED = 500_000  # payoff games of member k against j use seed + GAMES_SEED + 1000 k + j
-SPLIT = ("clone", "oracle_training", "payoff_games", "evaluations")  # the parts of a run's wall time it reports
+SPLIT = ("clone", "drills", "oracle_training", "payoff_games", "evaluations")  # the parts of a run's wall time it reports
 
 
 def hierarchical(m) -> bool:
@@ -108,6 +110,9 @@ class PopulationLoop:
         if needs_clone(self.m):
             with self._timed("clone"):  # once per run, then reused (a resume finds it made)
                 self.clone = make_clone(self.cfg, self.run.path)
+        if self.hierarchical and self.m.drills == TRAIN:
+            with self._timed("drills"):  # stage I, once per run (a resume finds the team file made)
+                train_drills(self.cfg, self.run.path, self._say)
         if seeds and not self.metas():
             with self._timed("payoff_games"):
                 self._seed_population(seeds)
@@ -136,6 +141,10 @@ class PopulationLoop:
             self._solve_and_record(i, int(member["frames"]), int(member["iteration"]), wall(), member["oracle"])
         return self._finish()
 
+    def _say(self, line: str) -> None:
+        if self.cfg.progress:
+            print(line, file=sys.stderr, flush=True)
+
     @contextmanager
     def _timed(self, part: str):
         t = time.perf_counter()
@@ -154,6 +163,7 @@ class PopulationLoop:
             if str(spec) == CLONE:
                 clone_member(self.clone, path)
                 continue
+            spec = drills_spec(self.run.path, spec)  # train: the drills stage I made
             src = single_policy(spec, "population.seed_members entry").members[0].source
             if src["kind"] == "hierarchical" and self.hierarchical:  # its files copied: the run dir holds its members
                 self._save_member(k, seed_member(self.run.path, spec, k))
