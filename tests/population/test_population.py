@@ -395,7 +395,9 @@ def test_the_defaults_start_every_population_from_the_clone_and_fit_every_announ
         zoo = ["zoo:1v1/dag_rally"]
         want.update(fsp=("last", zoo), psro_uniform=("zoo", zoo), psro_nash=("zoo", zoo))
     if task == "3v3":
-        want.update({a: ("last", ["zoo:3v3/hcsp_return"]) for a in ("fsp", "psro_uniform", "psro_nash")})
+        # hierarchical oracles continue from the newest high level, PSRO-uniform's from the first team's
+        first = {"psro_uniform": "first"}
+        want.update({a: (first.get(a, "last"), ["zoo:3v3/hcsp_return"]) for a in ("fsp", "psro_uniform", "psro_nash")})
     scratch = {"sp": ("scratch", []), "fsp": ("last", ["random"]), "psro_uniform": ("scratch", ["random"]),
                "psro_nash": ("scratch", ["random"])}
     for algo in want:
