@@ -54,7 +54,7 @@ from volleybots.tasks.match import Referee
 from volleybots.train import train
 
 sys.path.insert(0, str(Path(__file__).parent))
-from imitation import FINE_TUNE, common, curve  # noqa: E402  (the same runs as the imitation benchmark)
+from imitation import common, curve, fine_tune  # noqa: E402  (the same runs as the imitation benchmark)
 
 DRILLS = ("serve", "pass", "set", "attack")
 
@@ -110,7 +110,7 @@ def learn_drill(name: str, a, root: Path) -> dict:
     row = {"drill": name, "bc": run_summary(bc_dir, bc), "fine_tune": None, "policy": str(bc_dir)}
     if a.ft_minutes > 0:
         ft = trained(ft_dir) or train(
-            load([*common(a, name, a.ft_minutes), "algo=ppo", f"init={bc_dir}", *FINE_TUNE["ppo"], *a.ft_overrides]), ft_dir
+            load([*common(a, name, a.ft_minutes), "algo=ppo", f"init={bc_dir}", *fine_tune("ppo"), *a.ft_overrides]), ft_dir
         )
         row["fine_tune"] = run_summary(ft_dir, ft)
         # the team's drill: the fine-tuned policy unless its final evaluation (the training seed's

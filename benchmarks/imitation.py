@@ -34,10 +34,18 @@ from volleybots.config.args import option, script_options
 # clipped actor. SAC (a residual on the clone, critic warm-up by default): a slow actor, held near the
 # clone (TD3+BC's weight: about mean |Q| / 2.5), aiming at about the entropy it starts with.
 FINE_TUNE = {
-    "ppo": ["algo.actor_freeze_updates=10", "algo.actor_lr=5e-5", "algo.clip_epsilon=0.1", "algo.entropy_coeff=0.0"],
     "sac": ["algo.actor_lr=5e-5", "algo.guide_coeff=10", "algo.target_entropy_scale=-1.25"],
 }
-FINE_TUNE["mappo"] = FINE_TUNE["ppo"]
+LEARNERS = ("ppo", "mappo", *FINE_TUNE)  # PPO / MAPPO: the package's recipe (volleybots.algos.ppo.FINE_TUNE; stage I uses it too)
+
+
+def fine_tune(algo: str) -> list[str]:
+    """The fine-tuning overrides of ``algo``; PPO's are imported when a run needs them, so help stays fast."""
+    if algo in ("ppo", "mappo"):
+        from volleybots.algos.ppo import FINE_TUNE as PPO_FINE_TUNE
+
+        return list(PPO_FINE_TUNE)
+    return list(FINE_TUNE[algo])
 
 
 def learner(task: str, choice: str = "auto") -> str:
@@ -171,7 +179,7 @@ def run_task(task: str, args, root: Path) -> dict:
     else:
         init = policy_of(bc_dir)
         ft = train(
-            load([*common(args, task, args.ft_minutes), f"algo={algo}", f"init={init}", *FINE_TUNE[algo], *args.ft_overrides]), ft_dir
+            load([*common(args, task, args.ft_minutes), f"algo={algo}", f"init={init}", *fine_tune(algo), *args.ft_overrides]), ft_dir
         )
     runs = {"bc": str(policy_of(bc_dir)), "fine_tuned_final": str(ft_dir), "fine_tuned": str(policy_of(ft_dir))}
     if args.paired and not competitive(task):
@@ -268,7 +276,7 @@ class Args:
     bc_overrides: list[str] = option(help="extra overrides of the bc runs (algo.replay_ratio=8 ...)", factory=lambda: [])
     bc_dir: Optional[str] = option(None, "a finished bc run of the (one) task to fine-tune instead of a new one")
     ft_dir: Optional[str] = option(None, "a finished fine-tuning run of the (one) task to evaluate instead of a new one")
-    learner: str = option("auto", "the fine-tuning algorithm (auto: PPO, MAPPO with several drones)", choices=["auto", *FINE_TUNE])
+    learner: str = option("auto", "the fine-tuning algorithm (auto: PPO, MAPPO with several drones)", choices=["auto", *LEARNERS])
     ft_overrides: list[str] = option(help="extra overrides of the fine-tuning runs", factory=lambda: [])
     root: str = option("outputs/imitation", "where the runs go")
     out: str = option("results/imitation/imitation.json", "where the results go")

@@ -29,6 +29,9 @@ from volleybots.errors import ConfigError, ranged
 from volleybots.keys import ACTION, AGENTS, DONE, LOG_PROB, NEXT, OBS, OBS_NORM, REWARD, STATS, TERMINATED, VALUE, leaf, nxt
 
 # what a minibatch's loss output adds to the logs (when the loss computed it)
+# fine-tuning from a clone (docs/imitation.md; init=): the critic learns the clone's values for 10 batches
+# first, then a slow, tightly clipped actor without an entropy bonus keeps what imitation taught
+FINE_TUNE = ("algo.actor_freeze_updates=10", "algo.actor_lr=5e-5", "algo.clip_epsilon=0.1", "algo.entropy_coeff=0.0")
 LOSS_LOGS = ("loss_objective", "loss_critic", "loss_entropy", "entropy", "kl_approx", "clip_fraction", "explained_variance")
 
 

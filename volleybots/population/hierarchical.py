@@ -40,6 +40,7 @@ from volleybots.population.team_files import copy_team, high_level_path
 from volleybots.population.tune_drills import current_drills, tune
 from volleybots.runs import CKPT_FORMAT, POPULATION_DIR, MetricsLog, population_members, read_checkpoint
 from volleybots.train.high_level import HighLevelConfig, train_high_level
+from volleybots.train.progress import note
 
 
 def team_files(spec: str, what: str = "population.drills") -> tuple[str, dict[str, str]]:
@@ -102,8 +103,7 @@ def train_member(cfg, run_path, metrics_path, i: int, k: int, opponent, frames: 
     drills = current_drills(run_path, i - 1, run_drills(run_path, spec))
     if m.tune_drills:  # stage III: the receiving drills fine-tuned on the serves the newest member meets
         receiver = str(population_members(run_path)[k - 1])
-        note = (lambda line: print(line, file=sys.stderr, flush=True)) if cfg.progress else None
-        drills = tune(cfg, run_path, i, receiver, opponent, drills, seed, note)
+        drills = tune(cfg, run_path, i, receiver, opponent, drills, seed, note(cfg.progress))
     coming, attack = team_options(spec)
     # the newest member's high level (last), the first member's (first: the team the run starts from), or none
     since = {"last": k, "first": 1}.get(m.learner_init, 0)

@@ -25,7 +25,6 @@ written are never rewritten.
 from __future__ import annotations
 
 import json
-import sys
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -54,7 +53,7 @@ from volleybots.replay import write_curves
 from volleybots.runs import CKPT_FORMAT, POPULATION_DIR, RunDir, check_writable, locked, read_checkpoint, read_metas, read_population
 from volleybots.train import RESUME_KEYS as TRAIN_RESUME_KEYS
 from volleybots.train import resume_config, write_summary
-from volleybots.train.progress import hms
+from volleybots.train.progress import hms, note
 from volleybots.train.wandb import WandbLogger
 
 # the learner keys that shape its networks: a learner fine-tuned from the zoo start takes that policy's
@@ -112,7 +111,7 @@ class PopulationLoop:
                 self.clone = make_clone(self.cfg, self.run.path)
         if self.hierarchical and self.m.drills == TRAIN:
             with self._timed("drills"):  # stage I, once per run (a resume finds the team file made)
-                train_drills(self.cfg, self.run.path, self._say)
+                train_drills(self.cfg, self.run.path, note(self.cfg.progress))
         if seeds and not self.metas():
             with self._timed("payoff_games"):
                 self._seed_population(seeds)
@@ -140,10 +139,6 @@ class PopulationLoop:
                 self._play_payoffs()
             self._solve_and_record(i, int(member["frames"]), int(member["iteration"]), wall(), member["oracle"])
         return self._finish()
-
-    def _say(self, line: str) -> None:
-        if self.cfg.progress:
-            print(line, file=sys.stderr, flush=True)
 
     @contextmanager
     def _timed(self, part: str):

@@ -23,6 +23,7 @@ import shutil
 from pathlib import Path
 
 from volleybots.algos.population import TRAIN, population_of
+from volleybots.algos.ppo import FINE_TUNE
 from volleybots.config import load
 from volleybots.files import write_atomic
 from volleybots.runs import POPULATION_DIR
@@ -30,9 +31,7 @@ from volleybots.train import train
 
 STAGE_DIR = "stage_one"
 TRAINED = ("serve", "pass", "set", "attack")  # the drills that play the ball; hover stays scripted
-# the fine-tuning recipe of the learned drills (docs/hierarchical.md, docs/imitation.md): the critic learns
-# the clone's values first, then a slow, tightly clipped actor keeps what imitation taught
-RECIPE = ("algo=ppo", "algo.actor_freeze_updates=10", "algo.actor_lr=5e-5", "algo.clip_epsilon=0.1", "algo.entropy_coeff=0.0")
+RECIPE = ("algo=ppo", *FINE_TUNE)  # the learned drills' fine-tuning from their clones (docs/hierarchical.md)
 SEED_STRIDE = 100  # drill j's runs use seed + SEED_STRIDE * (j + 1) (bc) and one more (PPO)
 
 
@@ -53,7 +52,7 @@ def train_drills(cfg, run_path, log=None) -> Path:
     if team.is_file():
         return team
     common = (f"threads={cfg.threads}", f"env.num_envs={cfg.env.num_envs}", f"env.action_space={cfg.env.action_space}", "progress=false",
-              "evaluation.record=false", "evaluation.episodes=2")
+              "evaluation.record=false", f"evaluation.episodes={cfg.evaluation.episodes}")
     for j, name in enumerate(TRAINED):
         work = team.parent / name
         if (work / "ppo" / "summary.json").is_file():

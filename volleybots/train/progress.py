@@ -27,6 +27,11 @@ PLAIN_EVERY_S = 10.0  # at most one plain line per this many seconds: enough to 
 RECENT = 8  # batches whose rate gives the ETA: recent enough to follow a change of pace, enough to smooth one slow batch
 
 
+def note(progress: bool):
+    """A one-line writer to stderr where ``progress`` is on (a run's phases: stage I, stage III), else None."""
+    return (lambda line: print(line, file=sys.stderr, flush=True)) if progress else None
+
+
 def hms(seconds: float) -> str:
     if seconds is None or not math.isfinite(seconds):
         return "-"
